@@ -1,0 +1,89 @@
+//! Costs `ℓ(x, u)` with gradient and Hessian, stage-wise and terminal (`nu = 0`).
+//!
+//! Derivatives with respect to the state are tangent (`ndx`), like every other model of
+//! the library.
+
+use faer::{Col, Mat};
+
+use crate::functions::{Workspace, no_workspace};
+
+/// What a [`Cost`] writes: value, gradient and Hessian.
+#[derive(Debug)]
+pub struct CostData {
+    /// `ℓ(x, u)`.
+    pub value: f64,
+    /// `dℓ/dx` (`ndx`).
+    pub lx: Col<f64>,
+    /// `dℓ/du` (`nu`).
+    pub lu: Col<f64>,
+    /// `d²ℓ/dx²` (`ndx x ndx`).
+    pub lxx: Mat<f64>,
+    /// `d²ℓ/dxdu` (`ndx x nu`).
+    pub lxu: Mat<f64>,
+    /// `d²ℓ/du²` (`nu x nu`).
+    pub luu: Mat<f64>,
+    /// The model's private scratch memory.
+    pub ws: Workspace,
+}
+
+impl CostData {
+    /// Zero-filled data for a cost of dimensions `(ndx, nu)`.
+    pub fn new(ndx: usize, nu: usize, ws: Workspace) -> Self {
+        Self {
+            value: 0.0,
+            lx: Col::zeros(ndx),
+            lu: Col::zeros(nu),
+            lxx: Mat::zeros(ndx, ndx),
+            lxu: Mat::zeros(ndx, nu),
+            luu: Mat::zeros(nu, nu),
+            ws,
+        }
+    }
+
+    /// The state gradient as a slice.
+    pub fn lx(&self) -> &[f64] {
+        crate::linalg::slice(&self.lx)
+    }
+
+    /// The control gradient as a slice.
+    pub fn lu(&self) -> &[f64] {
+        crate::linalg::slice(&self.lu)
+    }
+
+    /// Downcasts the workspace to the model's own type.
+    ///
+    /// # Panics
+    /// If the data was created by another model (a programming error).
+    pub fn ws<T: 'static>(&mut self) -> &mut T {
+        self.ws
+            .downcast_mut::<T>()
+            .expect("cost data used with a model that did not create it")
+    }
+}
+
+/// A twice-differentiable cost `ℓ(x, u)`.
+pub trait Cost: Send + Sync {
+    /// Representation size of the state.
+    fn nx(&self) -> usize;
+    /// Tangent size of the state.
+    fn ndx(&self) -> usize;
+    /// Control size (0 for terminal costs).
+    fn nu(&self) -> usize;
+
+    /// Creates the private scratch memory of this cost (default: none).
+    fn create_workspace(&self) -> Workspace {
+        no_workspace()
+    }
+
+    /// Creates the data this cost writes into.
+    fn create_data(&self) -> CostData {
+        CostData::new(self.ndx(), self.nu(), self.create_workspace())
+    }
+
+    /// Writes `ℓ(x, u)` into `data.value`.
+    fn evaluate(&self, x: &[f64], u: &[f64], data: &mut CostData);
+
+    /// Writes the gradient and Hessian into `data`. `evaluate` has been called at the
+    /// same point before.
+    fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData);
+}

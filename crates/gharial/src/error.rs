@@ -1,0 +1,95 @@
+//! The error type shared by every part of the library.
+//!
+//! Construction, validation and setup return [`Result`]; messages name the offending
+//! object (stage index, function, field) and the dimensions involved, so that a user can
+//! find the mistake without reading the library's code.
+
+use std::fmt;
+
+/// Errors raised when a model, a problem, an option or a linear system is invalid.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// A vector or matrix does not have the size the model expects.
+    #[error("dimension mismatch in {what}: expected {expected}, got {got}")]
+    Dimension {
+        /// What was being checked, e.g. `"stage 3: dynamics Jx rows"`.
+        what: String,
+        /// Expected size.
+        expected: usize,
+        /// Size found.
+        got: usize,
+    },
+    /// A value is NaN or infinite.
+    #[error("non-finite value in {what}")]
+    NonFinite {
+        /// Where the value was found, e.g. `"initial guess us[4]"`.
+        what: String,
+    },
+    /// A linear system that must be solved is singular or has the wrong inertia.
+    #[error("singular or indefinite system in {what}")]
+    Singular {
+        /// Which system, e.g. `"LQ knot 7: stage KKT block"`.
+        what: String,
+    },
+    /// An option is outside its valid range.
+    #[error("invalid option `{name}`: {reason}")]
+    InvalidOption {
+        /// Option name as in the options struct.
+        name: String,
+        /// Why it is invalid.
+        reason: String,
+    },
+    /// A model or problem is ill-formed in a way not covered by the other variants.
+    #[error("invalid model: {0}")]
+    InvalidModel(String),
+}
+
+/// Result type of the library.
+pub type Result<T> = std::result::Result<T, Error>;
+
+impl Error {
+    /// Shorthand for [`Error::Dimension`].
+    pub fn dim(what: impl fmt::Display, expected: usize, got: usize) -> Self {
+        Error::Dimension {
+            what: what.to_string(),
+            expected,
+            got,
+        }
+    }
+
+    /// Shorthand for [`Error::NonFinite`].
+    pub fn non_finite(what: impl fmt::Display) -> Self {
+        Error::NonFinite { what: what.to_string() }
+    }
+
+    /// Shorthand for [`Error::Singular`].
+    pub fn singular(what: impl fmt::Display) -> Self {
+        Error::Singular { what: what.to_string() }
+    }
+
+    /// Shorthand for [`Error::InvalidOption`].
+    pub fn option(name: impl fmt::Display, reason: impl fmt::Display) -> Self {
+        Error::InvalidOption {
+            name: name.to_string(),
+            reason: reason.to_string(),
+        }
+    }
+}
+
+/// Returns an error if `got != expected`.
+pub fn check_dim(what: impl fmt::Display, expected: usize, got: usize) -> Result<()> {
+    if expected == got {
+        Ok(())
+    } else {
+        Err(Error::dim(what, expected, got))
+    }
+}
+
+/// Returns an error if a slice contains a NaN or an infinity.
+pub fn check_finite(what: impl fmt::Display, values: &[f64]) -> Result<()> {
+    if values.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(Error::non_finite(what))
+    }
+}

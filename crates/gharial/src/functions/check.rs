@@ -1,0 +1,408 @@
+//! Derivative checker: compares the analytic derivatives of any model with central
+//! finite differences taken along tangent directions (`x ⊕ ε e_j`).
+//!
+//! Errors are relative: `max|J - J_fd| / max(1, max|J_fd|)`. With the default step
+//! (`1e-6`) smooth models agree to about `1e-9`; the default tolerance is `1e-6`.
+//! Every model of the library is tested with it; users can run it on their own models.
+
+use faer::Mat;
+
+use crate::costs::Cost;
+use crate::dynamics::{ExplicitDynamics, ImplicitDynamics, Ode};
+use crate::functions::StageFunction;
+use crate::linalg::norm_max;
+use crate::spaces::{Arg, Manifold};
+
+/// Step and tolerance of the checks.
+#[derive(Debug, Clone, Copy)]
+pub struct CheckOptions {
+    /// Finite-difference step (default `1e-6`).
+    pub eps: f64,
+    /// Largest accepted relative error (default `1e-6`).
+    pub tol: f64,
+}
+
+impl Default for CheckOptions {
+    fn default() -> Self {
+        Self { eps: 1e-6, tol: 1e-6 }
+    }
+}
+
+/// The outcome of a derivative check: one relative error per derivative block.
+#[derive(Debug, Clone, Default)]
+pub struct CheckReport {
+    /// `(name of the block, relative error)`.
+    pub errors: Vec<(String, f64)>,
+    /// Tolerance the errors are compared with.
+    pub tol: f64,
+}
+
+impl CheckReport {
+    fn new(tol: f64) -> Self {
+        Self {
+            errors: Vec::new(),
+            tol,
+        }
+    }
+
+    fn push(&mut self, name: &str, analytic: &Mat<f64>, reference: &Mat<f64>) {
+        self.errors.push((name.to_string(), rel_error(analytic, reference)));
+    }
+
+    /// Largest relative error over all blocks.
+    pub fn max_error(&self) -> f64 {
+        self.errors.iter().fold(0.0_f64, |a, (_, e)| a.max(*e))
+    }
+
+    /// Whether every block is within tolerance (and finite).
+    pub fn passed(&self) -> bool {
+        self.errors.iter().all(|(_, e)| e.is_finite() && *e <= self.tol)
+    }
+
+    /// Panics with the report if a block is out of tolerance (for tests).
+    #[track_caller]
+    pub fn assert_ok(&self) {
+        assert!(
+            self.passed(),
+            "derivative check failed (tol {:e}): {:?}",
+            self.tol,
+            self.errors
+        );
+    }
+}
+
+/// `max|a - b| / max(1, max|b|)`; infinite if the shapes differ or a value is NaN.
+pub fn rel_error(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
+    if a.nrows() != b.nrows() || a.ncols() != b.ncols() {
+        return f64::INFINITY;
+    }
+    let mut err: f64 = 0.0;
+    for j in 0..a.ncols() {
+        for i in 0..a.nrows() {
+            let d = (a[(i, j)] - b[(i, j)]).abs();
+            if d.is_nan() {
+                return f64::INFINITY;
+            }
+            err = err.max(d);
+        }
+    }
+    err / norm_max(b.as_ref()).max(1.0)
+}
+
+/// Central differences of a vector map `g` (values in a space `out_space`) along the
+/// tangent directions of `x ∈ space`, returning `out_space.ndx() x space.ndx()`.
+fn fd_state(
+    space: &dyn Manifold,
+    x: &[f64],
+    out_space: &dyn Manifold,
+    eps: f64,
+    mut g: impl FnMut(&[f64], &mut [f64]),
+) -> Mat<f64> {
+    let (ndx, nout, ndout) = (space.ndx(), out_space.nx(), out_space.ndx());
+    let mut jac = Mat::zeros(ndout, ndx);
+    let mut v = vec![0.0; ndx];
+    let mut xp = vec![0.0; space.nx()];
+    let (mut gp, mut gm, mut g0) = (vec![0.0; nout], vec![0.0; nout], vec![0.0; nout]);
+    let (mut dp, mut dm) = (vec![0.0; ndout], vec![0.0; ndout]);
+    g(x, &mut g0);
+    for j in 0..ndx {
+        v.fill(0.0);
+        v[j] = eps;
+        space.integrate(x, &v, &mut xp);
+        g(&xp, &mut gp);
+        v[j] = -eps;
+        space.integrate(x, &v, &mut xp);
+        g(&xp, &mut gm);
+        out_space.difference(&g0, &gp, &mut dp);
+        out_space.difference(&g0, &gm, &mut dm);
+        for i in 0..ndout {
+            jac[(i, j)] = (dp[i] - dm[i]) / (2.0 * eps);
+        }
+    }
+    jac
+}
+
+/// Central differences of a vector map of a plain vector `u`.
+fn fd_vec(u: &[f64], nout_space: &dyn Manifold, eps: f64, mut g: impl FnMut(&[f64], &mut [f64])) -> Mat<f64> {
+    let vs = crate::spaces::VectorSpace::new(u.len());
+    fd_state(&vs, u, nout_space, eps, &mut g)
+}
+
+/// Checks `jacobians` (and `vhp` when `lambda` is given and the function has one) of a
+/// stage function at `(x, u)`, `x` on `space`.
+pub fn check_stage_function(
+    f: &dyn StageFunction,
+    space: &dyn Manifold,
+    x: &[f64],
+    u: &[f64],
+    lambda: Option<&[f64]>,
+    opts: CheckOptions,
+) -> CheckReport {
+    let mut rep = CheckReport::new(opts.tol);
+    let rs = crate::spaces::VectorSpace::new(f.nr());
+    let mut data = f.create_data();
+    f.evaluate(x, u, &mut data);
+    f.jacobians(x, u, &mut data);
+    let (jx, ju) = (data.jx.clone(), data.ju.clone());
+    let mut d2 = f.create_data();
+    let fd_x = fd_state(space, x, &rs, opts.eps, |xp, out| {
+        f.evaluate(xp, u, &mut d2);
+        out.copy_from_slice(d2.value());
+    });
+    let fd_u = fd_vec(u, &rs, opts.eps, |up, out| {
+        f.evaluate(x, up, &mut d2);
+        out.copy_from_slice(d2.value());
+    });
+    rep.push("jx", &jx, &fd_x);
+    rep.push("ju", &ju, &fd_u);
+    if let (Some(lam), true) = (lambda, f.has_vhp()) {
+        f.vhp(x, u, lam, &mut data);
+        // Gradient of λᵀ r along x and u, differentiated again.
+        let grad = |xp: &[f64], up: &[f64], out: &mut [f64], d: &mut crate::functions::StageFunctionData| {
+            f.evaluate(xp, up, d);
+            f.jacobians(xp, up, d);
+            let ndx = d.jx.ncols();
+            for j in 0..ndx {
+                out[j] = (0..lam.len()).map(|i| lam[i] * d.jx[(i, j)]).sum();
+            }
+            for j in 0..d.ju.ncols() {
+                out[ndx + j] = (0..lam.len()).map(|i| lam[i] * d.ju[(i, j)]).sum();
+            }
+        };
+        let gs = crate::spaces::VectorSpace::new(f.ndx() + f.nu());
+        let hx = fd_state(space, x, &gs, opts.eps, |xp, out| grad(xp, u, out, &mut d2));
+        let hu = fd_vec(u, &gs, opts.eps, |up, out| grad(x, up, out, &mut d2));
+        let (ndx, nu) = (f.ndx(), f.nu());
+        rep.push(
+            "vhp_xx",
+            &data.vhp_xx,
+            &hx.as_ref().submatrix(0, 0, ndx, ndx).to_owned(),
+        );
+        rep.push("vhp_xu", &data.vhp_xu, &hu.as_ref().submatrix(0, 0, ndx, nu).to_owned());
+        rep.push(
+            "vhp_uu",
+            &data.vhp_uu,
+            &hu.as_ref().submatrix(ndx, 0, nu, nu).to_owned(),
+        );
+    }
+    rep
+}
+
+/// Checks the gradient and Hessian of a cost at `(x, u)`.
+pub fn check_cost(c: &dyn Cost, space: &dyn Manifold, x: &[f64], u: &[f64], opts: CheckOptions) -> CheckReport {
+    let mut rep = CheckReport::new(opts.tol);
+    let mut data = c.create_data();
+    c.evaluate(x, u, &mut data);
+    c.derivatives(x, u, &mut data);
+    let one = crate::spaces::VectorSpace::new(1);
+    let mut d2 = c.create_data();
+    let gx = fd_state(space, x, &one, opts.eps, |xp, out| {
+        c.evaluate(xp, u, &mut d2);
+        out[0] = d2.value;
+    });
+    let gu = fd_vec(u, &one, opts.eps, |up, out| {
+        c.evaluate(x, up, &mut d2);
+        out[0] = d2.value;
+    });
+    rep.push("lx", &data.lx.as_mat().to_owned(), &gx.transpose().to_owned());
+    rep.push("lu", &data.lu.as_mat().to_owned(), &gu.transpose().to_owned());
+    let (ndx, nu) = (c.ndx(), c.nu());
+    let gs = crate::spaces::VectorSpace::new(ndx + nu);
+    let mut grad = |xp: &[f64], up: &[f64], out: &mut [f64]| {
+        c.evaluate(xp, up, &mut d2);
+        c.derivatives(xp, up, &mut d2);
+        out[..ndx].copy_from_slice(d2.lx());
+        out[ndx..].copy_from_slice(d2.lu());
+    };
+    let hx = fd_state(space, x, &gs, opts.eps, |xp, out| grad(xp, u, out));
+    let hu = fd_vec(u, &gs, opts.eps, |up, out| grad(x, up, out));
+    rep.push("lxx", &data.lxx, &hx.as_ref().submatrix(0, 0, ndx, ndx).to_owned());
+    rep.push("lxu", &data.lxu, &hu.as_ref().submatrix(0, 0, ndx, nu).to_owned());
+    rep.push("luu", &data.luu, &hu.as_ref().submatrix(ndx, 0, nu, nu).to_owned());
+    rep
+}
+
+/// Checks the Jacobians of explicit dynamics at `(x, u)`.
+pub fn check_explicit_dynamics(d: &dyn ExplicitDynamics, x: &[f64], u: &[f64], opts: CheckOptions) -> CheckReport {
+    let mut rep = CheckReport::new(opts.tol);
+    let (s, sn) = (d.space().clone(), d.space_next().clone());
+    let mut data = d.create_data();
+    d.forward(x, u, &mut data);
+    d.jacobians(x, u, &mut data);
+    let mut d2 = d.create_data();
+    let jx = fd_state(s.as_ref(), x, sn.as_ref(), opts.eps, |xp, out| {
+        d.forward(xp, u, &mut d2);
+        out.copy_from_slice(d2.xnext());
+    });
+    let vs = crate::spaces::VectorSpace::new(u.len());
+    let ju = fd_state(&vs, u, sn.as_ref(), opts.eps, |up, out| {
+        d.forward(x, up, &mut d2);
+        out.copy_from_slice(d2.xnext());
+    });
+    rep.push("jx", &data.jx, &jx);
+    rep.push("ju", &data.ju, &ju);
+    rep
+}
+
+/// Checks the Jacobians of implicit dynamics at `(x, u, y)`.
+pub fn check_implicit_dynamics(
+    d: &dyn ImplicitDynamics,
+    x: &[f64],
+    u: &[f64],
+    y: &[f64],
+    opts: CheckOptions,
+) -> CheckReport {
+    let mut rep = CheckReport::new(opts.tol);
+    let (s, sn) = (d.space().clone(), d.space_next().clone());
+    let rs = crate::spaces::VectorSpace::new(sn.ndx());
+    let mut data = d.create_data();
+    d.evaluate(x, u, y, &mut data);
+    d.jacobians(x, u, y, &mut data);
+    let mut d2 = d.create_data();
+    let jx = fd_state(s.as_ref(), x, &rs, opts.eps, |xp, out| {
+        d.evaluate(xp, u, y, &mut d2);
+        out.copy_from_slice(d2.value());
+    });
+    let ju = fd_vec(u, &rs, opts.eps, |up, out| {
+        d.evaluate(x, up, y, &mut d2);
+        out.copy_from_slice(d2.value());
+    });
+    let jy = fd_state(sn.as_ref(), y, &rs, opts.eps, |yp, out| {
+        d.evaluate(x, u, yp, &mut d2);
+        out.copy_from_slice(d2.value());
+    });
+    rep.push("jx", &data.jx, &jx);
+    rep.push("ju", &data.ju, &ju);
+    rep.push("jy", &data.jy, &jy);
+    rep
+}
+
+/// Checks the Jacobians of an ODE at `(x, u)`.
+///
+/// The velocity lives in the tangent space at `x`, so its `x`-derivative is only
+/// meaningful on vector spaces or for ODEs whose velocity is expressed in a frame that
+/// does not move with `x`; the check differentiates the coordinates as they are.
+pub fn check_ode(ode: &dyn Ode, x: &[f64], u: &[f64], opts: CheckOptions) -> CheckReport {
+    let mut rep = CheckReport::new(opts.tol);
+    let s = ode.space().clone();
+    let rs = crate::spaces::VectorSpace::new(s.ndx());
+    let mut data = ode.create_data();
+    ode.evaluate(x, u, &mut data);
+    ode.jacobians(x, u, &mut data);
+    let mut d2 = ode.create_data();
+    let jx = fd_state(s.as_ref(), x, &rs, opts.eps, |xp, out| {
+        ode.evaluate(xp, u, &mut d2);
+        out.copy_from_slice(d2.xdot());
+    });
+    let ju = fd_vec(u, &rs, opts.eps, |up, out| {
+        ode.evaluate(x, up, &mut d2);
+        out.copy_from_slice(d2.xdot());
+    });
+    rep.push("jx", &data.jx, &jx);
+    rep.push("ju", &data.ju, &ju);
+    rep
+}
+
+/// Checks `jintegrate`, `jdifference`, `jintegrate_transport` and `tangent_map` of a
+/// manifold at `x`, `v` and `x1`.
+pub fn check_manifold(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], opts: CheckOptions) -> CheckReport {
+    let mut rep = CheckReport::new(opts.tol);
+    let (nx, ndx) = (m.nx(), m.ndx());
+    let tangent = crate::spaces::VectorSpace::new(ndx);
+    let mut j = Mat::zeros(ndx, ndx);
+    let mut buf = vec![0.0; nx];
+
+    m.jintegrate(x, v, Arg::First, j.as_mut());
+    let fd = fd_state(m, x, m, opts.eps, |xp, out| m.integrate(xp, v, out));
+    rep.push("jintegrate(x)", &j, &fd);
+    m.jintegrate(x, v, Arg::Second, j.as_mut());
+    let fd = fd_state(&tangent, v, m, opts.eps, |vp, out| m.integrate(x, vp, out));
+    rep.push("jintegrate(v)", &j, &fd);
+
+    for arg in [Arg::First, Arg::Second] {
+        let mut t = Mat::from_fn(ndx, 3, |i, k| ((i + 2 * k) % 5) as f64 - 2.0);
+        let t0 = t.clone();
+        m.jintegrate_transport(x, v, arg, t.as_mut());
+        m.jintegrate(x, v, arg, j.as_mut());
+        let mut expect = Mat::zeros(ndx, 3);
+        crate::linalg::matmul(expect.as_mut(), faer::Accum::Replace, j.as_ref(), t0.as_ref(), 1.0);
+        rep.push(&format!("jintegrate_transport({arg:?})"), &t, &expect);
+    }
+
+    m.jdifference(x, x1, Arg::First, j.as_mut());
+    let fd = fd_state(m, x, &tangent, opts.eps, |xp, out| m.difference(xp, x1, out));
+    rep.push("jdifference(x0)", &j, &fd);
+    m.jdifference(x, x1, Arg::Second, j.as_mut());
+    let fd = fd_state(m, x1, &tangent, opts.eps, |xp, out| m.difference(x, xp, out));
+    rep.push("jdifference(x1)", &j, &fd);
+
+    // tangent_map: representation derivative of x ⊕ v at v = 0.
+    let mut tm = Mat::zeros(nx, ndx);
+    m.tangent_map(x, tm.as_mut());
+    let rep_space = crate::spaces::VectorSpace::new(nx);
+    let zero = vec![0.0; ndx];
+    let fd = fd_state(&tangent, &zero, &rep_space, opts.eps, |vp, out| {
+        m.integrate(x, vp, &mut buf);
+        out.copy_from_slice(&buf);
+    });
+    rep.push("tangent_map", &tm, &fd);
+    rep
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spaces::VectorSpace;
+
+    #[test]
+    fn vector_space_passes_and_a_wrong_jacobian_fails() {
+        let m = VectorSpace::new(3);
+        let x = [0.1, -0.2, 0.3];
+        let v = [1.0, 2.0, -1.0];
+        let x1 = [0.5, 0.5, 0.5];
+        check_manifold(&m, &x, &v, &x1, CheckOptions::default()).assert_ok();
+
+        #[derive(Debug)]
+        struct Wrong(VectorSpace);
+        impl Manifold for Wrong {
+            fn nx(&self) -> usize {
+                self.0.nx()
+            }
+            fn ndx(&self) -> usize {
+                self.0.ndx()
+            }
+            fn neutral(&self, out: &mut [f64]) {
+                self.0.neutral(out)
+            }
+            fn random(&self, rng: &mut dyn rand::RngCore, out: &mut [f64]) {
+                self.0.random(rng, out)
+            }
+            fn integrate(&self, x: &[f64], v: &[f64], out: &mut [f64]) {
+                self.0.integrate(x, v, out)
+            }
+            fn difference(&self, x0: &[f64], x1: &[f64], out: &mut [f64]) {
+                self.0.difference(x0, x1, out)
+            }
+            fn interpolate(&self, x0: &[f64], x1: &[f64], t: f64, out: &mut [f64]) {
+                self.0.interpolate(x0, x1, t, out)
+            }
+            fn jintegrate(&self, x: &[f64], v: &[f64], arg: Arg, mut j: faer::MatMut<'_, f64>) {
+                self.0.jintegrate(x, v, arg, j.rb_mut());
+                j[(0, 1)] = 0.5;
+            }
+            fn jdifference(&self, x0: &[f64], x1: &[f64], arg: Arg, j: faer::MatMut<'_, f64>) {
+                self.0.jdifference(x0, x1, arg, j)
+            }
+            fn jintegrate_transport(&self, x: &[f64], v: &[f64], arg: Arg, m: faer::MatMut<'_, f64>) {
+                self.0.jintegrate_transport(x, v, arg, m)
+            }
+            fn tangent_map(&self, x: &[f64], j: faer::MatMut<'_, f64>) {
+                self.0.tangent_map(x, j)
+            }
+        }
+        use faer::reborrow::ReborrowMut;
+        let rep = check_manifold(&Wrong(m), &x, &v, &x1, CheckOptions::default());
+        assert!(!rep.passed());
+        assert!((rep.errors[0].1 - 0.5).abs() < 1e-6, "{:?}", rep.errors);
+    }
+}

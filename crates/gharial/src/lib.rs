@@ -1,0 +1,28 @@
+//! # gharial
+//!
+//! Constrained trajectory optimization and model-predictive control for robots.
+//!
+//! The library solves optimal control problems
+//! ```text
+//! minimise    Σ_t ℓ_t(x_t, u_t) + ℓ_N(x_N)
+//! subject to  f_t(x_t, u_t, x_{t+1}) = 0,  h_t(x_t, u_t) ∈ C_t,  h_N(x_N) ∈ C_N,
+//!             x_0 = x̂ (or a general initial constraint)
+//! ```
+//! with states on manifolds. The pieces, in the order data flows through them:
+//! - [`spaces`]: state manifolds (vector spaces, SO(2), SO(3), SE(2), SE(3), products);
+//! - [`functions`], [`costs`], [`dynamics`], [`constraints`]: the modelling layer, with
+//!   exact derivatives and a derivative checker;
+//! - [`lq`]: the linear-quadratic subproblems every solver reduces to, and the proximal
+//!   Riccati solver of the ProxDDP paper.
+
+pub mod constraints;
+pub mod costs;
+pub mod dynamics;
+pub mod error;
+pub mod functions;
+pub mod linalg;
+pub mod lq;
+pub mod param;
+pub mod spaces;
+
+pub use error::{Error, Result};
