@@ -24,6 +24,7 @@ pub mod linalg;
 pub mod lq;
 pub mod param;
 pub mod problem;
+pub mod solvers;
 pub mod spaces;
 
 pub use error::{Error, Result};
