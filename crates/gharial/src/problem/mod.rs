@@ -12,8 +12,10 @@
 //! problem, so that solvers evaluate values and derivatives without allocating.
 
 mod data;
+mod kkt;
 
 pub use data::{DynamicsData, ProblemData, StageData};
+pub use kkt::{KktResiduals, kkt_residuals};
 
 use std::sync::Arc;
 
