@@ -358,6 +358,51 @@ impl ProblemData {
         }
     }
 
+    /// Gradient of the Lagrangian
+    /// `J + λ_0ᵀ r_0 + Σ λ_{t+1}ᵀ f_t + Σ ν_tᵀ h_t + ν_Nᵀ h_N` with respect to every
+    /// state (`gx[t]`, `t = 0..=N`) and control (`gu[t]`, `t < N`), from the derivatives
+    /// of the last [`ProblemData::compute_derivatives`] (ProxDDP (24)).
+    pub fn lagrangian_gradient(
+        &self,
+        problem: &Problem,
+        lambdas: &[Vec<f64>],
+        nus: &[Vec<f64>],
+        gx: &mut [Vec<f64>],
+        gu: &mut [Vec<f64>],
+    ) {
+        let n = problem.horizon();
+        for t in 0..=n {
+            let g = &mut gx[t];
+            if t < n {
+                let sd = &self.stages[t];
+                g.copy_from_slice(sd.cost.lx());
+                gu[t].copy_from_slice(sd.cost.lu());
+                matvec_t(g, Accum::Add, sd.dyn_jx.as_ref(), &lambdas[t + 1], 1.0);
+                matvec_t(&mut gu[t], Accum::Add, sd.dyn_ju.as_ref(), &lambdas[t + 1], 1.0);
+                let mut off = 0;
+                for (c, cd) in problem.stages()[t].constraints().iter().zip(&sd.constraints) {
+                    let v = &nus[t][off..off + c.nr()];
+                    matvec_t(g, Accum::Add, cd.jx.as_ref(), v, 1.0);
+                    matvec_t(&mut gu[t], Accum::Add, cd.ju.as_ref(), v, 1.0);
+                    off += c.nr();
+                }
+            } else {
+                g.copy_from_slice(self.terminal_cost.lx());
+                let mut off = 0;
+                for (c, cd) in problem.terminal_constraints().iter().zip(&self.terminal_constraints) {
+                    matvec_t(g, Accum::Add, cd.jx.as_ref(), &nus[n][off..off + c.nr()], 1.0);
+                    off += c.nr();
+                }
+            }
+            // The co-state entering from the previous stage, or the initial condition.
+            if t == 0 {
+                matvec_t(g, Accum::Add, self.init.jx.as_ref(), &lambdas[0], 1.0);
+            } else {
+                matvec_t(g, Accum::Add, self.stages[t - 1].dyn_jy.as_ref(), &lambdas[t], 1.0);
+            }
+        }
+    }
+
     /// Rolls explicit dynamics out from `xs[0]` under the controls `us`, writing
     /// `xs[1..]` (an initial guess that is dynamically feasible).
     ///

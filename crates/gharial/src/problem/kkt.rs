@@ -10,12 +10,10 @@
 //!   `|h - proj_C(h + ν)|` (zero exactly when `ν` is in the normal cone of `C` at `h`;
 //!   for penalty sets, when `ν ∈ ∂g(h)`).
 
-use faer::Accum;
-
 use super::{Problem, ProblemData, StageConstraint};
 use crate::error::{Result, check_dim};
 use crate::functions::StageFunctionData;
-use crate::linalg::{matvec_t, norm_inf};
+use crate::linalg::norm_inf;
 
 /// Infinity norms of the KKT conditions at a primal-dual point.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -48,25 +46,13 @@ impl KktResiduals {
     }
 }
 
-/// Adds `Σ_i J_iᵀ ν_i` of a constraint stack to `gx` (and `gu`), and folds the
-/// violation and complementarity residuals into `res`.
-fn constraint_terms(
-    cs: &[StageConstraint],
-    data: &[StageFunctionData],
-    nu: &[f64],
-    gx: &mut [f64],
-    gu: &mut [f64],
-    res: &mut KktResiduals,
-) {
+/// Folds the violation and complementarity residuals of a constraint stack into `res`.
+fn constraint_residuals(cs: &[StageConstraint], data: &[StageFunctionData], nu: &[f64], res: &mut KktResiduals) {
     let mut off = 0;
     for (c, d) in cs.iter().zip(data) {
         let nr = c.nr();
         let h = d.value();
         let v = &nu[off..off + nr];
-        matvec_t(gx, Accum::Add, d.jx.as_ref(), v, 1.0);
-        if !gu.is_empty() {
-            matvec_t(gu, Accum::Add, d.ju.as_ref(), v, 1.0);
-        }
         res.constraints = res.constraints.max(c.set.violation(h));
         let z: Vec<f64> = h.iter().zip(v).map(|(a, b)| a + b).collect();
         let mut p = vec![0.0; nr];
@@ -106,55 +92,20 @@ pub fn kkt_residuals(
         initial: norm_inf(data.init.value()),
         ..Default::default()
     };
+    let mut gx: Vec<Vec<f64>> = (0..=n).map(|t| vec![0.0; problem.space(t).ndx()]).collect();
+    let mut gu: Vec<Vec<f64>> = (0..n).map(|t| vec![0.0; problem.nu(t)]).collect();
+    data.lagrangian_gradient(problem, lambdas, nus, &mut gx, &mut gu);
+    res.stationarity = gx.iter().chain(gu.iter()).fold(0.0, |a, g| a.max(norm_inf(g)));
     for t in 0..=n {
-        let ndx = problem.space(t).ndx();
-        let mut gx = vec![0.0; ndx];
-        let mut gu = vec![0.0; problem.nu(t)];
-        // Co-state entering from the previous stage (or the initial condition).
-        if t == 0 {
-            matvec_t(&mut gx, Accum::Add, data.init.jx.as_ref(), &lambdas[0], 1.0);
-        } else {
-            matvec_t(
-                &mut gx,
-                Accum::Add,
-                data.stages[t - 1].dyn_jy.as_ref(),
-                &lambdas[t],
-                1.0,
-            );
-        }
         if t < n {
-            let sd = &data.stages[t];
-            res.dynamics = res.dynamics.max(norm_inf(sd.dyn_value()));
-            for (g, l) in gx.iter_mut().zip(sd.cost.lx()) {
-                *g += l;
-            }
-            for (g, l) in gu.iter_mut().zip(sd.cost.lu()) {
-                *g += l;
-            }
-            matvec_t(&mut gx, Accum::Add, sd.dyn_jx.as_ref(), &lambdas[t + 1], 1.0);
-            matvec_t(&mut gu, Accum::Add, sd.dyn_ju.as_ref(), &lambdas[t + 1], 1.0);
-            constraint_terms(
-                problem.stages()[t].constraints(),
-                &sd.constraints,
-                &nus[t],
-                &mut gx,
-                &mut gu,
-                &mut res,
-            );
-        } else {
-            for (g, l) in gx.iter_mut().zip(data.terminal_cost.lx()) {
-                *g += l;
-            }
-            constraint_terms(
-                problem.terminal_constraints(),
-                &data.terminal_constraints,
-                &nus[n],
-                &mut gx,
-                &mut gu,
-                &mut res,
-            );
+            res.dynamics = res.dynamics.max(norm_inf(data.stages[t].dyn_value()));
         }
-        res.stationarity = res.stationarity.max(norm_inf(&gx)).max(norm_inf(&gu));
+        let (cs, datas) = if t < n {
+            (problem.stages()[t].constraints(), &data.stages[t].constraints)
+        } else {
+            (problem.terminal_constraints(), &data.terminal_constraints)
+        };
+        constraint_residuals(cs, datas, &nus[t], &mut res);
     }
     Ok(res)
 }
