@@ -1,11 +1,24 @@
-//! Derivative checker: compares the analytic derivatives of any model with central
-//! finite differences taken along tangent directions (`x ⊕ ε e_j`).
+//! Derivative checker, with two references:
+//! - **finite differences**: central differences along tangent directions
+//!   (`x ⊕ ε e_j`) of the model's own `f64` evaluation. Errors are relative:
+//!   `max|J - J_fd| / max(1, max|J_fd|)`. With the default step (`1e-6`) smooth models
+//!   agree to about `1e-9`; the default tolerance is `1e-6`.
+//! - **dual numbers** ([`check_manifold_dual`]): exact derivatives of the space's own
+//!   dual-number `integrate` and `difference`. The default tolerance is `1e-12`.
 //!
-//! Errors are relative: `max|J - J_fd| / max(1, max|J_fd|)`. With the default step
-//! (`1e-6`) smooth models agree to about `1e-9`; the default tolerance is `1e-6`.
-//! Every model of the library is tested with it; users can run it on their own models.
+//! Every model of the library is tested with both; users can run them on their own
+//! models.
+//!
+//! Conventions: state derivatives are tangent (`ndx`), as everywhere in the library.
+//! Second derivatives with respect to the state are the symmetric Hessians of
+//! `δ ↦ g(x ⊕ δ)` at `δ = 0`. The finite-difference reference differentiates the
+//! tangent gradient at `x ⊕ ε e_j`, whose state-state block differs from that Hessian
+//! by an antisymmetric term on curved spaces (the Lie bracket of the two directions),
+//! so its symmetric part is compared.
+//!
 
 use faer::Mat;
+use num_dual::Dual64;
 
 use crate::costs::Cost;
 use crate::dynamics::{ExplicitDynamics, ImplicitDynamics, Ode};
@@ -87,6 +100,11 @@ pub fn rel_error(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
         }
     }
     err / norm_max(b.as_ref()).max(1.0)
+}
+
+/// The symmetric part of the leading `n x n` block of `m`.
+fn symmetric_part(m: &Mat<f64>, n: usize) -> Mat<f64> {
+    Mat::from_fn(n, n, |i, j| 0.5 * (m[(i, j)] + m[(j, i)]))
 }
 
 /// Central differences of a vector map `g` (values in a space `out_space`) along the
@@ -173,11 +191,7 @@ pub fn check_stage_function(
         let hx = fd_state(space, x, &gs, opts.eps, |xp, out| grad(xp, u, out, &mut d2));
         let hu = fd_vec(u, &gs, opts.eps, |up, out| grad(x, up, out, &mut d2));
         let (ndx, nu) = (f.ndx(), f.nu());
-        rep.push(
-            "vhp_xx",
-            &data.vhp_xx,
-            &hx.as_ref().submatrix(0, 0, ndx, ndx).to_owned(),
-        );
+        rep.push("vhp_xx", &data.vhp_xx, &symmetric_part(&hx, ndx));
         rep.push("vhp_xu", &data.vhp_xu, &hu.as_ref().submatrix(0, 0, ndx, nu).to_owned());
         rep.push(
             "vhp_uu",
@@ -216,7 +230,7 @@ pub fn check_cost(c: &dyn Cost, space: &dyn Manifold, x: &[f64], u: &[f64], opts
     };
     let hx = fd_state(space, x, &gs, opts.eps, |xp, out| grad(xp, u, out));
     let hu = fd_vec(u, &gs, opts.eps, |up, out| grad(x, up, out));
-    rep.push("lxx", &data.lxx, &hx.as_ref().submatrix(0, 0, ndx, ndx).to_owned());
+    rep.push("lxx", &data.lxx, &symmetric_part(&hx, ndx));
     rep.push("lxu", &data.lxu, &hu.as_ref().submatrix(0, 0, ndx, nu).to_owned());
     rep.push("luu", &data.luu, &hu.as_ref().submatrix(ndx, 0, nu, nu).to_owned());
     rep
@@ -303,8 +317,8 @@ pub fn check_ode(ode: &dyn Ode, x: &[f64], u: &[f64], opts: CheckOptions) -> Che
     rep
 }
 
-/// Checks `jintegrate`, `jdifference`, `jintegrate_transport` and `tangent_map` of a
-/// manifold at `x`, `v` and `x1`.
+/// Checks `jintegrate`, `jdifference`, `jintegrate_transport`, `tangent_map` and
+/// `tangent_map_inverse` of a manifold at `x`, `v` and `x1`.
 pub fn check_manifold(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], opts: CheckOptions) -> CheckReport {
     let mut rep = CheckReport::new(opts.tol);
     let (nx, ndx) = (m.nx(), m.ndx());
@@ -346,6 +360,117 @@ pub fn check_manifold(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], opts: 
         out.copy_from_slice(&buf);
     });
     rep.push("tangent_map", &tm, &fd);
+
+    // tangent_map_inverse: representation derivative of z ↦ z ⊖ x at z = x.
+    let mut tmi = Mat::zeros(ndx, nx);
+    m.tangent_map_inverse(x, tmi.as_mut());
+    let fd = fd_state(&rep_space, x, &tangent, opts.eps, |z, out| m.difference(x, z, out));
+    rep.push("tangent_map_inverse", &tmi, &fd);
+    rep
+}
+
+// ---------------------------------------------------------------------------------
+// Dual-number references.
+
+/// Tolerance of the dual-number checks.
+#[derive(Debug, Clone, Copy)]
+pub struct DualCheckOptions {
+    /// Largest accepted relative error (default `1e-12`).
+    pub tol: f64,
+}
+
+impl Default for DualCheckOptions {
+    fn default() -> Self {
+        Self { tol: 1e-12 }
+    }
+}
+
+fn duals(v: &[f64]) -> Vec<Dual64> {
+    v.iter().map(|&r| Dual64::new(r, 0.0)).collect()
+}
+
+/// Tangent-convention Jacobian of a tangent-valued map `g` of `x ∈ m`, by dual numbers:
+/// column `j` is `d/dε g(x ⊕ ε e_j)`, with `x ⊕ ε e_j` computed by the manifold's dual
+/// `integrate`.
+fn dual_state_jacobian(
+    m: &dyn Manifold,
+    x: &[f64],
+    nout: usize,
+    mut g: impl FnMut(&[Dual64], &mut [Dual64]),
+) -> Mat<f64> {
+    let ndx = m.ndx();
+    let xd = duals(x);
+    let mut v = vec![Dual64::new(0.0, 0.0); ndx];
+    let mut xp = vec![Dual64::new(0.0, 0.0); m.nx()];
+    let mut out = vec![Dual64::new(0.0, 0.0); nout];
+    let mut jac = Mat::zeros(nout, ndx);
+    for j in 0..ndx {
+        v[j].eps = 1.0;
+        m.integrate_dual(&xd, &v, &mut xp);
+        v[j].eps = 0.0;
+        g(&xp, &mut out);
+        for i in 0..nout {
+            jac[(i, j)] = out[i].eps;
+        }
+    }
+    jac
+}
+
+/// Checks `jintegrate`, `jdifference`, `jintegrate_transport`, `tangent_map` and
+/// `tangent_map_inverse` of a manifold at `x`, `v` and `x1` against dual-number
+/// derivatives of its own `integrate_dual` and `difference_dual`.
+pub fn check_manifold_dual(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], opts: DualCheckOptions) -> CheckReport {
+    let mut rep = CheckReport::new(opts.tol);
+    let (nx, ndx) = (m.nx(), m.ndx());
+    let tangent = crate::spaces::VectorSpace::new(ndx);
+    let mut j = Mat::zeros(ndx, ndx);
+    let mut y = vec![0.0; nx];
+    m.integrate(x, v, &mut y);
+    let (vd, yd, x1d) = (duals(v), duals(&y), duals(x1));
+    let mut tmp = vec![Dual64::new(0.0, 0.0); nx];
+
+    m.jintegrate(x, v, Arg::First, j.as_mut());
+    let r = dual_state_jacobian(m, x, ndx, |xp, out| {
+        m.integrate_dual(xp, &vd, &mut tmp);
+        m.difference_dual(&yd, &tmp, out);
+    });
+    rep.push("jintegrate(x)", &j, &r);
+
+    m.jintegrate(x, v, Arg::Second, j.as_mut());
+    let xd = duals(x);
+    let r = dual_state_jacobian(&tangent, v, ndx, |vp, out| {
+        m.integrate_dual(&xd, vp, &mut tmp);
+        m.difference_dual(&yd, &tmp, out);
+    });
+    rep.push("jintegrate(v)", &j, &r);
+
+    for arg in [Arg::First, Arg::Second] {
+        let mut t = Mat::from_fn(ndx, 3, |i, k| ((i + 2 * k) % 5) as f64 - 2.0);
+        let t0 = t.clone();
+        m.jintegrate_transport(x, v, arg, t.as_mut());
+        m.jintegrate(x, v, arg, j.as_mut());
+        let mut expect = Mat::zeros(ndx, 3);
+        crate::linalg::matmul(expect.as_mut(), faer::Accum::Replace, j.as_ref(), t0.as_ref(), 1.0);
+        rep.push(&format!("jintegrate_transport({arg:?})"), &t, &expect);
+    }
+
+    m.jdifference(x, x1, Arg::First, j.as_mut());
+    let r = dual_state_jacobian(m, x, ndx, |xp, out| m.difference_dual(xp, &x1d, out));
+    rep.push("jdifference(x0)", &j, &r);
+    m.jdifference(x, x1, Arg::Second, j.as_mut());
+    let r = dual_state_jacobian(m, x1, ndx, |xp, out| m.difference_dual(&xd, xp, out));
+    rep.push("jdifference(x1)", &j, &r);
+
+    let mut tm = Mat::zeros(nx, ndx);
+    m.tangent_map(x, tm.as_mut());
+    let r = dual_state_jacobian(m, x, nx, |xp, out| out.copy_from_slice(xp));
+    rep.push("tangent_map", &tm, &r);
+
+    let mut tmi = Mat::zeros(ndx, nx);
+    m.tangent_map_inverse(x, tmi.as_mut());
+    let rep_space = crate::spaces::VectorSpace::new(nx);
+    let r = dual_state_jacobian(&rep_space, x, ndx, |z, out| m.difference_dual(&xd, z, out));
+    rep.push("tangent_map_inverse", &tmi, &r);
     rep
 }
 
@@ -353,6 +478,7 @@ pub fn check_manifold(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], opts: 
 mod tests {
     use super::*;
     use crate::spaces::VectorSpace;
+    use num_dual::HyperDual64;
 
     #[test]
     fn vector_space_passes_and_a_wrong_jacobian_fails() {
@@ -383,6 +509,18 @@ mod tests {
             fn difference(&self, x0: &[f64], x1: &[f64], out: &mut [f64]) {
                 self.0.difference(x0, x1, out)
             }
+            fn integrate_dual(&self, x: &[Dual64], v: &[Dual64], out: &mut [Dual64]) {
+                self.0.integrate_dual(x, v, out)
+            }
+            fn difference_dual(&self, x0: &[Dual64], x1: &[Dual64], out: &mut [Dual64]) {
+                self.0.difference_dual(x0, x1, out)
+            }
+            fn integrate_hyper(&self, x: &[HyperDual64], v: &[HyperDual64], out: &mut [HyperDual64]) {
+                self.0.integrate_hyper(x, v, out)
+            }
+            fn difference_hyper(&self, x0: &[HyperDual64], x1: &[HyperDual64], out: &mut [HyperDual64]) {
+                self.0.difference_hyper(x0, x1, out)
+            }
             fn interpolate(&self, x0: &[f64], x1: &[f64], t: f64, out: &mut [f64]) {
                 self.0.interpolate(x0, x1, t, out)
             }
@@ -398,6 +536,9 @@ mod tests {
             }
             fn tangent_map(&self, x: &[f64], j: faer::MatMut<'_, f64>) {
                 self.0.tangent_map(x, j)
+            }
+            fn tangent_map_inverse(&self, x: &[f64], j: faer::MatMut<'_, f64>) {
+                self.0.tangent_map_inverse(x, j)
             }
         }
         use faer::reborrow::ReborrowMut;
