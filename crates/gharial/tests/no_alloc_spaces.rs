@@ -1,5 +1,5 @@
-//! The group operations and Jacobians of the spaces do not allocate, counted with a
-//! global allocator.
+//! The group operations, Jacobians and the automatic-differentiation adapters do not
+//! allocate after setup (`create_data`), counted with a global allocator.
 #![allow(unsafe_code)]
 
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -7,6 +7,10 @@ use std::cell::Cell;
 use std::sync::Arc;
 
 use faer::Mat;
+use gharial::costs::Cost;
+use gharial::dynamics::ExplicitDynamics;
+use gharial::functions::StageFunction;
+use gharial::functions::autodiff::{AutoCostFn, AutoDiff, AutoDynamicsFn, AutoStageFn, Scalar};
 use gharial::spaces::{Arg, CartesianProduct, Manifold, SE2, SE3, SO2, SO3, TangentBundle, VectorSpace};
 use rand::SeedableRng;
 
@@ -87,4 +91,93 @@ fn space_operations_do_not_allocate() {
         });
         assert_eq!(n, 0, "{m:?} allocated {n} times");
     }
+}
+
+struct Residual;
+
+impl AutoStageFn for Residual {
+    fn nx(&self) -> usize {
+        7
+    }
+    fn nu(&self) -> usize {
+        2
+    }
+    fn nr(&self) -> usize {
+        3
+    }
+    fn eval<D: Scalar>(&self, x: &[D], u: &[D], out: &mut [D]) {
+        out[0] = x[0] * x[3] + u[0].sin();
+        out[1] = x[4] * x[6] - x[5] * u[1];
+        out[2] = x[1].exp() * u[0] * u[1];
+    }
+}
+
+struct Cost2;
+
+impl AutoCostFn for Cost2 {
+    fn nx(&self) -> usize {
+        7
+    }
+    fn nu(&self) -> usize {
+        2
+    }
+    fn eval<D: Scalar>(&self, x: &[D], u: &[D]) -> D {
+        x[0] * x[0] + x[6] * x[3] + u[0] * u[1] * x[2]
+    }
+}
+
+/// `y = x ⊕ (u0, 0, 0, 0, 0, u1)` on SE(3), written with the representation.
+struct Push;
+
+impl AutoDynamicsFn for Push {
+    fn nx(&self) -> usize {
+        7
+    }
+    fn nu(&self) -> usize {
+        2
+    }
+    fn eval<D: Scalar>(&self, x: &[D], u: &[D], y: &mut [D]) {
+        let (s, c) = (u[1] * 0.5).sin_cos();
+        let (qx, qy, qz, qw) = (x[3], x[4], x[5], x[6]);
+        y[0] = x[0] + u[0] * (-(qy * qy + qz * qz) * 2.0 + 1.0);
+        y[1] = x[1] + u[0] * (qx * qy + qz * qw) * 2.0;
+        y[2] = x[2] + u[0] * (qx * qz - qy * qw) * 2.0;
+        y[3] = qx * c + qy * s;
+        y[4] = qy * c - qx * s;
+        y[5] = qz * c + qw * s;
+        y[6] = qw * c - qz * s;
+    }
+}
+
+#[test]
+fn autodiff_adapters_do_not_allocate_after_setup() {
+    let space: Arc<dyn Manifold> = Arc::new(SE3);
+    let x = SE3::exp(&[0.1, 0.2, 0.3, 0.4, -0.5, 0.6]);
+    let u = [0.7, -0.2];
+
+    let f = AutoDiff::stage(space.clone(), Residual).unwrap();
+    let mut data = f.create_data();
+    let n = allocations(|| {
+        f.evaluate(&x, &u, &mut data);
+        f.jacobians(&x, &u, &mut data);
+        f.vhp(&x, &u, &[1.0, -2.0, 0.5], &mut data);
+    });
+    assert_eq!(n, 0, "stage function allocated {n} times");
+
+    let c = AutoDiff::cost(space.clone(), Cost2).unwrap();
+    let mut data = c.create_data();
+    let n = allocations(|| {
+        c.evaluate(&x, &u, &mut data);
+        c.derivatives(&x, &u, &mut data);
+    });
+    assert_eq!(n, 0, "cost allocated {n} times");
+
+    let d = AutoDiff::explicit_dynamics(space.clone(), space.clone(), Push).unwrap();
+    let mut data = d.create_data();
+    let n = allocations(|| {
+        d.forward(&x, &u, &mut data);
+        d.jacobians(&x, &u, &mut data);
+        d.vhp(&x, &u, &[1.0, 0.0, -1.0, 0.5, 0.2, 0.1], &mut data);
+    });
+    assert_eq!(n, 0, "dynamics allocated {n} times");
 }
