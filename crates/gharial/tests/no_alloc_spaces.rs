@@ -10,7 +10,7 @@ use faer::Mat;
 use gharial::costs::Cost;
 use gharial::dynamics::ExplicitDynamics;
 use gharial::functions::StageFunction;
-use gharial::functions::autodiff::{AutoCostFn, AutoDiff, AutoDynamicsFn, AutoStageFn, Scalar};
+use gharial::functions::autodiff::{AutoCostFn, AutoDiff, AutoDynamicsFn, AutoStageFn, ManifoldScalar};
 use gharial::spaces::{Arg, CartesianProduct, Manifold, SE2, SE3, SO2, SO3, TangentBundle, VectorSpace};
 use rand::SeedableRng;
 
@@ -105,7 +105,7 @@ impl AutoStageFn for Residual {
     fn nr(&self) -> usize {
         3
     }
-    fn eval<D: Scalar>(&self, x: &[D], u: &[D], out: &mut [D]) {
+    fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], out: &mut [D]) {
         out[0] = x[0] * x[3] + u[0].sin();
         out[1] = x[4] * x[6] - x[5] * u[1];
         out[2] = x[1].exp() * u[0] * u[1];
@@ -121,7 +121,7 @@ impl AutoCostFn for Cost2 {
     fn nu(&self) -> usize {
         2
     }
-    fn eval<D: Scalar>(&self, x: &[D], u: &[D]) -> D {
+    fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D]) -> D {
         x[0] * x[0] + x[6] * x[3] + u[0] * u[1] * x[2]
     }
 }
@@ -136,7 +136,7 @@ impl AutoDynamicsFn for Push {
     fn nu(&self) -> usize {
         2
     }
-    fn eval<D: Scalar>(&self, x: &[D], u: &[D], y: &mut [D]) {
+    fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], y: &mut [D]) {
         let (s, c) = (u[1] * 0.5).sin_cos();
         let (qx, qy, qz, qw) = (x[3], x[4], x[5], x[6]);
         y[0] = x[0] + u[0] * (-(qy * qy + qz * qz) * 2.0 + 1.0);

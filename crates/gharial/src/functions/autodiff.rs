@@ -1,5 +1,8 @@
-//! Automatic derivatives: write a model once, generic over a [`Scalar`], and get exact
-//! Jacobians (forward-mode dual numbers) and exact Hessians (hyper-dual numbers).
+//! Automatic derivatives: write a model once, generic over a [`ManifoldScalar`] (`f64`,
+//! dual and hyper-dual numbers), and get exact Jacobians (forward-mode dual numbers)
+//! and exact Hessians (hyper-dual numbers). The model can use every operation of
+//! [`Scalar`] (arithmetic, `sin`, `exp`, `sqrt`, ...) and the `⊕`, `⊖` of any space
+//! (`D::integrate(space, x, v, out)`, `D::difference(space, x0, x1, out)`).
 //!
 //! Closures cannot be generic, so a model is a small type implementing one of
 //! [`AutoStageFn`] (`r(x, u)`), [`AutoUnaryFn`] (`r(x)`), [`AutoCostFn`] (`ℓ(x, u)`),
@@ -10,7 +13,7 @@
 //! ```
 //! use std::sync::Arc;
 //! use gharial::dynamics::Ode;
-//! use gharial::functions::autodiff::{AutoDiff, AutoOdeFn, Scalar};
+//! use gharial::functions::autodiff::{AutoDiff, AutoOdeFn, ManifoldScalar};
 //! use gharial::spaces::VectorSpace;
 //!
 //! /// A pendulum: x = (θ, θ̇), u = torque.
@@ -25,7 +28,7 @@
 //!     fn nu(&self) -> usize {
 //!         1
 //!     }
-//!     fn eval<D: Scalar>(&self, x: &[D], u: &[D], xdot: &mut [D]) {
+//!     fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], xdot: &mut [D]) {
 //!         xdot[0] = x[1];
 //!         xdot[1] = -x[0].sin() * self.g_over_l + u[0];
 //!     }
@@ -64,7 +67,7 @@ use std::sync::Arc;
 use faer::reborrow::ReborrowMut;
 use faer::{Mat, MatMut};
 
-pub use crate::spaces::Scalar;
+pub use crate::spaces::{ManifoldScalar, Scalar};
 pub use num_dual::{Dual64, DualNum, HyperDual64};
 
 use crate::costs::{Cost, CostData};
@@ -82,7 +85,7 @@ pub trait AutoStageFn: Send + Sync {
     /// Output size.
     fn nr(&self) -> usize;
     /// Writes `r(x, u)` into `out` (`nr`).
-    fn eval<D: Scalar>(&self, x: &[D], u: &[D], out: &mut [D]);
+    fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], out: &mut [D]);
 }
 
 /// A vector function `r(x)` of the state only, written once for every scalar type.
@@ -92,7 +95,7 @@ pub trait AutoUnaryFn: Send + Sync {
     /// Output size.
     fn nr(&self) -> usize;
     /// Writes `r(x)` into `out` (`nr`).
-    fn eval<D: Scalar>(&self, x: &[D], out: &mut [D]);
+    fn eval<D: ManifoldScalar>(&self, x: &[D], out: &mut [D]);
 }
 
 /// A cost `ℓ(x, u)` written once for every scalar type (`nu = 0` for terminal costs).
@@ -102,7 +105,7 @@ pub trait AutoCostFn: Send + Sync {
     /// Control size.
     fn nu(&self) -> usize;
     /// `ℓ(x, u)`.
-    fn eval<D: Scalar>(&self, x: &[D], u: &[D]) -> D;
+    fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D]) -> D;
 }
 
 /// Discrete dynamics `y = φ(x, u)` written once for every scalar type; `y` is the
@@ -117,7 +120,7 @@ pub trait AutoDynamicsFn: Send + Sync {
         self.nx()
     }
     /// Writes `φ(x, u)` into `y` (`nx_next`).
-    fn eval<D: Scalar>(&self, x: &[D], u: &[D], y: &mut [D]);
+    fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], y: &mut [D]);
 }
 
 /// Continuous dynamics `ẋ = f(x, u)` written once for every scalar type; `ẋ` is a
@@ -128,7 +131,7 @@ pub trait AutoOdeFn: Send + Sync {
     /// Control size.
     fn nu(&self) -> usize;
     /// Writes `f(x, u)` into `xdot` (`ndx`).
-    fn eval<D: Scalar>(&self, x: &[D], u: &[D], xdot: &mut [D]);
+    fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], xdot: &mut [D]);
 }
 
 // ---------------------------------------------------------------------------------
@@ -371,7 +374,7 @@ pub(crate) fn hessian_hyper(
 // ---------------------------------------------------------------------------------
 // The adapter.
 
-/// Turns a model written once for every scalar type into a library model with exact
+/// Turns a model written once for every [`ManifoldScalar`] into a library model with exact
 /// derivatives: a [`StageFunction`] (from [`AutoStageFn`]), [`UnaryFunction`]
 /// ([`AutoUnaryFn`]), [`Cost`] ([`AutoCostFn`]), [`ExplicitDynamics`]
 /// ([`AutoDynamicsFn`]) or [`Ode`] ([`AutoOdeFn`]).
@@ -745,7 +748,7 @@ mod tests {
         check_stage_function, check_stage_function_dual, check_stage_function_vhp_dual, rel_error,
     };
     use crate::spaces::lie;
-    use crate::spaces::{Arg, SE2, SO3, TangentBundle, VectorSpace};
+    use crate::spaces::{Arg, SE2, SE3, SO3, TangentBundle, VectorSpace};
     use rand::rngs::SmallRng;
     use rand::{Rng, SeedableRng};
 
@@ -771,7 +774,7 @@ mod tests {
         fn nu(&self) -> usize {
             1
         }
-        fn eval<D: Scalar>(&self, x: &[D], u: &[D], xdot: &mut [D]) {
+        fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], xdot: &mut [D]) {
             xdot[0] = x[1];
             xdot[1] = -x[0].sin() * self.g_l - x[1] * self.b + u[0] * self.inv_ml2;
         }
@@ -820,7 +823,7 @@ mod tests {
         fn nu(&self) -> usize {
             self.r.len()
         }
-        fn eval<D: Scalar>(&self, x: &[D], u: &[D]) -> D {
+        fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D]) -> D {
             let (n, m) = (x.len(), u.len());
             let mut l = D::from(0.0);
             for i in 0..n {
@@ -898,7 +901,7 @@ mod tests {
         fn nr(&self) -> usize {
             3
         }
-        fn eval<D: Scalar>(&self, x: &[D], u: &[D], out: &mut [D]) {
+        fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], out: &mut [D]) {
             out[0] = x[0] * x[1] + u[0].sin();
             out[1] = x[2].exp() * u[1];
             out[2] = x[0] * x[0] * u[0] * u[1];
@@ -966,7 +969,7 @@ mod tests {
         fn nu(&self) -> usize {
             0
         }
-        fn eval<D: Scalar>(&self, x: &[D], _u: &[D]) -> D {
+        fn eval<D: ManifoldScalar>(&self, x: &[D], _u: &[D]) -> D {
             let q = [x[0], x[1], x[2], x[3]];
             let rb = lie::qrot(&q, &self.b.map(D::from));
             rb[0] * self.a[0] + rb[1] * self.a[1] + rb[2] * self.a[2]
@@ -1011,7 +1014,7 @@ mod tests {
         fn nu(&self) -> usize {
             3
         }
-        fn eval<D: Scalar>(&self, x: &[D], u: &[D], y: &mut [D]) {
+        fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], y: &mut [D]) {
             let q = [x[0], x[1], x[2], x[3]];
             let w = [u[0] * self.dt, u[1] * self.dt, u[2] * self.dt];
             y.copy_from_slice(&lie::qmul(&q, &lie::exp3(&w)));
@@ -1098,7 +1101,7 @@ mod tests {
         fn nu(&self) -> usize {
             2
         }
-        fn eval<D: Scalar>(&self, x: &[D], u: &[D], y: &mut [D]) {
+        fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], y: &mut [D]) {
             let (c, s) = (x[2], x[3]);
             let (v, w) = (u[0] * self.dt, u[1] * u[0] * self.dt);
             let (sw, cw) = w.sin_cos();
@@ -1130,6 +1133,91 @@ mod tests {
         }
     }
 
+    /// `y = x ⊕ dt u` on SE(3), written with the space's own `⊕`: `dy/dx = Ad(exp(dt u))⁻¹`,
+    /// `dy/du = dt J_r(dt u)`.
+    struct TwistStep {
+        dt: f64,
+    }
+
+    impl AutoDynamicsFn for TwistStep {
+        fn nx(&self) -> usize {
+            7
+        }
+        fn nu(&self) -> usize {
+            6
+        }
+        fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], y: &mut [D]) {
+            let v: [D; 6] = std::array::from_fn(|i| u[i] * self.dt);
+            D::integrate(&SE3, x, &v, y);
+        }
+    }
+
+    /// Semi-implicit Euler on the tangent bundle of SE(2): `v⁺ = v + dt u`,
+    /// `q⁺ = q ⊕ dt v⁺`, written with the base space's `⊕`.
+    struct SemiImplicit {
+        dt: f64,
+    }
+
+    impl AutoDynamicsFn for SemiImplicit {
+        fn nx(&self) -> usize {
+            7
+        }
+        fn nu(&self) -> usize {
+            3
+        }
+        fn eval<D: ManifoldScalar>(&self, x: &[D], u: &[D], y: &mut [D]) {
+            for i in 0..3 {
+                y[4 + i] = x[4 + i] + u[i] * self.dt;
+            }
+            let dq: [D; 3] = std::array::from_fn(|i| y[4 + i] * self.dt);
+            D::integrate(&SE2, &x[..4], &dq, &mut y[..4]);
+        }
+    }
+
+    #[test]
+    fn models_using_the_space_operations() {
+        let mut rng = SmallRng::seed_from_u64(8);
+        let se3: Arc<dyn Manifold> = Arc::new(SE3);
+        let dt = 0.3;
+        let d = AutoDiff::explicit_dynamics(se3.clone(), se3.clone(), TwistStep { dt }).unwrap();
+        let mut data = d.create_data();
+        let mut j = Mat::zeros(6, 6);
+        for _ in 0..10 {
+            let mut x = [0.0; 7];
+            se3.random(&mut rng, &mut x);
+            let (u, lam) = (rand_vec(&mut rng, 6), rand_vec(&mut rng, 6));
+            d.forward(&x, &u, &mut data);
+            d.jacobians(&x, &u, &mut data);
+            d.vhp(&x, &u, &lam, &mut data);
+            let v: Vec<f64> = u.iter().map(|ui| ui * dt).collect();
+            SE3.jintegrate(&x, &v, Arg::First, j.as_mut());
+            assert!(rel_error(&data.jx, &j) < 1e-14);
+            SE3.jintegrate(&x, &v, Arg::Second, j.as_mut());
+            assert!(rel_error(&data.ju, &Mat::from_fn(6, 6, |a, b| dt * j[(a, b)])) < 1e-14);
+            let h = fd_dynamics_hessian(&d, &x, &u, &lam);
+            assert!(rel_error(&data.vhp_xx, &h.as_ref().submatrix(0, 0, 6, 6).to_owned()) < 1e-6);
+            assert!(rel_error(&data.vhp_xu, &h.as_ref().submatrix(0, 6, 6, 6).to_owned()) < 1e-6);
+            assert!(rel_error(&data.vhp_uu, &h.as_ref().submatrix(6, 6, 6, 6).to_owned()) < 1e-6);
+        }
+
+        let tb: Arc<dyn Manifold> = Arc::new(TangentBundle::new(Arc::new(SE2)));
+        let d = AutoDiff::explicit_dynamics(tb.clone(), tb.clone(), SemiImplicit { dt: 0.1 }).unwrap();
+        for _ in 0..10 {
+            let mut x = [0.0; 7];
+            tb.random(&mut rng, &mut x);
+            let (u, lam) = (rand_vec(&mut rng, 3), rand_vec(&mut rng, 6));
+            check_explicit_dynamics(&d, &x, &u, CheckOptions::default()).assert_ok();
+            let mut data = d.create_data();
+            d.forward(&x, &u, &mut data);
+            d.jacobians(&x, &u, &mut data);
+            d.vhp(&x, &u, &lam, &mut data);
+            let h = fd_dynamics_hessian(&d, &x, &u, &lam);
+            assert!(rel_error(&data.vhp_xx, &h.as_ref().submatrix(0, 0, 6, 6).to_owned()) < 1e-6);
+            assert!(rel_error(&data.vhp_xu, &h.as_ref().submatrix(0, 6, 6, 3).to_owned()) < 1e-6);
+            assert!(rel_error(&data.vhp_uu, &h.as_ref().submatrix(6, 6, 3, 3).to_owned()) < 1e-6);
+        }
+    }
+
     /// `r(x) = (R(q) v, |v|²)` on the tangent bundle of SO(3), lifted to a stage function.
     struct BodyVelocity;
 
@@ -1140,7 +1228,7 @@ mod tests {
         fn nr(&self) -> usize {
             4
         }
-        fn eval<D: Scalar>(&self, x: &[D], out: &mut [D]) {
+        fn eval<D: ManifoldScalar>(&self, x: &[D], out: &mut [D]) {
             let q = [x[0], x[1], x[2], x[3]];
             let v = [x[4], x[5], x[6]];
             out[..3].copy_from_slice(&lie::qrot(&q, &v));

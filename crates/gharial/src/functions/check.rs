@@ -7,7 +7,10 @@
 //!   implementation* supplied by the caller, written once generic over
 //!   [`Scalar`](crate::spaces::Scalar) and passed as a function item (the compiler picks
 //!   the dual type). The default tolerance is `1e-12`. The reference's value is
-//!   compared too, so a reference that computes something else fails.
+//!   compared too, so a reference that computes something else fails. A reference
+//!   on a manifold can be generic over
+//!   [`ManifoldScalar`](crate::spaces::ManifoldScalar) to use the space's `⊕` and `⊖`
+//!   (`D::integrate(space, ...)`, `D::difference(space, ...)`).
 //!
 //! Every model of the library is tested with both; users can run them on their own
 //! models.

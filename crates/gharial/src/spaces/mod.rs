@@ -75,13 +75,36 @@ pub trait Scalar: DualNum<Primitive = f64> + Copy + Send + Sync {}
 
 impl<T: DualNum<Primitive = f64> + Copy + Send + Sync> Scalar for T {}
 
-/// The scalars for which a `dyn Manifold` can run its group operations.
-pub(crate) trait DynScalar: Scalar {
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for f64 {}
+    impl Sealed for num_dual::Dual64 {}
+    impl Sealed for num_dual::HyperDual64 {}
+}
+
+/// The scalars on which every `dyn Manifold` runs its group operations: `f64`,
+/// [`Dual64`] and [`HyperDual64`]. Models differentiated automatically are generic over
+/// this trait, so that they can use `⊕` and `⊖` of any space:
+///
+/// ```
+/// use gharial::spaces::{Manifold, ManifoldScalar, SE3};
+/// /// One explicit Euler step `y = x ⊕ dt v` on SE(3), for any of the scalars.
+/// fn euler<D: ManifoldScalar>(x: &[D], v: &[D], dt: f64, y: &mut [D]) {
+///     let dv: [D; 6] = std::array::from_fn(|i| v[i] * dt);
+///     D::integrate(&SE3, x, &dv, y);
+/// }
+/// let mut y = [0.0; 7];
+/// euler(&[0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0], &[1.0, 0.0, 0.0, 0.0, 0.0, 0.0], 0.5, &mut y);
+/// assert_eq!(y[0], 0.5);
+/// ```
+pub trait ManifoldScalar: Scalar + sealed::Sealed {
+    /// `out = x ⊕ v` on `m` ([`Manifold::integrate`] or its dual versions).
     fn integrate(m: &dyn Manifold, x: &[Self], v: &[Self], out: &mut [Self]);
+    /// `out = x1 ⊖ x0` on `m` ([`Manifold::difference`] or its dual versions).
     fn difference(m: &dyn Manifold, x0: &[Self], x1: &[Self], out: &mut [Self]);
 }
 
-impl DynScalar for f64 {
+impl ManifoldScalar for f64 {
     #[inline]
     fn integrate(m: &dyn Manifold, x: &[f64], v: &[f64], out: &mut [f64]) {
         m.integrate(x, v, out)
@@ -92,7 +115,7 @@ impl DynScalar for f64 {
     }
 }
 
-impl DynScalar for Dual64 {
+impl ManifoldScalar for Dual64 {
     #[inline]
     fn integrate(m: &dyn Manifold, x: &[Self], v: &[Self], out: &mut [Self]) {
         m.integrate_dual(x, v, out)
@@ -103,7 +126,7 @@ impl DynScalar for Dual64 {
     }
 }
 
-impl DynScalar for HyperDual64 {
+impl ManifoldScalar for HyperDual64 {
     #[inline]
     fn integrate(m: &dyn Manifold, x: &[Self], v: &[Self], out: &mut [Self]) {
         m.integrate_hyper(x, v, out)

@@ -9,7 +9,7 @@ use faer::MatMut;
 use faer::reborrow::ReborrowMut;
 use rand::RngCore;
 
-use super::{Arg, DynScalar, Manifold, forward_group_ops};
+use super::{Arg, Manifold, ManifoldScalar, forward_group_ops};
 
 /// The Cartesian product of any number of spaces (products of products included).
 ///
@@ -90,13 +90,13 @@ impl CartesianProduct {
         self.odx[i]..self.odx[i + 1]
     }
 
-    fn integrate_t<T: DynScalar>(&self, x: &[T], v: &[T], out: &mut [T]) {
+    fn integrate_t<T: ManifoldScalar>(&self, x: &[T], v: &[T], out: &mut [T]) {
         for (i, p) in self.parts.iter().enumerate() {
             T::integrate(p.as_ref(), &x[self.rx(i)], &v[self.rdx(i)], &mut out[self.rx(i)]);
         }
     }
 
-    fn difference_t<T: DynScalar>(&self, x0: &[T], x1: &[T], out: &mut [T]) {
+    fn difference_t<T: ManifoldScalar>(&self, x0: &[T], x1: &[T], out: &mut [T]) {
         for (i, p) in self.parts.iter().enumerate() {
             T::difference(p.as_ref(), &x0[self.rx(i)], &x1[self.rx(i)], &mut out[self.rdx(i)]);
         }

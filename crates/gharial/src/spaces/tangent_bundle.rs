@@ -15,7 +15,7 @@ use faer::MatMut;
 use faer::reborrow::ReborrowMut;
 use rand::RngCore;
 
-use super::{Arg, DynScalar, Manifold, forward_group_ops, set_identity};
+use super::{Arg, Manifold, ManifoldScalar, forward_group_ops, set_identity};
 
 /// The tangent bundle of a space: `x = (q, v)`, `nx = nq + nv`, `ndx = 2 nv` with
 /// `nq = M.nx()`, `nv = M.ndx()`.
@@ -35,7 +35,7 @@ impl TangentBundle {
         &self.base
     }
 
-    fn integrate_t<T: DynScalar>(&self, x: &[T], v: &[T], out: &mut [T]) {
+    fn integrate_t<T: ManifoldScalar>(&self, x: &[T], v: &[T], out: &mut [T]) {
         let (nq, nv) = (self.base.nx(), self.base.ndx());
         T::integrate(self.base.as_ref(), &x[..nq], &v[..nv], &mut out[..nq]);
         for i in 0..nv {
@@ -43,7 +43,7 @@ impl TangentBundle {
         }
     }
 
-    fn difference_t<T: DynScalar>(&self, x0: &[T], x1: &[T], out: &mut [T]) {
+    fn difference_t<T: ManifoldScalar>(&self, x0: &[T], x1: &[T], out: &mut [T]) {
         let (nq, nv) = (self.base.nx(), self.base.ndx());
         T::difference(self.base.as_ref(), &x0[..nq], &x1[..nq], &mut out[..nv]);
         for i in 0..nv {
