@@ -309,18 +309,36 @@ pub(crate) fn hessian_hyper(
     for (d, &v) in s.uh.iter_mut().zip(u) {
         *d = hd(v);
     }
+    let vector = space.is_vector_space();
+    if !vector {
+        space.tangent_map(x, s.tm.as_mut());
+    }
+    // Seed of x along tangent direction i: column i of the tangent map.
+    let seed = |tm: &Mat<f64>, k: usize, i: usize| {
+        if vector {
+            if k == i { 1.0 } else { 0.0 }
+        } else {
+            tm[(k, i)]
+        }
+    };
     for i in 0..n {
         for j in i..n {
             let perturb_x = i < ndx;
-            if perturb_x {
+            if perturb_x && j < ndx && !vector {
+                // Both directions on a curved x: the ε1ε2 term of x ⊕ δ is needed.
                 for v in s.vh.iter_mut() {
                     *v = hd(0.0);
                 }
                 s.vh[i].eps1 = 1.0;
-                if j < ndx {
-                    s.vh[j].eps2 = 1.0;
-                }
+                s.vh[j].eps2 = 1.0;
                 space.integrate_hyper(&s.x0h, &s.vh, &mut s.xh);
+            } else if perturb_x {
+                // At most first order in each of ε1, ε2 on x (ε1² = ε2² = 0): the tangent
+                // map is exact.
+                for (k, xk) in s.xh.iter_mut().enumerate() {
+                    let e2 = if j < ndx { seed(&s.tm, k, j) } else { 0.0 };
+                    *xk = HyperDual64::new(x[k], seed(&s.tm, k, i), e2, 0.0);
+                }
             } else {
                 s.uh[i - ndx].eps1 = 1.0;
             }

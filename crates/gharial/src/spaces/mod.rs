@@ -45,6 +45,7 @@
 use std::fmt::Debug;
 
 use faer::MatMut;
+use faer::reborrow::ReborrowMut;
 use num_dual::{Dual64, DualNum, HyperDual64};
 use rand::RngCore;
 
@@ -270,9 +271,16 @@ pub trait Manifold: Send + Sync + Debug {
 /// Writes `±I` into a square matrix.
 #[inline]
 pub(crate) fn set_identity(mut j: MatMut<'_, f64>, s: f64) {
-    j.fill(0.0);
-    for i in 0..j.nrows().min(j.ncols()) {
-        j[(i, i)] = s;
+    let n = j.nrows();
+    for c in 0..j.ncols() {
+        let mut col = j.rb_mut().col_mut(c);
+        match col.rb_mut().try_as_col_major_mut() {
+            Some(col) => col.as_slice_mut().fill(0.0),
+            None => col.fill(0.0),
+        }
+        if c < n {
+            col[c] = s;
+        }
     }
 }
 
