@@ -333,8 +333,8 @@ pub(crate) fn hessian_hyper(
                 s.vh[j].eps2 = 1.0;
                 space.integrate_hyper(&s.x0h, &s.vh, &mut s.xh);
             } else if perturb_x {
-                // At most first order in each of ε1, ε2 on x (ε1² = ε2² = 0): the tangent
-                // map is exact.
+                // A vector space, or one direction on u: x depends linearly on ε1 and ε2
+                // up to ε1², ε2² (which vanish), so seeding with the tangent map is exact.
                 for (k, xk) in s.xh.iter_mut().enumerate() {
                     let e2 = if j < ndx { seed(&s.tm, k, j) } else { 0.0 };
                     *xk = HyperDual64::new(x[k], seed(&s.tm, k, i), e2, 0.0);
