@@ -12,6 +12,7 @@ use std::sync::Arc;
 
 use faer::{Col, Mat};
 
+pub mod autodiff;
 pub mod check;
 
 /// Scratch memory owned by a data object and private to the model that created it.
