@@ -15,7 +15,7 @@
 //! `r2 = −∂g`, `∂λ = Λ⁻¹ (r2 − Jc M⁻¹ r1)` and `∂ddq = M⁻¹ r1 + M⁻¹ Jcᵀ ∂λ`
 //! (plain derivatives in LOCAL and LWA; q-derivatives along `q ⊕ δ`).
 
-use crate::data::Data;
+use crate::data::{Data, check_data};
 use crate::derivatives::rnea_derivatives_kernel;
 use crate::dynamics::{factor_mass_matrix, minv_from_factor};
 use crate::error::{Error, Result, check_vec};
@@ -308,6 +308,7 @@ pub fn constraint_dynamics(
     tau: &[f64],
 ) -> Result<()> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("tau", tau, model.nv)?;
     check_sizes(model, contacts, cdata)?;
@@ -446,6 +447,7 @@ pub fn compute_constraint_dynamics_derivatives(
     cdata: &mut ContactData,
 ) -> Result<()> {
     check_sizes(model, contacts, cdata)?;
+    check_data(model, data)?;
     let (nv, nc) = (model.nv, cdata.nc);
     let q = std::mem::take(&mut cdata.q);
     let v = std::mem::take(&mut cdata.v);

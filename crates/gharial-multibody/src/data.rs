@@ -5,6 +5,7 @@
 //! accessors. Dense matrices are stored as column-major `Vec<f64>` and exposed as faer
 //! views.
 
+use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::spatial::{Force, Inertia, Mat3, Motion, Se3, Sym6, Vec3};
 use faer::MatRef;
@@ -63,6 +64,23 @@ pub struct Data {
     pub(crate) acom: Vec3,
 }
 
+/// Checks that `data` was created for a model of the same shape as `model`.
+pub(crate) fn check_data(model: &Model, data: &Data) -> Result<()> {
+    if data.li_mi.len() != model.njoints() || data.nv != model.nv() || data.o_mf.len() != model.nframes() {
+        return Err(Error::Invalid(format!(
+            "data was created for a model with {} joints, nv = {}, {} frames; model `{}` has {} joints, nv = {}, {} frames",
+            data.li_mi.len(),
+            data.nv,
+            data.o_mf.len(),
+            model.name,
+            model.njoints(),
+            model.nv(),
+            model.nframes()
+        )));
+    }
+    Ok(())
+}
+
 impl Data {
     /// Allocates the workspace for `model`.
     pub fn new(model: &Model) -> Self {
@@ -115,17 +133,17 @@ impl Data {
         }
     }
 
-    /// Placement of joint frame `i` in the world (`oMi`).
+    /// Placement of joint frame `i` in the world (`oMi`). Panics if the index is out of range.
     pub fn joint_placement(&self, i: usize) -> &Se3 {
         &self.o_mi[i]
     }
 
-    /// Placement of joint `i` in its parent joint frame (`liMi`).
+    /// Placement of joint `i` in its parent joint frame (`liMi`). Panics if the index is out of range.
     pub fn joint_relative_placement(&self, i: usize) -> &Se3 {
         &self.li_mi[i]
     }
 
-    /// Placement of frame `f` in the world (`oMf`), after `update_frame_placements`.
+    /// Placement of frame `f` in the world (`oMf`), after `update_frame_placements`. Panics if the index is out of range.
     pub fn frame_placement(&self, f: usize) -> &Se3 {
         &self.o_mf[f]
     }
@@ -205,18 +223,19 @@ impl Data {
         MatRef::from_column_major_slice(&self.jcom, 3, self.nv)
     }
 
-    /// World-frame Jacobian column of degree of freedom `k`, after a kinematic pass.
+    /// World-frame Jacobian column of degree of freedom `k`, after a kinematic pass. Panics if the index is out of range.
     pub fn joint_jacobian_column(&self, k: usize) -> &Motion {
         &self.j[k]
     }
 
     /// Spatial force transmitted from the parent to the subtree of joint `i` (gravity
-    /// included), in the world frame, after `rnea`.
+    /// included), in the world frame, after `rnea`. Panics if `i` is out of range.
     pub fn joint_force_world(&self, i: usize) -> &Force {
         &self.of[i]
     }
 
-    /// The same force in the frame of joint `i` (Pinocchio's `data.f[i]`).
+    /// The same force in the frame of joint `i` (Pinocchio's `data.f[i]`). Panics if `i` is
+    /// out of range.
     pub fn joint_force_local(&self, i: usize) -> Force {
         self.o_mi[i].act_inv_force(&self.of[i])
     }

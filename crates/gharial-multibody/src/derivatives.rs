@@ -17,7 +17,7 @@
 //! `∂τ_r/∂q_c = J_r·(Ycrb_i dAdq_c + D_i dVdq_c + J_c ×* F_i)`; the same with
 //! `(dAdv_c, J_c)` for v and `(J_c, 0)` for a (the CRBA).
 
-use crate::data::Data;
+use crate::data::{Data, check_data};
 use crate::dynamics::{aba_unchecked, factor_mass_matrix, minv_from_factor};
 use crate::error::{Error, Result, check_vec};
 use crate::kinematics::{express_motion, frame_placement_of, jacobian_step, joint_motion, placement_step};
@@ -57,6 +57,7 @@ pub fn compute_forward_kinematics_derivatives(
     a: &[f64],
 ) -> Result<()> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("a", a, model.nv)?;
     for i in 1..model.njoints() {
@@ -126,6 +127,7 @@ pub fn frame_velocity_derivatives(
     mut dv_dv: MatMut<'_, f64>,
 ) -> Result<()> {
     model.check_frame(frame)?;
+    check_data(model, data)?;
     check_6xnv("dv_dq", &dv_dq, model.nv)?;
     check_6xnv("dv_dv", &dv_dv, model.nv)?;
     dv_dq.fill(0.0);
@@ -163,6 +165,7 @@ pub fn frame_acceleration_derivatives(
     mut da_da: MatMut<'_, f64>,
 ) -> Result<()> {
     model.check_frame(frame)?;
+    check_data(model, data)?;
     for (w, m) in [
         ("dv_dq", &dv_dq),
         ("da_dq", &da_dq),
@@ -308,6 +311,7 @@ pub(crate) fn rnea_derivatives_kernel<const T: bool>(
 /// also computes `tau` ([`Data::tau`]).
 pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<()> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("a", a, model.nv)?;
     let mut dq = std::mem::take(&mut data.dtau_dq);
@@ -326,6 +330,7 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[
 /// also computes `ddq` ([`Data::ddq`]) and `M`.
 pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64]) -> Result<()> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("tau", tau, model.nv)?;
     aba_unchecked(model, data, q, v, tau)?;

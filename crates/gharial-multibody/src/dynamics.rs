@@ -1,7 +1,7 @@
 //! Inverse and forward dynamics: RNEA, nonlinear effects, generalized gravity, CRBA, ABA,
 //! M⁻¹, centre of mass — all in the world frame (Featherstone, RBDA ch. 5-7).
 
-use crate::data::Data;
+use crate::data::{Data, check_data};
 use crate::error::{Error, Result, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
 use crate::linalg::{ltdl_factor, ltdl_solve_rows, small_spd_inverse};
@@ -56,6 +56,7 @@ fn rnea_pass(model: &Model, data: &mut Data, q: &[f64], v: Option<&[f64]>, a: Op
 /// Inverse dynamics `tau = M(q) a + C(q, v) v + g(q)` (armature included).
 pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<&'d [f64]> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("a", a, model.nv)?;
     rnea_pass(model, data, q, Some(v), Some(a));
@@ -68,6 +69,7 @@ pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f6
 /// Nonlinear effects `C(q, v) v + g(q)`.
 pub fn nonlinear_effects<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64]) -> Result<&'d [f64]> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     rnea_pass(model, data, q, Some(v), None);
     data.nle.copy_from_slice(&data.tau);
@@ -77,6 +79,7 @@ pub fn nonlinear_effects<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[
 /// Generalized gravity `g(q)`.
 pub fn generalized_gravity<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d [f64]> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     for i in 0..model.njoints() {
         data.ov[i] = Motion::zero();
     }
@@ -89,6 +92,7 @@ pub fn generalized_gravity<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> 
 /// (armature on the diagonal).
 pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<MatRef<'d, f64>> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     crba_unchecked(model, data, q);
     Ok(data.mass_matrix())
 }
@@ -222,6 +226,7 @@ pub(crate) fn aba_unchecked(model: &Model, data: &mut Data, q: &[f64], v: &[f64]
 /// Forward dynamics `ddq = M⁻¹ (tau − C v − g)` by the articulated-body algorithm.
 pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64]) -> Result<&'d [f64]> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("tau", tau, model.nv)?;
     aba_unchecked(model, data, q, v, tau)?;
@@ -248,6 +253,7 @@ pub(crate) fn minv_from_factor(model: &Model, data: &mut Data) {
 /// factorization).
 pub fn compute_minverse<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<MatRef<'d, f64>> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     crba_unchecked(model, data, q);
     factor_mass_matrix(model, data)?;
     minv_from_factor(model, data);
@@ -286,6 +292,7 @@ pub fn center_of_mass<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64
 /// Jacobian of the centre of mass (3 × nv, world frame); also updates `com`.
 pub fn jacobian_center_of_mass<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<MatRef<'d, f64>> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     for i in 1..model.njoints() {
         placement_step(model, data, i, q);
         jacobian_step(model, data, i);

@@ -4,7 +4,7 @@
 //! `ov_i = ov_λ + J_i v_i` and acceleration `oa_i = oa_λ + J_i a_i + ov_λ × J_i v_i`,
 //! with the Jacobian columns `J_k = oMi · S_k`.
 
-use crate::data::Data;
+use crate::data::{Data, check_data};
 use crate::error::{Error, Result, check_vec};
 use crate::model::{Model, NONE, ReferenceFrame};
 use crate::spatial::{Motion, Se3};
@@ -69,6 +69,7 @@ pub(crate) fn joint_motion(model: &Model, data: &Data, i: usize, x: &[f64]) -> M
 /// every joint, and the world Jacobian columns.
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<()> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("a", a, model.nv)?;
     for i in 1..model.njoints() {
@@ -87,6 +88,7 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
 /// Placements `oMi` only.
 pub fn forward_kinematics_placements(model: &Model, data: &mut Data, q: &[f64]) -> Result<()> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     for i in 1..model.njoints() {
         placement_step(model, data, i, q);
     }
@@ -94,15 +96,18 @@ pub fn forward_kinematics_placements(model: &Model, data: &mut Data, q: &[f64]) 
 }
 
 /// Placements `oMf` of every frame from the current `oMi`.
-pub fn update_frame_placements(model: &Model, data: &mut Data) {
+pub fn update_frame_placements(model: &Model, data: &mut Data) -> Result<()> {
+    check_data(model, data)?;
     for (f, frame) in model.frames.iter().enumerate() {
         data.o_mf[f] = data.o_mi[frame.parent_joint].compose(&frame.placement);
     }
+    Ok(())
 }
 
 /// Placements `oMi` and world Jacobian columns of every joint.
 pub fn compute_joint_jacobians(model: &Model, data: &mut Data, q: &[f64]) -> Result<()> {
     check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
     for i in 1..model.njoints() {
         placement_step(model, data, i, q);
         jacobian_step(model, data, i);
@@ -149,6 +154,7 @@ pub fn frame_jacobian(
     mut out: MatMut<'_, f64>,
 ) -> Result<()> {
     model.check_frame(frame)?;
+    check_data(model, data)?;
     check_out("frame_jacobian", &out, 6, model.nv)?;
     out.fill(0.0);
     let o_mf = frame_placement_of(model, data, frame);
@@ -178,6 +184,7 @@ pub fn joint_jacobian(
         });
     }
     check_out("joint_jacobian", &out, 6, model.nv)?;
+    check_data(model, data)?;
     out.fill(0.0);
     let o = data.o_mi[joint];
     let mut k = model.last_dof(joint);
@@ -191,19 +198,33 @@ pub fn joint_jacobian(
     Ok(())
 }
 
+fn check_joint(data: &Data, joint: usize) -> Result<()> {
+    if joint < data.o_mi.len() {
+        Ok(())
+    } else {
+        Err(Error::NotFound {
+            what: "joint".into(),
+            name: joint.to_string(),
+        })
+    }
+}
+
 /// Spatial velocity of joint `joint` in `rf`, after `forward_kinematics`.
-pub fn joint_velocity(data: &Data, joint: usize, rf: ReferenceFrame) -> Motion {
-    express_motion(&data.o_mi[joint], &data.ov[joint], rf)
+pub fn joint_velocity(data: &Data, joint: usize, rf: ReferenceFrame) -> Result<Motion> {
+    check_joint(data, joint)?;
+    Ok(express_motion(&data.o_mi[joint], &data.ov[joint], rf))
 }
 
 /// Spatial acceleration (no gravity) of joint `joint` in `rf`, after `forward_kinematics`.
-pub fn joint_acceleration(data: &Data, joint: usize, rf: ReferenceFrame) -> Motion {
-    express_motion(&data.o_mi[joint], &data.oa[joint], rf)
+pub fn joint_acceleration(data: &Data, joint: usize, rf: ReferenceFrame) -> Result<Motion> {
+    check_joint(data, joint)?;
+    Ok(express_motion(&data.o_mi[joint], &data.oa[joint], rf))
 }
 
 /// Spatial velocity of frame `frame` in `rf`, after `forward_kinematics`.
 pub fn frame_velocity(model: &Model, data: &Data, frame: usize, rf: ReferenceFrame) -> Result<Motion> {
     model.check_frame(frame)?;
+    check_data(model, data)?;
     let o_mf = frame_placement_of(model, data, frame);
     Ok(express_motion(&o_mf, &data.ov[model.frames[frame].parent_joint], rf))
 }
@@ -211,6 +232,7 @@ pub fn frame_velocity(model: &Model, data: &Data, frame: usize, rf: ReferenceFra
 /// Spatial acceleration (no gravity) of frame `frame` in `rf`, after `forward_kinematics`.
 pub fn frame_acceleration(model: &Model, data: &Data, frame: usize, rf: ReferenceFrame) -> Result<Motion> {
     model.check_frame(frame)?;
+    check_data(model, data)?;
     let o_mf = frame_placement_of(model, data, frame);
     Ok(express_motion(&o_mf, &data.oa[model.frames[frame].parent_joint], rf))
 }

@@ -392,7 +392,7 @@ fn check_sample(ck: &mut Checker, model: &Model, s: &Value) {
 
     // Kinematics.
     forward_kinematics(model, &mut data, &q, &v, &a).expect("forward_kinematics");
-    update_frame_placements(model, &mut data);
+    update_frame_placements(model, &mut data).expect("frames");
     handled.extend(["oMi", "joint_velocity_local", "joint_acceleration_local", "oMf"]);
     for (i, m) in matf_list(&s["oMi"]).iter().enumerate() {
         ck.se3("oMi", data.joint_placement(i), m, &ctx);
@@ -400,7 +400,7 @@ fn check_sample(ck: &mut Checker, model: &Model, s: &Value) {
     for (i, w) in s["joint_velocity_local"].as_array().into_iter().flatten().enumerate() {
         ck.vec(
             "joint_velocity_local",
-            &joint_velocity(&data, i, ReferenceFrame::Local).to_array(),
+            &joint_velocity(&data, i, ReferenceFrame::Local).expect("v").to_array(),
             &vecf(w),
             TOL,
             &ctx,
@@ -414,7 +414,9 @@ fn check_sample(ck: &mut Checker, model: &Model, s: &Value) {
     {
         ck.vec(
             "joint_acceleration_local",
-            &joint_acceleration(&data, i, ReferenceFrame::Local).to_array(),
+            &joint_acceleration(&data, i, ReferenceFrame::Local)
+                .expect("a")
+                .to_array(),
             &vecf(w),
             TOL,
             &ctx,
