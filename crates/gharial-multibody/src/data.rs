@@ -33,7 +33,6 @@ pub struct Data {
     pub(crate) hcrb: Vec<Force>,
     // Per degree of freedom.
     pub(crate) j: Vec<Motion>,
-    pub(crate) dj: Vec<Motion>,
     pub(crate) dvdq: Vec<Motion>,
     pub(crate) dadq: Vec<Motion>,
     pub(crate) dadv: Vec<Motion>,
@@ -105,7 +104,6 @@ impl Data {
             tcrb: vec![Mat3::zeros(); n],
             hcrb: vec![Force::zero(); n],
             j: vec![Motion::zero(); nv],
-            dj: vec![Motion::zero(); nv],
             dvdq: vec![Motion::zero(); nv],
             dadq: vec![Motion::zero(); nv],
             dadv: vec![Motion::zero(); nv],

@@ -75,7 +75,6 @@ pub fn compute_forward_kinematics_derivatives(
             let jk = data.j[k];
             let dvdq = ovp.cross(&jk);
             let dj = ov.cross(&jk);
-            data.dj[k] = dj;
             data.dvdq[k] = dvdq;
             data.dadq[k] = oap.cross(&jk) + ovp.cross(&dvdq);
             data.dadv[k] = dj + dvdq;
@@ -246,7 +245,6 @@ pub(crate) fn rnea_derivatives_kernel<const T: bool>(
             let jk = data.j[k];
             let dvdq = ovp.cross(&jk);
             let dj = ov.cross(&jk);
-            data.dj[k] = dj;
             data.dvdq[k] = dvdq;
             data.dadq[k] = oap.cross(&jk) + ovp.cross(&dvdq);
             data.dadv[k] = dj + dvdq;
