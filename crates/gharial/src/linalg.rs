@@ -10,6 +10,7 @@ use faer::diag::{DiagMut, DiagRef};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::{lblt as bunch_kaufman, ldlt, llt};
 use faer::linalg::lu::partial_pivoting as lu;
+use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::perm::PermRef;
 
 pub use faer::{Accum, Col, ColMut, ColRef, Mat, MatMut, MatRef};
@@ -18,6 +19,24 @@ pub use faer::{Accum, Col, ColMut, ColRef, Mat, MatMut, MatRef};
 #[inline]
 pub fn matmul(dst: MatMut<'_, f64>, accum: Accum, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>, alpha: f64) {
     faer::linalg::matmul::matmul(dst, accum, lhs, rhs, alpha, Par::Seq);
+}
+
+/// Lower triangle (diagonal included) of `dst = alpha * lhs * rhs` (`Accum::Replace`) or
+/// `dst += alpha * lhs * rhs` (`Accum::Add`); the strict upper triangle of `dst` is not
+/// touched. For products known to be symmetric, such as `Aᵀ P A`, at half the cost.
+#[inline]
+pub fn matmul_lower(dst: MatMut<'_, f64>, accum: Accum, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>, alpha: f64) {
+    triangular::matmul(
+        dst,
+        BlockStructure::TriangularLower,
+        accum,
+        lhs,
+        BlockStructure::Rectangular,
+        rhs,
+        BlockStructure::Rectangular,
+        alpha,
+        Par::Seq,
+    );
 }
 
 /// `y = alpha * A x` (`Accum::Replace`) or `y += alpha * A x` (`Accum::Add`) on slices.
@@ -99,6 +118,38 @@ pub fn slice_mut(c: &mut Col<f64>) -> &mut [f64] {
         .try_as_col_major_mut()
         .expect("owned columns are contiguous")
         .as_slice_mut()
+}
+
+/// The contiguous storage of column `j` of an owned matrix.
+#[inline]
+pub fn col_of(m: &Mat<f64>, j: usize) -> &[f64] {
+    m.col(j)
+        .try_as_col_major()
+        .expect("columns of owned matrices are contiguous")
+        .as_slice()
+}
+
+/// The contiguous mutable storage of column `j` of an owned matrix.
+#[inline]
+pub fn col_of_mut(m: &mut Mat<f64>, j: usize) -> &mut [f64] {
+    m.col_mut(j)
+        .try_as_col_major_mut()
+        .expect("columns of owned matrices are contiguous")
+        .as_slice_mut()
+}
+
+/// Whether the sum of all entries is finite: false if any entry is NaN or infinite (or
+/// if the entries are so large that their sum overflows). One pass, no branches per entry.
+pub fn sum_is_finite(m: MatRef<'_, f64>) -> bool {
+    let mut s = 0.0;
+    for j in 0..m.ncols() {
+        let c = m.col(j);
+        match c.try_as_col_major() {
+            Some(c) => s += c.as_slice().iter().sum::<f64>(),
+            None => (0..m.nrows()).for_each(|i| s += c[i]),
+        }
+    }
+    s.is_finite()
 }
 
 /// Copies the lower triangle of a square matrix into its upper triangle.
@@ -327,6 +378,7 @@ pub struct BunchKaufman {
     perm: Vec<usize>,
     perm_inv: Vec<usize>,
     buf: MemBuffer,
+    max_rhs: usize,
 }
 
 impl std::fmt::Debug for BunchKaufman {
@@ -336,11 +388,18 @@ impl std::fmt::Debug for BunchKaufman {
 }
 
 impl BunchKaufman {
-    /// Allocates a factorization of dimension `n`.
+    /// Allocates a factorization of dimension `n` whose solves take up to `max(n, 1)`
+    /// right-hand sides.
     pub fn new(n: usize) -> Self {
+        Self::with_max_rhs(n, n)
+    }
+
+    /// Allocates a factorization of dimension `n` whose solves take up to `max_rhs`
+    /// right-hand sides (at least 1).
+    pub fn with_max_rhs(n: usize, max_rhs: usize) -> Self {
         let params = Self::params();
         let req = bunch_kaufman::factor::cholesky_in_place_scratch::<usize, f64>(n, Par::Seq, params).or(
-            bunch_kaufman::solve::solve_in_place_scratch::<usize, f64>(n, n.max(1), Par::Seq),
+            bunch_kaufman::solve::solve_in_place_scratch::<usize, f64>(n, max_rhs.max(1), Par::Seq),
         );
         Self {
             factors: Mat::zeros(n, n),
@@ -348,6 +407,7 @@ impl BunchKaufman {
             perm: vec![0; n],
             perm_inv: vec![0; n],
             buf: stack_buffer(req),
+            max_rhs: max_rhs.max(1),
         }
     }
 
@@ -423,8 +483,10 @@ impl BunchKaufman {
         Ok(inertia)
     }
 
-    /// Solves `A X = B` in place. `rhs` may have at most `n` columns (`max(n, 1)`).
+    /// Solves `A X = B` in place; `rhs` has at most `max_rhs` columns (see
+    /// [`with_max_rhs`](Self::with_max_rhs)).
     pub fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+        debug_assert!(rhs.ncols() <= self.max_rhs);
         let n = self.dim();
         let stack = MemStack::new(&mut self.buf);
         let perm = PermRef::new_checked(&self.perm, &self.perm_inv, n);

@@ -1,0 +1,864 @@
+//! One knot of the proximal Riccati recursion: Q-function, stage KKT solve, value update
+//! and forward step (module docs of [`crate::lq`], steps 1-5).
+
+use faer::prelude::ReborrowMut;
+use faer::{Accum, Col, Mat, MatMut, MatRef};
+
+use super::{KnotVectors, LqError, LqKnot, blame, is_minus_identity};
+use crate::linalg::{
+    self, BunchKaufman, FactorError, Inertia, Ldlt, Llt, Lu, col_of, col_of_mut, matmul, matmul_lower, matvec,
+    matvec_t, slice, slice_mut, sum_is_finite,
+};
+
+/// Workspace and results of one knot of the Riccati recursion.
+///
+/// All storage is allocated in [`new`](Self::new); the methods allocate nothing. The
+/// usual order per knot (backward in time) is [`q_function`](Self::q_function),
+/// [`q_function_vectors`](Self::q_function_vectors), [`solve_kkt`](Self::solve_kkt),
+/// [`solve_kkt_vectors`](Self::solve_kkt_vectors); a solver with its own control law
+/// replaces the last two by [`value_from_gains`](Self::value_from_gains).
+#[derive(Debug)]
+pub struct RiccatiStage {
+    index: usize,
+    nx: usize,
+    nu: usize,
+    nc: usize,
+    ny: usize,
+    rollout_gains: bool,
+    // Step 1: [Ã B̃ f̃] and the factorization of E (general E only).
+    e_minus_identity: bool,
+    lu_e: Lu,
+    abf: Mat<f64>,
+    // Step 2: proximal value, with M = I + P'G.
+    mu_dyn: f64,
+    g: Mat<f64>,
+    m: Mat<f64>,
+    prox: ProxFactor,
+    ptilde: Mat<f64>,
+    ptilde_vec: Col<f64>,
+    v: Col<f64>,
+    pab: Mat<f64>,
+    // Step 3: Q-function [Q_xx Q_xu; Q_ux Q_uu] and [Q_x; Q_u].
+    qmat: Mat<f64>,
+    qvec: Col<f64>,
+    // Step 4: stage KKT and gains [k K; ζ Z].
+    kkt: Mat<f64>,
+    kkt_factor: KktFactor,
+    gains: Mat<f64>,
+    // Step 5: value function.
+    P: Mat<f64>,
+    p: Col<f64>,
+    // Rollout gains: [t0 | T] of z, [y0 | Y] of λ̃, [c | C] of x_{t+1}, [ξ | Ξ] of λ_{t+1}.
+    zg: Mat<f64>,
+    lg: Mat<f64>,
+    xg: Mat<f64>,
+    lamg: Mat<f64>,
+    // Scratch: nu x nx and nu for value_from_gains, ny for the forward step.
+    w_ux: Mat<f64>,
+    w_u: Col<f64>,
+    w_y: Col<f64>,
+    // Copy of the vector part, for iterative refinement.
+    saved: Vec<f64>,
+}
+
+impl RiccatiStage {
+    /// Allocates the workspace of knot `index` with dimensions `nx, nu, nc` and next
+    /// state dimension `ny` (0 at the last knot). With `rollout_gains`, the backward pass
+    /// also computes the gains of `x_{t+1}` and `λ_{t+1}` (50b-c). `max_rhs` is the largest
+    /// number of right-hand sides the proximal system `I + P'G` will be solved with
+    /// (at least `ny + 1`).
+    pub fn new(index: usize, nx: usize, nu: usize, nc: usize, ny: usize, rollout_gains: bool, max_rhs: usize) -> Self {
+        let nk = nu + nc;
+        let ng = if rollout_gains { ny } else { 0 };
+        let max_rhs = max_rhs.max(ny + 1);
+        Self {
+            index,
+            nx,
+            nu,
+            nc,
+            ny,
+            rollout_gains,
+            e_minus_identity: true,
+            lu_e: Lu::new(ny, (nx + nu + 1).max(ny)),
+            abf: Mat::zeros(ny, nx + nu + 1),
+            mu_dyn: 0.0,
+            g: Mat::zeros(ny, ny),
+            m: Mat::zeros(ny, ny),
+            prox: ProxFactor {
+                llt: Llt::new(ny),
+                lu: Lu::new(ny, max_rhs),
+                is_llt: true,
+            },
+            ptilde: Mat::zeros(ny, ny),
+            ptilde_vec: Col::zeros(ny),
+            v: Col::zeros(ny),
+            pab: Mat::zeros(ny, nx + nu),
+            qmat: Mat::zeros(nx + nu, nx + nu),
+            qvec: Col::zeros(nx + nu),
+            kkt: Mat::zeros(nk, nk),
+            kkt_factor: KktFactor {
+                ldlt: Ldlt::new(nk),
+                bk: BunchKaufman::with_max_rhs(nk, (1 + nx).max(nu)),
+                use_bk: false,
+            },
+            gains: Mat::zeros(nk, 1 + nx),
+            P: Mat::zeros(nx, nx),
+            p: Col::zeros(nx),
+            zg: Mat::zeros(ny, 1 + nx),
+            lg: Mat::zeros(ng, 1 + nx),
+            xg: Mat::zeros(ng, 1 + nx),
+            lamg: Mat::zeros(ng, 1 + nx),
+            w_ux: Mat::zeros(nu, nx),
+            w_u: Col::zeros(nu),
+            w_y: Col::zeros(ny),
+            saved: vec![0.0; 2 * nx + 2 * nu + nc + 4 * ny + 3 * ng],
+        }
+    }
+
+    /// Knot index (used in error messages).
+    pub fn index(&self) -> usize {
+        self.index
+    }
+
+    /// `(nx, nu, nc, nx_next)`.
+    pub fn dims(&self) -> (usize, usize, usize, usize) {
+        (self.nx, self.nu, self.nc, self.ny)
+    }
+
+    fn singular(&self, system: &'static str) -> LqError {
+        LqError::Singular {
+            knot: self.index,
+            system,
+        }
+    }
+
+    /// Matrix part of the Q-function (steps 1-3): `Q_xx, Q_xu, Q_uu` from the knot and the
+    /// next value Hessian `P_next` (`None` at the last knot).
+    pub fn q_function(&mut self, knot: &LqKnot, P_next: Option<MatRef<'_, f64>>) -> Result<(), LqError> {
+        let (nx, nu, ny) = (self.nx, self.nu, self.ny);
+        let n = nx + nu;
+        // Cost Hessian, lower triangle.
+        {
+            let mut h = self.qmat.as_mut();
+            h.rb_mut().submatrix_mut(0, 0, nx, nx).copy_from(&knot.Q);
+            h.rb_mut().submatrix_mut(nx, 0, nu, nx).copy_from(knot.S.transpose());
+            h.rb_mut().submatrix_mut(nx, nx, nu, nu).copy_from(&knot.R);
+        }
+        self.mu_dyn = knot.mu_dyn;
+        if ny > 0 {
+            let P_next = P_next.expect("a knot with dynamics has a next value function");
+            // Step 1: [Ã B̃] = -E⁻¹[A B].
+            self.abf.as_mut().submatrix_mut(0, 0, ny, nx).copy_from(&knot.A);
+            self.abf.as_mut().submatrix_mut(0, nx, ny, nu).copy_from(&knot.B);
+            self.e_minus_identity = is_minus_identity(knot.E.as_ref());
+            if !self.e_minus_identity {
+                self.lu_e
+                    .factor(knot.E.as_ref())
+                    .map_err(|_| self.singular("dynamics matrix E"))?;
+                let mut ab = self.abf.as_mut().submatrix_mut(0, 0, ny, n);
+                self.lu_e.solve_in_place(ab.rb_mut());
+                negate(ab);
+            }
+            // Step 2: P̃ = (I + P'G)⁻¹ P'.
+            if self.mu_dyn > 0.0 {
+                self.factor_prox(P_next)?;
+                self.ptilde.copy_from(P_next);
+                self.prox.solve_in_place(self.ptilde.as_mut());
+                linalg::symmetrize(self.ptilde.as_mut());
+            }
+            // Step 3: Q += [Ã B̃]ᵀ P̃ [Ã B̃] (lower triangle).
+            let ab = self.abf.as_ref().submatrix(0, 0, ny, n);
+            let pt = if self.mu_dyn > 0.0 {
+                self.ptilde.as_ref()
+            } else {
+                P_next
+            };
+            matmul(self.pab.as_mut(), Accum::Replace, pt, ab, 1.0);
+            matmul_lower(self.qmat.as_mut(), Accum::Add, ab.transpose(), self.pab.as_ref(), 1.0);
+        }
+        linalg::symmetrize_from_lower(self.qmat.as_mut());
+        Ok(())
+    }
+
+    /// Factors `M = I + P'G` (Cholesky when `E = -I` and `M` is positive definite, LU
+    /// otherwise), computing `G` first for a general `E`.
+    fn factor_prox(&mut self, P_next: MatRef<'_, f64>) -> Result<(), LqError> {
+        let ny = self.ny;
+        let mu = self.mu_dyn;
+        if self.e_minus_identity {
+            // M = I + mu P' is symmetric.
+            for j in 0..ny {
+                for i in 0..ny {
+                    self.m[(i, j)] = mu * P_next[(i, j)] + if i == j { 1.0 } else { 0.0 };
+                }
+            }
+            self.prox.is_llt = self.prox.llt.factor(self.m.as_ref()).is_ok();
+            if self.prox.is_llt {
+                return Ok(());
+            }
+        } else {
+            // G = mu E⁻¹E⁻ᵀ, from E⁻¹ computed in `m`.
+            self.m.fill(0.0);
+            for i in 0..ny {
+                self.m[(i, i)] = 1.0;
+            }
+            self.lu_e.solve_in_place(self.m.as_mut());
+            matmul(self.g.as_mut(), Accum::Replace, self.m.as_ref(), self.m.transpose(), mu);
+            linalg::symmetrize(self.g.as_mut());
+            for j in 0..ny {
+                for i in 0..ny {
+                    self.m[(i, j)] = if i == j { 1.0 } else { 0.0 };
+                }
+            }
+            matmul(self.m.as_mut(), Accum::Add, P_next, self.g.as_ref(), 1.0);
+        }
+        self.prox.is_llt = false;
+        self.prox.lu.factor(self.m.as_ref()).map_err(|e| match e {
+            FactorError::NonFinite => LqError::NonFinite {
+                knot: self.index,
+                field: "next value function",
+            },
+            FactorError::Singular { .. } => self.singular("proximal dynamics system I + P'G"),
+        })
+    }
+
+    /// Solves `(I + P'G) X = B` in place with the factorization of the last
+    /// [`q_function`](Self::q_function) (only when `mu_dyn > 0`).
+    pub(crate) fn prox_solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+        self.prox.solve_in_place(rhs);
+    }
+
+    /// Vector part of the Q-function: `Q_x, Q_u` from the knot's `q, r, f` and the next
+    /// value function (`None` at the last knot). Needs [`q_function`](Self::q_function) first.
+    pub fn q_function_vectors(&mut self, knot: &LqKnot, next: Option<(MatRef<'_, f64>, &[f64])>) {
+        self.q_function_vectors_with(KnotVectors::of(knot), next);
+    }
+
+    /// [`q_function_vectors`](Self::q_function_vectors) with `q, r, f` taken from `v`.
+    pub(crate) fn q_function_vectors_with(&mut self, v: KnotVectors<'_>, next: Option<(MatRef<'_, f64>, &[f64])>) {
+        let (nx, nu, ny) = (self.nx, self.nu, self.ny);
+        let qv = slice_mut(&mut self.qvec);
+        qv[..nx].copy_from_slice(v.q);
+        qv[nx..].copy_from_slice(v.r);
+        if ny == 0 {
+            return;
+        }
+        let (P_next, p_next) = next.expect("a knot with dynamics has a next value function");
+        // f̃ = -E⁻¹ f.
+        let n = nx + nu;
+        {
+            let ft = col_of_mut(&mut self.abf, n);
+            ft.copy_from_slice(v.f);
+        }
+        if !self.e_minus_identity {
+            let mut ft = self.abf.as_mut().submatrix_mut(0, n, ny, 1);
+            self.lu_e.solve_in_place(ft.rb_mut());
+            negate(ft);
+        }
+        // p̃ = (I + P'G)⁻¹ p', v = P̃ f̃ + p̃.
+        let pt_vec: &[f64] = if self.mu_dyn > 0.0 {
+            slice_mut(&mut self.ptilde_vec).copy_from_slice(p_next);
+            self.prox.solve_in_place(self.ptilde_vec.as_mut().as_mat_mut());
+            slice(&self.ptilde_vec)
+        } else {
+            p_next
+        };
+        let v = slice_mut(&mut self.v);
+        v.copy_from_slice(pt_vec);
+        let pt = if self.mu_dyn > 0.0 {
+            self.ptilde.as_ref()
+        } else {
+            P_next
+        };
+        matvec(v, Accum::Add, pt, col_of(&self.abf, n), 1.0);
+        // [Q_x; Q_u] += [Ã B̃]ᵀ v.
+        let ab = self.abf.as_ref().submatrix(0, 0, ny, n);
+        matvec_t(slice_mut(&mut self.qvec), Accum::Add, ab, slice(&self.v), 1.0);
+    }
+
+    /// Matrix part of the stage solve (steps 4-5): factors the stage KKT system with the
+    /// primal regularisation `primal_reg`, computes the feedback gains `K`, `Z`, the value
+    /// Hessian `P` and (if enabled) the rollout feedback gains.
+    pub fn solve_kkt(
+        &mut self,
+        knot: &LqKnot,
+        P_next: Option<MatRef<'_, f64>>,
+        primal_reg: f64,
+    ) -> Result<(), LqError> {
+        let (nx, nu, nc) = (self.nx, self.nu, self.nc);
+        let nk = nu + nc;
+        if nk > 0 {
+            {
+                let mut k = self.kkt.as_mut();
+                k.rb_mut()
+                    .submatrix_mut(0, 0, nu, nu)
+                    .copy_from(self.qmat.as_ref().submatrix(nx, nx, nu, nu));
+                for i in 0..nu {
+                    k[(i, i)] += primal_reg;
+                }
+                k.rb_mut().submatrix_mut(nu, 0, nc, nu).copy_from(&knot.D);
+                for i in 0..nc {
+                    k[(nu + i, nu + i)] = -knot.mu_c[i];
+                }
+            }
+            let f = &mut self.kkt_factor;
+            f.use_bk = (0..nc).any(|i| knot.mu_c[i] == 0.0);
+            let res = if f.use_bk {
+                f.bk.factor(self.kkt.as_ref(), 0.0)
+            } else {
+                f.ldlt.factor(self.kkt.as_ref())
+            };
+            let expected = Inertia {
+                positive: nu,
+                negative: nc,
+                zero: 0,
+            };
+            match res {
+                Ok(inertia) if inertia == expected => {}
+                Ok(got) => {
+                    return Err(LqError::Inertia {
+                        knot: self.index,
+                        system: "stage KKT",
+                        expected,
+                        got,
+                    });
+                }
+                Err(FactorError::NonFinite) => {
+                    return Err(LqError::NonFinite {
+                        knot: self.index,
+                        field: "Q_uu",
+                    });
+                }
+                Err(FactorError::Singular { index }) => {
+                    return Err(LqError::Inertia {
+                        knot: self.index,
+                        system: "stage KKT",
+                        expected,
+                        got: Inertia {
+                            positive: index.min(nu),
+                            negative: index.saturating_sub(nu),
+                            zero: 1,
+                        },
+                    });
+                }
+            }
+            // Right-hand side -[Q_ux; C], solved in place into [K; Z].
+            let mut rhs = self.gains.as_mut().submatrix_mut(0, 1, nk, nx);
+            rhs.rb_mut()
+                .submatrix_mut(0, 0, nu, nx)
+                .copy_from(self.qmat.as_ref().submatrix(nx, 0, nu, nx));
+            rhs.rb_mut().submatrix_mut(nu, 0, nc, nx).copy_from(&knot.C);
+            negate(rhs.rb_mut());
+            self.kkt_factor.solve_in_place(rhs);
+        }
+        // P = Q_xx + Q_xu K + Cᵀ Z (symmetric: lower triangle, then mirrored).
+        self.P.copy_from(self.qmat.as_ref().submatrix(0, 0, nx, nx));
+        if nk > 0 {
+            let fb = self.gains.as_ref().submatrix(0, 1, nk, nx);
+            matmul_lower(
+                self.P.as_mut(),
+                Accum::Add,
+                self.qmat.as_ref().submatrix(0, nx, nx, nu),
+                fb.subrows(0, nu),
+                1.0,
+            );
+            matmul_lower(self.P.as_mut(), Accum::Add, knot.C.transpose(), fb.subrows(nu, nc), 1.0);
+        }
+        linalg::symmetrize_from_lower(self.P.as_mut());
+        if !sum_is_finite(self.P.as_ref()) {
+            return Err(LqError::NonFinite {
+                knot: self.index,
+                field: "value Hessian P",
+            });
+        }
+        if self.ny > 0 {
+            self.feedback_rollout_gains(P_next.expect("a knot with dynamics has a next value function"));
+        }
+        Ok(())
+    }
+
+    /// Solves the factored stage KKT system in place.
+    pub(crate) fn kkt_solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+        self.kkt_factor.solve_in_place(rhs);
+    }
+
+    /// `T = Ã + B̃K` (feedback of `z`), and with rollout gains `Y = P̃T`, `C = T - GY`,
+    /// `Ξ = -E⁻ᵀY`.
+    fn feedback_rollout_gains(&mut self, P_next: MatRef<'_, f64>) {
+        let (nx, nu, ny) = (self.nx, self.nu, self.ny);
+        {
+            let mut t = self.zg.as_mut().submatrix_mut(0, 1, ny, nx);
+            t.copy_from(self.abf.as_ref().submatrix(0, 0, ny, nx));
+            if nu > 0 {
+                matmul(
+                    t,
+                    Accum::Add,
+                    self.abf.as_ref().submatrix(0, nx, ny, nu),
+                    self.gains.as_ref().submatrix(0, 1, nu, nx),
+                    1.0,
+                );
+            }
+        }
+        if !self.rollout_gains {
+            return;
+        }
+        let pt = if self.mu_dyn > 0.0 {
+            self.ptilde.as_ref()
+        } else {
+            P_next
+        };
+        let t = self.zg.as_ref().submatrix(0, 1, ny, nx);
+        matmul(self.lg.as_mut().submatrix_mut(0, 1, ny, nx), Accum::Replace, pt, t, 1.0);
+        let y = self.lg.as_ref().submatrix(0, 1, ny, nx);
+        let mut c = self.xg.as_mut().submatrix_mut(0, 1, ny, nx);
+        c.copy_from(t);
+        sub_g_times(self.mu_dyn, self.e_minus_identity, self.g.as_ref(), c, y);
+        let mut xi = self.lamg.as_mut().submatrix_mut(0, 1, ny, nx);
+        xi.copy_from(y);
+        if !self.e_minus_identity {
+            self.lu_e.solve_transpose_in_place(xi.rb_mut());
+            negate(xi);
+        }
+    }
+
+    /// Vector part of the stage solve: feedforward `k`, `ζ`, value gradient `p` and the
+    /// rollout feedforward terms, reusing the factorization of [`solve_kkt`](Self::solve_kkt).
+    pub fn solve_kkt_vectors(&mut self, knot: &LqKnot, next: Option<(MatRef<'_, f64>, &[f64])>) -> Result<(), LqError> {
+        self.solve_kkt_vectors_with(knot, KnotVectors::of(knot).d, next)
+    }
+
+    /// [`solve_kkt_vectors`](Self::solve_kkt_vectors) with the constraint offset `d` given.
+    pub(crate) fn solve_kkt_vectors_with(
+        &mut self,
+        knot: &LqKnot,
+        d: &[f64],
+        next: Option<(MatRef<'_, f64>, &[f64])>,
+    ) -> Result<(), LqError> {
+        let (nx, nu, nc) = (self.nx, self.nu, self.nc);
+        let nk = nu + nc;
+        if nk > 0 {
+            let g0 = col_of_mut(&mut self.gains, 0);
+            for i in 0..nu {
+                g0[i] = -self.qvec[nx + i];
+            }
+            for i in 0..nc {
+                g0[nu + i] = -d[i];
+            }
+            self.kkt_factor.solve_in_place(self.gains.as_mut().subcols_mut(0, 1));
+        }
+        // p = Q_x + Q_xu k + Cᵀ ζ.
+        let p = slice_mut(&mut self.p);
+        p.copy_from_slice(&slice(&self.qvec)[..nx]);
+        if nk > 0 {
+            let ff = col_of(&self.gains, 0);
+            matvec(
+                p,
+                Accum::Add,
+                self.qmat.as_ref().submatrix(0, nx, nx, nu),
+                &ff[..nu],
+                1.0,
+            );
+            matvec_t(p, Accum::Add, knot.C.as_ref(), &ff[nu..], 1.0);
+        }
+        if !p.iter().sum::<f64>().is_finite() {
+            return Err(LqError::NonFinite {
+                knot: self.index,
+                field: "value gradient p",
+            });
+        }
+        if self.ny > 0 {
+            let (P_next, p_next) = next.expect("a knot with dynamics has a next value function");
+            self.feedforward_rollout_gains(P_next, p_next);
+        }
+        Ok(())
+    }
+
+    /// `t0 = B̃k + f̃`, and with rollout gains `y0 = P̃t0 + p̃`, `c = t0 - Gy0`, `ξ = -E⁻ᵀy0`.
+    fn feedforward_rollout_gains(&mut self, P_next: MatRef<'_, f64>, p_next: &[f64]) {
+        let (nx, nu, ny) = (self.nx, self.nu, self.ny);
+        {
+            let t0 = col_of_mut(&mut self.zg, 0);
+            t0.copy_from_slice(col_of(&self.abf, nx + nu));
+            matvec(
+                t0,
+                Accum::Add,
+                self.abf.as_ref().submatrix(0, nx, ny, nu),
+                &col_of(&self.gains, 0)[..nu],
+                1.0,
+            );
+        }
+        if !self.rollout_gains {
+            return;
+        }
+        let pt_vec: &[f64] = if self.mu_dyn > 0.0 {
+            slice(&self.ptilde_vec)
+        } else {
+            p_next
+        };
+        {
+            let y0 = col_of_mut(&mut self.lg, 0);
+            y0.copy_from_slice(pt_vec);
+            let pt = if self.mu_dyn > 0.0 {
+                self.ptilde.as_ref()
+            } else {
+                P_next
+            };
+            matvec(y0, Accum::Add, pt, col_of(&self.zg, 0), 1.0);
+        }
+        col_of_mut(&mut self.xg, 0).copy_from_slice(col_of(&self.zg, 0));
+        sub_g_times(
+            self.mu_dyn,
+            self.e_minus_identity,
+            self.g.as_ref(),
+            self.xg.as_mut().subcols_mut(0, 1),
+            self.lg.as_ref().subcols(0, 1),
+        );
+        col_of_mut(&mut self.lamg, 0).copy_from_slice(col_of(&self.lg, 0));
+        if !self.e_minus_identity {
+            let mut xi = self.lamg.as_mut().subcols_mut(0, 1);
+            self.lu_e.solve_transpose_in_place(xi.rb_mut());
+            negate(xi);
+        }
+    }
+
+    /// Value update from arbitrary control gains `u = k + K x` (for solvers with their own
+    /// control law, e.g. box-DDP): `P = Q_xx + KᵀQ_uu K + Q_xu K + KᵀQ_ux`,
+    /// `p = Q_x + KᵀQ_uu k + Q_xu k + KᵀQ_u`. The gains are stored as this knot's control
+    /// gains (the multiplier gains are left untouched). Needs the Q-function (both parts).
+    pub fn value_from_gains(&mut self, k: &[f64], K: MatRef<'_, f64>) -> Result<(), LqError> {
+        let (nx, nu) = (self.nx, self.nu);
+        if k.len() != nu {
+            return Err(LqError::Dimension {
+                knot: self.index,
+                field: "feedforward gain k",
+                expected: (nu, 1),
+                got: (k.len(), 1),
+            });
+        }
+        if (K.nrows(), K.ncols()) != (nu, nx) {
+            return Err(LqError::Dimension {
+                knot: self.index,
+                field: "feedback gain K",
+                expected: (nu, nx),
+                got: (K.nrows(), K.ncols()),
+            });
+        }
+        let q = self.qmat.as_ref();
+        let (q_xx, q_xu, q_ux, q_uu) = (
+            q.submatrix(0, 0, nx, nx),
+            q.submatrix(0, nx, nx, nu),
+            q.submatrix(nx, 0, nu, nx),
+            q.submatrix(nx, nx, nu, nu),
+        );
+        // W = Q_uu K + Q_ux, P = Q_xx + KᵀW + Q_xu K.
+        self.w_ux.copy_from(q_ux);
+        matmul(self.w_ux.as_mut(), Accum::Add, q_uu, K, 1.0);
+        self.P.copy_from(q_xx);
+        matmul(self.P.as_mut(), Accum::Add, K.transpose(), self.w_ux.as_ref(), 1.0);
+        matmul(self.P.as_mut(), Accum::Add, q_xu, K, 1.0);
+        linalg::symmetrize(self.P.as_mut());
+        // w = Q_uu k + Q_u, p = Q_x + Kᵀw + Q_xu k.
+        let qv = slice(&self.qvec);
+        let w = slice_mut(&mut self.w_u);
+        w.copy_from_slice(&qv[nx..]);
+        matvec(w, Accum::Add, q_uu, k, 1.0);
+        let p = slice_mut(&mut self.p);
+        p.copy_from_slice(&qv[..nx]);
+        matvec_t(p, Accum::Add, K, slice(&self.w_u), 1.0);
+        matvec(p, Accum::Add, q_xu, k, 1.0);
+        col_of_mut(&mut self.gains, 0)[..nu].copy_from_slice(k);
+        self.gains.as_mut().submatrix_mut(0, 1, nu, nx).copy_from(K);
+        if !sum_is_finite(self.P.as_ref()) || !p.iter().sum::<f64>().is_finite() {
+            return Err(LqError::NonFinite {
+                knot: self.index,
+                field: "value function from gains",
+            });
+        }
+        Ok(())
+    }
+
+    /// Forward step (50): from `x`, writes `u = k + K x`, `ν = ζ + Z x` and, at a knot with
+    /// dynamics, `x_{t+1} = z - Gλ̃` and `λ_{t+1} = -E⁻ᵀλ̃` with `z = Ãx + B̃u + f̃`,
+    /// `λ̃ = P̃z + p̃` (`next` is the next value function, unused at the last knot).
+    pub fn forward_step(
+        &mut self,
+        x: &[f64],
+        u: &mut [f64],
+        nu_out: &mut [f64],
+        next: Option<(MatRef<'_, f64>, &[f64])>,
+        x_next: &mut [f64],
+        lambda_next: &mut [f64],
+    ) {
+        let (nx, nu, nc, ny) = (self.nx, self.nu, self.nc, self.ny);
+        if nu + nc > 0 {
+            let ff = col_of(&self.gains, 0);
+            let fb = self.gains.as_ref().submatrix(0, 1, nu + nc, nx);
+            u.copy_from_slice(&ff[..nu]);
+            matvec(u, Accum::Add, fb.subrows(0, nu), x, 1.0);
+            nu_out.copy_from_slice(&ff[nu..]);
+            matvec(nu_out, Accum::Add, fb.subrows(nu, nc), x, 1.0);
+        }
+        if ny == 0 {
+            return;
+        }
+        let (P_next, p_next) = next.expect("a knot with dynamics has a next value function");
+        // z = Ã x + B̃ u + f̃ (in x_next).
+        x_next.copy_from_slice(col_of(&self.abf, nx + nu));
+        matvec(x_next, Accum::Add, self.abf.as_ref().submatrix(0, 0, ny, nx), x, 1.0);
+        matvec(x_next, Accum::Add, self.abf.as_ref().submatrix(0, nx, ny, nu), u, 1.0);
+        // λ̃ = P̃ z + p̃ (in lambda_next).
+        let (pt, pt_vec) = if self.mu_dyn > 0.0 {
+            (self.ptilde.as_ref(), slice(&self.ptilde_vec))
+        } else {
+            (P_next, p_next)
+        };
+        lambda_next.copy_from_slice(pt_vec);
+        matvec(lambda_next, Accum::Add, pt, x_next, 1.0);
+        // x_{t+1} = z - G λ̃.
+        if self.mu_dyn > 0.0 {
+            if self.e_minus_identity {
+                for i in 0..ny {
+                    x_next[i] -= self.mu_dyn * lambda_next[i];
+                }
+            } else {
+                matvec(x_next, Accum::Add, self.g.as_ref(), lambda_next, -1.0);
+            }
+        }
+        // λ_{t+1} = -E⁻ᵀ λ̃.
+        if !self.e_minus_identity {
+            slice_mut(&mut self.w_y).copy_from_slice(lambda_next);
+            self.lu_e.solve_transpose_in_place(self.w_y.as_mut().as_mat_mut());
+            for i in 0..ny {
+                lambda_next[i] = -self.w_y[i];
+            }
+        }
+    }
+
+    /// Every quantity of the vector part, in a fixed order.
+    fn vector_part_mut(&mut self) -> [&mut [f64]; 10] {
+        let n = self.nx + self.nu;
+        [
+            slice_mut(&mut self.qvec),
+            col_of_mut(&mut self.abf, n),
+            slice_mut(&mut self.ptilde_vec),
+            slice_mut(&mut self.v),
+            col_of_mut(&mut self.gains, 0),
+            slice_mut(&mut self.p),
+            col_of_mut(&mut self.zg, 0),
+            col_of_mut(&mut self.lg, 0),
+            col_of_mut(&mut self.xg, 0),
+            col_of_mut(&mut self.lamg, 0),
+        ]
+    }
+
+    /// Saves the vector part (before a refinement pass overwrites it with a correction).
+    pub(crate) fn save_vector_part(&mut self) {
+        let mut saved = std::mem::take(&mut self.saved);
+        let mut off = 0;
+        for s in self.vector_part_mut() {
+            saved[off..off + s.len()].copy_from_slice(s);
+            off += s.len();
+        }
+        self.saved = saved;
+    }
+
+    /// Adds the saved vector part to the current one (a correction): the vector part
+    /// becomes that of the refined solution.
+    pub(crate) fn add_saved_vector_part(&mut self) {
+        let saved = std::mem::take(&mut self.saved);
+        let mut off = 0;
+        for s in self.vector_part_mut() {
+            let len = s.len();
+            for (a, b) in s.iter_mut().zip(&saved[off..off + len]) {
+                *a += b;
+            }
+            off += len;
+        }
+        self.saved = saved;
+    }
+
+    /// `[Q_xx Q_xu; Q_ux Q_uu]`, the Hessian of the Q-function (37d-f).
+    pub fn q_hessian(&self) -> MatRef<'_, f64> {
+        self.qmat.as_ref()
+    }
+
+    /// `Q_xx` (`nx x nx`).
+    pub fn Q_xx(&self) -> MatRef<'_, f64> {
+        self.qmat.as_ref().submatrix(0, 0, self.nx, self.nx)
+    }
+
+    /// `Q_xu` (`nx x nu`).
+    pub fn Q_xu(&self) -> MatRef<'_, f64> {
+        self.qmat.as_ref().submatrix(0, self.nx, self.nx, self.nu)
+    }
+
+    /// `Q_uu` (`nu x nu`), without the primal regularisation.
+    pub fn Q_uu(&self) -> MatRef<'_, f64> {
+        self.qmat.as_ref().submatrix(self.nx, self.nx, self.nu, self.nu)
+    }
+
+    /// `Q_x` (`nx`).
+    pub fn Q_x(&self) -> &[f64] {
+        &slice(&self.qvec)[..self.nx]
+    }
+
+    /// `Q_u` (`nu`).
+    pub fn Q_u(&self) -> &[f64] {
+        &slice(&self.qvec)[self.nx..]
+    }
+
+    /// Value Hessian `P_t = V_xx`.
+    pub fn P(&self) -> MatRef<'_, f64> {
+        self.P.as_ref()
+    }
+
+    /// Value gradient `p_t = V_x`.
+    pub fn p(&self) -> &[f64] {
+        slice(&self.p)
+    }
+
+    /// Feedforward control gain `k`.
+    pub fn k(&self) -> &[f64] {
+        &col_of(&self.gains, 0)[..self.nu]
+    }
+
+    /// Feedback control gain `K` (`nu x nx`).
+    pub fn K(&self) -> MatRef<'_, f64> {
+        self.gains.as_ref().submatrix(0, 1, self.nu, self.nx)
+    }
+
+    /// Feedforward multiplier gain `ζ`.
+    pub fn zeta(&self) -> &[f64] {
+        &col_of(&self.gains, 0)[self.nu..]
+    }
+
+    /// Feedback multiplier gain `Z` (`nc x nx`).
+    pub fn Z(&self) -> MatRef<'_, f64> {
+        self.gains.as_ref().submatrix(self.nu, 1, self.nc, self.nx)
+    }
+
+    /// Gains `(c, C)` of the next state `x_{t+1} = c + C x_t` (50b), if enabled.
+    pub fn x_next_gains(&self) -> Option<(&[f64], MatRef<'_, f64>)> {
+        self.rollout_gains
+            .then(|| (col_of(&self.xg, 0), self.xg.as_ref().submatrix(0, 1, self.ny, self.nx)))
+    }
+
+    /// Gains `(ξ, Ξ)` of the next co-state `λ_{t+1} = ξ + Ξ x_t` (50c), if enabled.
+    pub fn lambda_next_gains(&self) -> Option<(&[f64], MatRef<'_, f64>)> {
+        self.rollout_gains.then(|| {
+            (
+                col_of(&self.lamg, 0),
+                self.lamg.as_ref().submatrix(0, 1, self.ny, self.nx),
+            )
+        })
+    }
+
+    /// Whether `E` was exactly `-I` at the last [`q_function`](Self::q_function).
+    pub fn e_is_minus_identity(&self) -> bool {
+        self.e_minus_identity
+    }
+
+    /// `[Ã B̃ f̃]` (`ny x (nx + nu + 1)`).
+    pub(crate) fn abf(&self) -> MatRef<'_, f64> {
+        self.abf.as_ref()
+    }
+
+    /// `[t0 | T]`: the closed-loop `z = Ã x + B̃ u + f̃ = t0 + T x`.
+    pub(crate) fn z_gains(&self) -> MatRef<'_, f64> {
+        self.zg.as_ref()
+    }
+
+    /// `t0 = B̃k + f̃`.
+    pub(crate) fn z_feedforward(&self) -> &[f64] {
+        col_of(&self.zg, 0)
+    }
+
+    /// `p̃` (only when `mu_dyn > 0`).
+    pub(crate) fn ptilde_vec(&self) -> &[f64] {
+        slice(&self.ptilde_vec)
+    }
+
+    /// `mu_dyn` of the last Q-function.
+    pub(crate) fn mu_dyn(&self) -> f64 {
+        self.mu_dyn
+    }
+
+    /// `G` (only for a general `E` with `mu_dyn > 0`).
+    pub(crate) fn g(&self) -> MatRef<'_, f64> {
+        self.g.as_ref()
+    }
+
+    /// Names the offending input after a numerical failure of this knot.
+    pub(crate) fn blame(&self, problem: &super::LqProblem, e: LqError) -> LqError {
+        match e {
+            LqError::NonFinite { .. } => blame(problem, self.index, e),
+            _ => e,
+        }
+    }
+}
+
+/// The factorization of `M = I + P'G`: Cholesky when possible, LU otherwise.
+#[derive(Debug)]
+struct ProxFactor {
+    llt: Llt,
+    lu: Lu,
+    is_llt: bool,
+}
+
+impl ProxFactor {
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+        if self.is_llt {
+            self.llt.solve_in_place(rhs);
+        } else {
+            self.lu.solve_in_place(rhs);
+        }
+    }
+}
+
+/// The factorization of the stage KKT matrix: LDLᵀ, or Bunch-Kaufman with hard rows.
+#[derive(Debug)]
+struct KktFactor {
+    ldlt: Ldlt,
+    bk: BunchKaufman,
+    use_bk: bool,
+}
+
+impl KktFactor {
+    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+        if self.use_bk {
+            self.bk.solve_in_place(rhs);
+        } else {
+            self.ldlt.solve_in_place(rhs);
+        }
+    }
+}
+
+/// `dst -= G src` with `G = mu_dyn E⁻¹E⁻ᵀ` (`mu_dyn I` when `E = -I`).
+fn sub_g_times(
+    mu_dyn: f64,
+    e_minus_identity: bool,
+    g: MatRef<'_, f64>,
+    mut dst: MatMut<'_, f64>,
+    src: MatRef<'_, f64>,
+) {
+    if mu_dyn == 0.0 {
+        return;
+    }
+    if e_minus_identity {
+        for j in 0..dst.ncols() {
+            for i in 0..dst.nrows() {
+                dst[(i, j)] -= mu_dyn * src[(i, j)];
+            }
+        }
+    } else {
+        matmul(dst, Accum::Add, g, src, -1.0);
+    }
+}
+
+fn negate(mut m: MatMut<'_, f64>) {
+    for j in 0..m.ncols() {
+        for i in 0..m.nrows() {
+            m[(i, j)] = -m[(i, j)];
+        }
+    }
+}
