@@ -1,0 +1,246 @@
+//! Test models with hand-written derivatives, written a second time generically over
+//! dual numbers, and the dual-number reference derivatives the tests compare with.
+
+use faer::Mat;
+use num_dual::{Dual64, DualNum, HyperDual64};
+use rand::rngs::SmallRng;
+use rand::{Rng, SeedableRng};
+
+use super::{StageFunction, StageFunctionData};
+use crate::functions::check::rel_error;
+
+/// A seeded generator.
+pub(crate) fn rng(seed: u64) -> SmallRng {
+    SmallRng::seed_from_u64(seed)
+}
+
+/// A vector with entries uniform in `[-scale, scale]`.
+pub(crate) fn random_vec(rng: &mut SmallRng, n: usize, scale: f64) -> Vec<f64> {
+    (0..n).map(|_| rng.random_range(-scale..=scale)).collect()
+}
+
+/// A matrix with entries uniform in `[-scale, scale]`.
+pub(crate) fn random_mat(rng: &mut SmallRng, r: usize, c: usize, scale: f64) -> Mat<f64> {
+    Mat::from_fn(r, c, |_, _| rng.random_range(-scale..=scale))
+}
+
+/// Jacobian of `g` at `z` by forward-mode dual numbers, one pass per column.
+pub(crate) fn dual_jacobian(z: &[f64], g: impl Fn(&[Dual64]) -> Vec<Dual64>) -> Mat<f64> {
+    let n = z.len();
+    let mut cols = Vec::with_capacity(n);
+    for j in 0..n {
+        let zd: Vec<Dual64> = (0..n)
+            .map(|i| Dual64::new(z[i], if i == j { 1.0 } else { 0.0 }))
+            .collect();
+        cols.push(g(&zd).iter().map(|v| v.eps).collect::<Vec<f64>>());
+    }
+    let m = cols.first().map_or(0, |c| c.len());
+    Mat::from_fn(m, n, |i, j| cols[j][i])
+}
+
+/// Hessian of the scalar `s` at `z` by hyper-dual numbers.
+pub(crate) fn dual_hessian(z: &[f64], s: impl Fn(&[HyperDual64]) -> HyperDual64) -> Mat<f64> {
+    let n = z.len();
+    Mat::from_fn(n, n, |a, b| {
+        let zd: Vec<HyperDual64> = (0..n)
+            .map(|i| {
+                let e1 = if i == a { 1.0 } else { 0.0 };
+                let e2 = if i == b { 1.0 } else { 0.0 };
+                HyperDual64::new(z[i], e1, e2, 0.0)
+            })
+            .collect();
+        s(&zd).eps1eps2
+    })
+}
+
+/// Panics unless `rel_error(a, b) <= tol`.
+#[track_caller]
+pub(crate) fn assert_close(name: &str, a: &Mat<f64>, b: &Mat<f64>, tol: f64) {
+    let e = rel_error(a, b);
+    assert!(
+        e <= tol,
+        "{name}: relative error {e:e} > {tol:e}\nanalytic {a:?}\nreference {b:?}"
+    );
+}
+
+/// The test residual `r: R³ x R² → R³`, generic over the scalar.
+pub(crate) fn test_fn<D: DualNum<Primitive = f64> + Copy>(x: &[D], u: &[D]) -> Vec<D> {
+    let e = (x[2] * 0.3).exp();
+    vec![
+        x[0].sin() * u[0] + x[1],
+        x[1] * x[1] + x[0] * u[1] - x[2],
+        e * u[0].cos() + x[0] * x[1] * u[1],
+    ]
+}
+
+/// [`test_fn`] as a stage function with hand-written Jacobians and vector-Hessian
+/// products.
+pub(crate) struct TestFunction;
+
+impl TestFunction {
+    /// The Hessians of the three outputs in the variables `(x0, x1, x2, u0, u1)`.
+    fn hessians(x: &[f64], u: &[f64]) -> [Mat<f64>; 3] {
+        let mut h = [Mat::zeros(5, 5), Mat::zeros(5, 5), Mat::zeros(5, 5)];
+        let mut set = |k: usize, i: usize, j: usize, v: f64| {
+            h[k][(i, j)] = v;
+            h[k][(j, i)] = v;
+        };
+        set(0, 0, 0, -x[0].sin() * u[0]);
+        set(0, 0, 3, x[0].cos());
+        set(1, 1, 1, 2.0);
+        set(1, 0, 4, 1.0);
+        let e = (0.3 * x[2]).exp();
+        set(2, 2, 2, 0.09 * e * u[0].cos());
+        set(2, 2, 3, -0.3 * e * u[0].sin());
+        set(2, 3, 3, -e * u[0].cos());
+        set(2, 0, 1, u[1]);
+        set(2, 0, 4, x[1]);
+        set(2, 1, 4, x[0]);
+        h
+    }
+}
+
+impl StageFunction for TestFunction {
+    fn nx(&self) -> usize {
+        3
+    }
+    fn ndx(&self) -> usize {
+        3
+    }
+    fn nu(&self) -> usize {
+        2
+    }
+    fn nr(&self) -> usize {
+        3
+    }
+    fn evaluate(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
+        data.value_mut().copy_from_slice(&test_fn(x, u));
+    }
+    fn jacobians(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
+        let e = (0.3 * x[2]).exp();
+        let jx = [
+            [x[0].cos() * u[0], 1.0, 0.0],
+            [u[1], 2.0 * x[1], -1.0],
+            [x[1] * u[1], x[0] * u[1], 0.3 * e * u[0].cos()],
+        ];
+        let ju = [[x[0].sin(), 0.0], [0.0, x[0]], [-e * u[0].sin(), x[0] * x[1]]];
+        for i in 0..3 {
+            for j in 0..3 {
+                data.jx[(i, j)] = jx[i][j];
+            }
+            for j in 0..2 {
+                data.ju[(i, j)] = ju[i][j];
+            }
+        }
+    }
+    fn has_vhp(&self) -> bool {
+        true
+    }
+    fn vhp(&self, x: &[f64], u: &[f64], lambda: &[f64], data: &mut StageFunctionData) {
+        let h = Self::hessians(x, u);
+        let s = Mat::from_fn(5, 5, |i, j| (0..3).map(|k| lambda[k] * h[k][(i, j)]).sum::<f64>());
+        data.vhp_xx.copy_from(s.as_ref().submatrix(0, 0, 3, 3));
+        data.vhp_xu.copy_from(s.as_ref().submatrix(0, 3, 3, 2));
+        data.vhp_uu.copy_from(s.as_ref().submatrix(3, 3, 2, 2));
+    }
+}
+
+/// Compares the value, Jacobians and (if provided) vector-Hessian products of a stage
+/// function on a vector space with dual-number derivatives of the same map written
+/// generically: `g1`, `g2` take `z = [x; u]`.
+#[track_caller]
+pub(crate) fn dual_check_stage(
+    f: &dyn StageFunction,
+    x: &[f64],
+    u: &[f64],
+    lambda: &[f64],
+    g1: impl Fn(&[Dual64]) -> Vec<Dual64>,
+    g2: impl Fn(&[HyperDual64]) -> Vec<HyperDual64>,
+    tol: f64,
+) {
+    let (nx, nu) = (x.len(), u.len());
+    let z: Vec<f64> = x.iter().chain(u).copied().collect();
+    let mut d = f.create_data();
+    f.evaluate(x, u, &mut d);
+    f.jacobians(x, u, &mut d);
+    let zd: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
+    let value: Vec<f64> = g1(&zd).iter().map(|v| v.re).collect();
+    assert_close(
+        "value",
+        &Mat::from_fn(value.len(), 1, |i, _| d.value()[i]),
+        &Mat::from_fn(value.len(), 1, |i, _| value[i]),
+        tol,
+    );
+    let j = dual_jacobian(&z, &g1);
+    assert_close("jx", &d.jx, &j.as_ref().submatrix(0, 0, j.nrows(), nx).to_owned(), tol);
+    assert_close("ju", &d.ju, &j.as_ref().submatrix(0, nx, j.nrows(), nu).to_owned(), tol);
+    if f.has_vhp() {
+        f.vhp(x, u, lambda, &mut d);
+        let h = dual_hessian(&z, |zz| {
+            g2(zz)
+                .iter()
+                .zip(lambda)
+                .fold(HyperDual64::from_re(0.0), |acc, (r, &l)| acc + *r * l)
+        });
+        assert_close("vhp_xx", &d.vhp_xx, &h.as_ref().submatrix(0, 0, nx, nx).to_owned(), tol);
+        assert_close(
+            "vhp_xu",
+            &d.vhp_xu,
+            &h.as_ref().submatrix(0, nx, nx, nu).to_owned(),
+            tol,
+        );
+        assert_close(
+            "vhp_uu",
+            &d.vhp_uu,
+            &h.as_ref().submatrix(nx, nx, nu, nu).to_owned(),
+            tol,
+        );
+    }
+}
+
+/// Compares the value, gradient and (if `check_hessian`) Hessian of a cost on a vector
+/// space with dual-number derivatives of the same map written generically (`s1`, `s2`
+/// take `z = [x; u]`). Returns the dual-number Hessian.
+#[track_caller]
+pub(crate) fn dual_check_cost(
+    c: &dyn crate::costs::Cost,
+    x: &[f64],
+    u: &[f64],
+    s1: impl Fn(&[Dual64]) -> Dual64,
+    s2: impl Fn(&[HyperDual64]) -> HyperDual64,
+    check_hessian: bool,
+    tol: f64,
+) -> Mat<f64> {
+    let (nx, nu) = (x.len(), u.len());
+    let z: Vec<f64> = x.iter().chain(u).copied().collect();
+    let mut d = c.create_data();
+    c.evaluate(x, u, &mut d);
+    c.derivatives(x, u, &mut d);
+    let zd: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
+    let v = s1(&zd).re;
+    assert!(
+        (d.value - v).abs() <= tol * v.abs().max(1.0),
+        "value {} vs reference {v}",
+        d.value
+    );
+    let g = dual_jacobian(&z, |zz| vec![s1(zz)]);
+    assert_close(
+        "lx",
+        &d.lx.as_mat().transpose().to_owned(),
+        &g.as_ref().submatrix(0, 0, 1, nx).to_owned(),
+        tol,
+    );
+    assert_close(
+        "lu",
+        &d.lu.as_mat().transpose().to_owned(),
+        &g.as_ref().submatrix(0, nx, 1, nu).to_owned(),
+        tol,
+    );
+    let h = dual_hessian(&z, s2);
+    if check_hessian {
+        assert_close("lxx", &d.lxx, &h.as_ref().submatrix(0, 0, nx, nx).to_owned(), tol);
+        assert_close("lxu", &d.lxu, &h.as_ref().submatrix(0, nx, nx, nu).to_owned(), tol);
+        assert_close("luu", &d.luu, &h.as_ref().submatrix(nx, nx, nu, nu).to_owned(), tol);
+    }
+    h
+}
