@@ -1,13 +1,17 @@
 //! Test models with hand-written derivatives, written a second time generically over
 //! dual numbers, and the dual-number reference derivatives the tests compare with.
 
+use std::sync::Arc;
+
 use faer::Mat;
 use num_dual::{Dual64, DualNum, HyperDual64};
 use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
 use super::{StageFunction, StageFunctionData};
+use crate::dynamics::{Ode, OdeData};
 use crate::functions::check::rel_error;
+use crate::spaces::{Manifold, VectorSpace};
 
 /// A seeded generator.
 pub(crate) fn rng(seed: u64) -> SmallRng {
@@ -145,6 +149,53 @@ impl StageFunction for TestFunction {
     }
 }
 
+/// The test ODE on `R³` with two controls, generic over the scalar.
+pub(crate) fn test_ode<D: DualNum<Primitive = f64> + Copy>(x: &[D], u: &[D]) -> Vec<D> {
+    vec![x[1], -x[0].sin() - x[1] * 0.1 + u[0], x[2].cos() * u[1] + x[0] * x[1]]
+}
+
+/// [`test_ode`] with hand-written Jacobians.
+pub(crate) struct TestOde {
+    space: Arc<dyn Manifold>,
+}
+
+impl TestOde {
+    /// The ODE on `R³`.
+    pub(crate) fn new() -> Self {
+        Self {
+            space: Arc::new(VectorSpace::new(3)),
+        }
+    }
+}
+
+impl Ode for TestOde {
+    fn space(&self) -> &Arc<dyn Manifold> {
+        &self.space
+    }
+    fn nu(&self) -> usize {
+        2
+    }
+    fn evaluate(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
+        data.xdot_mut().copy_from_slice(&test_ode(x, u));
+    }
+    fn jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
+        let jx = [
+            [0.0, 1.0, 0.0],
+            [-x[0].cos(), -0.1, 0.0],
+            [x[1], x[0], -x[2].sin() * u[1]],
+        ];
+        let ju = [[0.0, 0.0], [1.0, 0.0], [0.0, x[2].cos()]];
+        for i in 0..3 {
+            for j in 0..3 {
+                data.jx[(i, j)] = jx[i][j];
+            }
+            for j in 0..2 {
+                data.ju[(i, j)] = ju[i][j];
+            }
+        }
+    }
+}
+
 /// Compares the value, Jacobians and (if provided) vector-Hessian products of a stage
 /// function on a vector space with dual-number derivatives of the same map written
 /// generically: `g1`, `g2` take `z = [x; u]`.
@@ -243,4 +294,58 @@ pub(crate) fn dual_check_cost(
         assert_close("luu", &d.luu, &h.as_ref().submatrix(nx, nx, nu, nu).to_owned(), tol);
     }
     h
+}
+
+/// A linear ODE on `R⁴` with a closed-form flow: two damped rotations
+/// `A = diag(A_1, A_2)`, `A_k = [[-a_k, w_k], [-w_k, -a_k]]`, driven by `B u + c`.
+pub(crate) struct RotationOde {
+    pub(crate) ode: Arc<crate::dynamics::LinearOde>,
+    blocks: [(f64, f64); 2],
+}
+
+impl RotationOde {
+    pub(crate) fn new() -> Self {
+        let blocks = [(0.3, 1.1), (0.05, 2.0)];
+        let mut a = Mat::zeros(4, 4);
+        for (k, &(ak, wk)) in blocks.iter().enumerate() {
+            let o = 2 * k;
+            a[(o, o)] = -ak;
+            a[(o, o + 1)] = wk;
+            a[(o + 1, o)] = -wk;
+            a[(o + 1, o + 1)] = -ak;
+        }
+        let b = Mat::from_fn(4, 2, |i, j| ((i + 2 * j) % 3) as f64 - 1.0);
+        let c = [0.2, -0.1, 0.0, 0.4];
+        let ode = crate::dynamics::LinearOde::new(a.as_ref(), b.as_ref(), &c).unwrap();
+        Self {
+            ode: Arc::new(ode),
+            blocks,
+        }
+    }
+
+    /// `x(t) = e^{At} x0 + A⁻¹ (e^{At} - I) g` with `g = B u + c`, block by block.
+    pub(crate) fn exact(&self, x0: &[f64], u: &[f64], t: f64) -> Vec<f64> {
+        let (b, c) = (self.ode.b(), self.ode.c());
+        let g: Vec<f64> = (0..4)
+            .map(|i| c[i] + (0..u.len()).map(|j| b[(i, j)] * u[j]).sum::<f64>())
+            .collect();
+        let mut out = vec![0.0; 4];
+        for (k, &(a, w)) in self.blocks.iter().enumerate() {
+            let o = 2 * k;
+            let e = (-a * t).exp();
+            let (s, co) = (w * t).sin_cos();
+            let exp = [[e * co, e * s], [-e * s, e * co]];
+            let n = a * a + w * w;
+            let inv = [[-a / n, -w / n], [w / n, -a / n]];
+            // (e^{At} - I) g, then A⁻¹ of it.
+            let mut eg = [0.0; 2];
+            for i in 0..2 {
+                eg[i] = exp[i][0] * g[o] + exp[i][1] * g[o + 1] - g[o + i];
+            }
+            for i in 0..2 {
+                out[o + i] = exp[i][0] * x0[o] + exp[i][1] * x0[o + 1] + inv[i][0] * eg[0] + inv[i][1] * eg[1];
+            }
+        }
+        out
+    }
 }

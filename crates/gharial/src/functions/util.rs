@@ -61,3 +61,34 @@ pub(crate) fn checked_sym(what: &str, m: MatRef<'_, f64>, n: usize) -> crate::Re
     crate::linalg::symmetrize(s.as_mut());
     Ok(s)
 }
+
+/// `dst = alpha * src` for matrices of the same shape.
+pub(crate) fn copy_scaled(mut dst: MatMut<'_, f64>, alpha: f64, src: MatRef<'_, f64>) {
+    debug_assert_eq!((dst.nrows(), dst.ncols()), (src.nrows(), src.ncols()));
+    for j in 0..dst.ncols() {
+        for i in 0..dst.nrows() {
+            dst[(i, j)] = alpha * src[(i, j)];
+        }
+    }
+}
+
+/// Checks that a time step is finite and positive.
+pub(crate) fn check_dt(what: &str, dt: f64) -> crate::Result<()> {
+    if dt.is_finite() && dt > 0.0 {
+        Ok(())
+    } else {
+        Err(crate::Error::option(
+            format!("{what} dt"),
+            format!("must be finite and > 0, got {dt}"),
+        ))
+    }
+}
+
+/// `dst *= alpha`.
+pub(crate) fn scale(mut dst: MatMut<'_, f64>, alpha: f64) {
+    for j in 0..dst.ncols() {
+        for i in 0..dst.nrows() {
+            dst[(i, j)] *= alpha;
+        }
+    }
+}
