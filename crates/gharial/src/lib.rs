@@ -23,6 +23,8 @@ pub mod functions;
 pub mod linalg;
 pub mod lq;
 pub mod param;
+pub mod problem;
+pub mod solvers;
 pub mod spaces;
 
 pub use error::{Error, Result};

@@ -1,0 +1,431 @@
+//! Evaluation of a [`Problem`]: values, first and second derivatives of every stage,
+//! serial or stage-parallel (rayon), with identical results.
+
+use faer::{Accum, Col, Mat};
+use rayon::prelude::*;
+
+use super::{InitialCondition, Problem, StageConstraint, StageModel};
+use crate::costs::CostData;
+use crate::dynamics::{Dynamics, ExplicitDynamicsData, ImplicitDynamicsData};
+use crate::error::{Error, Result};
+use crate::functions::StageFunctionData;
+use crate::linalg::{matmul, matvec_t, slice, slice_mut};
+use crate::spaces::Arg;
+
+/// What the dynamics model of a stage writes.
+// One per stage, allocated once: the size difference between the variants is irrelevant.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug)]
+pub enum DynamicsData {
+    /// Data of an explicit model `y = φ(x, u)`; `xnext` holds `φ(x, u)`.
+    Explicit(ExplicitDynamicsData),
+    /// Data of an implicit model `f(x, u, y) = 0`.
+    Implicit(ImplicitDynamicsData),
+}
+
+/// Everything an evaluation of stage `t` writes.
+///
+/// The dynamics are always exposed in implicit form `f(x, u, y)` with values in the
+/// tangent space of `y`: for explicit dynamics `f = φ(x, u) ⊖ y`, so that every solver
+/// reads the same fields.
+#[derive(Debug)]
+pub struct StageData {
+    /// Cost value and derivatives.
+    pub cost: CostData,
+    /// The dynamics model's own data.
+    pub dynamics: DynamicsData,
+    /// `f(x, u, y)` (`ndx_next`).
+    pub dyn_value: Col<f64>,
+    /// `df/dx` (`ndx_next x ndx`).
+    pub dyn_jx: Mat<f64>,
+    /// `df/du` (`ndx_next x nu`).
+    pub dyn_ju: Mat<f64>,
+    /// `df/dy` (`ndx_next x ndx_next`); `-I` for explicit dynamics on vector spaces.
+    pub dyn_jy: Mat<f64>,
+    /// One data object per path constraint, in the stage's order.
+    pub constraints: Vec<StageFunctionData>,
+    /// `d(φ ⊖ y)/dφ` for explicit dynamics (scratch).
+    jdiff_phi: Mat<f64>,
+    /// Scratch for the co-state mapped through `jdiff_phi`.
+    lambda_phi: Vec<f64>,
+}
+
+impl StageData {
+    fn new(stage: &StageModel) -> Self {
+        let (s, sn) = (stage.space(), stage.space_next());
+        let (ndx, ndx2, nu) = (s.ndx(), sn.ndx(), stage.nu());
+        let dynamics = match &stage.dynamics {
+            Dynamics::Explicit(d) => DynamicsData::Explicit(d.create_data()),
+            Dynamics::Implicit(d) => DynamicsData::Implicit(d.create_data()),
+        };
+        let mut dyn_jy = Mat::zeros(ndx2, ndx2);
+        for i in 0..ndx2 {
+            dyn_jy[(i, i)] = -1.0;
+        }
+        Self {
+            cost: stage.cost.create_data(),
+            dynamics,
+            dyn_value: Col::zeros(ndx2),
+            dyn_jx: Mat::zeros(ndx2, ndx),
+            dyn_ju: Mat::zeros(ndx2, nu),
+            dyn_jy,
+            constraints: stage.constraints().iter().map(|c| c.func.create_data()).collect(),
+            jdiff_phi: Mat::zeros(ndx2, ndx2),
+            lambda_phi: vec![0.0; ndx2],
+        }
+    }
+
+    /// `f(x, u, y)` as a slice.
+    pub fn dyn_value(&self) -> &[f64] {
+        slice(&self.dyn_value)
+    }
+
+    /// For explicit dynamics, `φ(x, u)` (the next state of a nonlinear rollout).
+    pub fn xnext(&self) -> Option<&[f64]> {
+        match &self.dynamics {
+            DynamicsData::Explicit(d) => Some(d.xnext()),
+            DynamicsData::Implicit(_) => None,
+        }
+    }
+
+    fn evaluate(&mut self, stage: &StageModel, x: &[f64], u: &[f64], y: &[f64]) -> f64 {
+        stage.cost.evaluate(x, u, &mut self.cost);
+        match (&stage.dynamics, &mut self.dynamics) {
+            (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
+                m.forward(x, u, d);
+                // (21b) for explicit dynamics: f = φ(x, u) ⊖ y.
+                stage
+                    .space_next()
+                    .difference(y, d.xnext(), slice_mut(&mut self.dyn_value));
+            }
+            (Dynamics::Implicit(m), DynamicsData::Implicit(d)) => {
+                m.evaluate(x, u, y, d);
+                self.dyn_value.copy_from(&d.value);
+            }
+            _ => unreachable!("stage data created for another dynamics kind"),
+        }
+        for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
+            c.func.evaluate(x, u, cd);
+        }
+        self.cost.value
+    }
+
+    fn derivatives(&mut self, stage: &StageModel, x: &[f64], u: &[f64], y: &[f64]) {
+        stage.cost.derivatives(x, u, &mut self.cost);
+        match (&stage.dynamics, &mut self.dynamics) {
+            (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
+                m.jacobians(x, u, d);
+                let sn = stage.space_next();
+                if sn.is_vector_space() {
+                    self.dyn_jx.copy_from(&d.jx);
+                    self.dyn_ju.copy_from(&d.ju);
+                } else {
+                    // f = φ ⊖ y: df/dx = J_φ φ_x, df/du = J_φ φ_u, df/dy = d(φ ⊖ y)/dy.
+                    sn.jdifference(y, d.xnext(), Arg::Second, self.jdiff_phi.as_mut());
+                    matmul(
+                        self.dyn_jx.as_mut(),
+                        Accum::Replace,
+                        self.jdiff_phi.as_ref(),
+                        d.jx.as_ref(),
+                        1.0,
+                    );
+                    matmul(
+                        self.dyn_ju.as_mut(),
+                        Accum::Replace,
+                        self.jdiff_phi.as_ref(),
+                        d.ju.as_ref(),
+                        1.0,
+                    );
+                    sn.jdifference(y, d.xnext(), Arg::First, self.dyn_jy.as_mut());
+                }
+            }
+            (Dynamics::Implicit(m), DynamicsData::Implicit(d)) => {
+                m.jacobians(x, u, y, d);
+                self.dyn_jx.copy_from(&d.jx);
+                self.dyn_ju.copy_from(&d.ju);
+                self.dyn_jy.copy_from(&d.jy);
+            }
+            _ => unreachable!("stage data created for another dynamics kind"),
+        }
+        for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
+            c.func.jacobians(x, u, cd);
+        }
+    }
+
+    fn second_order(&mut self, stage: &StageModel, x: &[f64], u: &[f64], y: &[f64], lambda: &[f64], nu: &[f64]) {
+        match (&stage.dynamics, &mut self.dynamics) {
+            (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
+                if m.has_vhp() {
+                    // λᵀ(φ ⊖ y) ≈ (J_φᵀ λ)ᵀ ψ to second order in (x, u); exact when y = φ.
+                    if stage.space_next().is_vector_space() {
+                        self.lambda_phi.copy_from_slice(lambda);
+                    } else {
+                        matvec_t(
+                            &mut self.lambda_phi,
+                            Accum::Replace,
+                            self.jdiff_phi.as_ref(),
+                            lambda,
+                            1.0,
+                        );
+                    }
+                    m.vhp(x, u, &self.lambda_phi, d);
+                }
+            }
+            (Dynamics::Implicit(m), DynamicsData::Implicit(d)) => {
+                if m.has_vhp() {
+                    m.vhp(x, u, y, lambda, d);
+                }
+            }
+            _ => unreachable!("stage data created for another dynamics kind"),
+        }
+        let mut off = 0;
+        for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
+            let nr = c.nr();
+            if c.func.has_vhp() {
+                c.func.vhp(x, u, &nu[off..off + nr], cd);
+            }
+            off += nr;
+        }
+    }
+}
+
+/// Everything an evaluation of a [`Problem`] writes, allocated once.
+pub struct ProblemData {
+    /// Stage data, `t = 0..N`.
+    pub stages: Vec<StageData>,
+    /// Terminal cost data.
+    pub terminal_cost: CostData,
+    /// Terminal constraint data.
+    pub terminal_constraints: Vec<StageFunctionData>,
+    /// Initial constraint: value `x_0 ⊖ x̂` (or `ω(x_0)`) and its Jacobian `jx`.
+    pub init: StageFunctionData,
+    /// Total cost of the last evaluation.
+    pub cost: f64,
+    pool: Option<rayon::ThreadPool>,
+}
+
+impl std::fmt::Debug for ProblemData {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ProblemData")
+            .field("horizon", &self.stages.len())
+            .field("cost", &self.cost)
+            .field("threads", &self.num_threads())
+            .finish()
+    }
+}
+
+fn constraint_data(cs: &[StageConstraint]) -> Vec<StageFunctionData> {
+    cs.iter().map(|c| c.func.create_data()).collect()
+}
+
+impl ProblemData {
+    /// Allocates the data of `problem`; stages are evaluated on `num_threads` threads
+    /// (1: serial, in the calling thread).
+    ///
+    /// # Errors
+    /// If `num_threads` is 0 or the thread pool cannot be created.
+    pub fn new(problem: &Problem, num_threads: usize) -> Result<Self> {
+        if num_threads == 0 {
+            return Err(Error::option("num_threads", "must be at least 1"));
+        }
+        let pool = if num_threads > 1 {
+            Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(num_threads)
+                    .build()
+                    .map_err(|e| Error::option("num_threads", e))?,
+            )
+        } else {
+            None
+        };
+        let s0 = problem.space(0);
+        let init = match problem.initial_condition() {
+            InitialCondition::Fixed(_) => {
+                StageFunctionData::new(s0.ndx(), 0, s0.ndx(), crate::functions::no_workspace())
+            }
+            InitialCondition::Constraint(f) => StageFunctionData::new(f.ndx(), 0, f.nr(), f.create_workspace()),
+        };
+        Ok(Self {
+            stages: problem.stages().iter().map(StageData::new).collect(),
+            terminal_cost: problem.terminal_cost().create_data(),
+            terminal_constraints: constraint_data(problem.terminal_constraints()),
+            init,
+            cost: 0.0,
+            pool,
+        })
+    }
+
+    /// Number of threads used for stage-wise work.
+    pub fn num_threads(&self) -> usize {
+        self.pool.as_ref().map_or(1, |p| p.current_num_threads())
+    }
+
+    /// Runs `f(t, stage_data)` for every stage, in parallel when a pool exists.
+    fn for_each_stage(&mut self, f: impl Fn(usize, &mut StageData) + Send + Sync) {
+        match &self.pool {
+            Some(pool) => {
+                let stages = &mut self.stages;
+                pool.install(|| stages.par_iter_mut().enumerate().for_each(|(t, sd)| f(t, sd)));
+            }
+            None => self.stages.iter_mut().enumerate().for_each(|(t, sd)| f(t, sd)),
+        }
+    }
+
+    /// Evaluates costs, dynamics residuals `f(x_t, u_t, x_{t+1})`, constraint values and
+    /// the initial residual at `(xs, us)`; returns the total cost. Sizes are not checked
+    /// here (see [`Problem::check_trajectory`]).
+    pub fn evaluate(&mut self, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) -> f64 {
+        let stages = problem.stages();
+        self.for_each_stage(|t, sd| {
+            sd.evaluate(&stages[t], &xs[t], &us[t], &xs[t + 1]);
+        });
+        let n = stages.len();
+        problem.terminal_cost().evaluate(&xs[n], &[], &mut self.terminal_cost);
+        for (c, cd) in problem
+            .terminal_constraints()
+            .iter()
+            .zip(self.terminal_constraints.iter_mut())
+        {
+            c.func.evaluate(&xs[n], &[], cd);
+        }
+        match problem.initial_condition() {
+            InitialCondition::Fixed(x0) => problem.space(0).difference(x0, &xs[0], self.init.value_mut()),
+            InitialCondition::Constraint(f) => f.evaluate(&xs[0], &mut self.init),
+        }
+        // Summed in stage order so that serial and parallel runs agree bit for bit.
+        self.cost = self.stages.iter().map(|s| s.cost.value).sum::<f64>() + self.terminal_cost.value;
+        self.cost
+    }
+
+    /// Computes first derivatives (and cost Hessians) at the point of the last
+    /// [`ProblemData::evaluate`].
+    pub fn compute_derivatives(&mut self, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) {
+        let stages = problem.stages();
+        self.for_each_stage(|t, sd| sd.derivatives(&stages[t], &xs[t], &us[t], &xs[t + 1]));
+        let n = stages.len();
+        problem
+            .terminal_cost()
+            .derivatives(&xs[n], &[], &mut self.terminal_cost);
+        for (c, cd) in problem
+            .terminal_constraints()
+            .iter()
+            .zip(self.terminal_constraints.iter_mut())
+        {
+            c.func.jacobians(&xs[n], &[], cd);
+        }
+        match problem.initial_condition() {
+            InitialCondition::Fixed(x0) => problem
+                .space(0)
+                .jdifference(x0, &xs[0], Arg::Second, self.init.jx.as_mut()),
+            InitialCondition::Constraint(f) => f.jacobian(&xs[0], &mut self.init),
+        }
+    }
+
+    /// Computes the multiplier-weighted second derivatives of dynamics and constraints
+    /// (for exact-Hessian solvers) at the point of the last
+    /// [`ProblemData::compute_derivatives`]: `lambdas[t + 1]` weighs the dynamics of
+    /// stage `t`, `nus[t]` (stacked over the stage's constraints) its path constraints,
+    /// `nus[N]` the terminal constraints, `lambdas[0]` the initial constraint.
+    pub fn compute_second_order(
+        &mut self,
+        problem: &Problem,
+        xs: &[Vec<f64>],
+        us: &[Vec<f64>],
+        lambdas: &[Vec<f64>],
+        nus: &[Vec<f64>],
+    ) {
+        let stages = problem.stages();
+        self.for_each_stage(|t, sd| {
+            sd.second_order(&stages[t], &xs[t], &us[t], &xs[t + 1], &lambdas[t + 1], &nus[t]);
+        });
+        let n = stages.len();
+        let mut off = 0;
+        for (c, cd) in problem
+            .terminal_constraints()
+            .iter()
+            .zip(self.terminal_constraints.iter_mut())
+        {
+            let nr = c.nr();
+            if c.func.has_vhp() {
+                c.func.vhp(&xs[n], &[], &nus[n][off..off + nr], cd);
+            }
+            off += nr;
+        }
+        if let InitialCondition::Constraint(f) = problem.initial_condition()
+            && f.has_vhp()
+        {
+            f.vhp(&xs[0], &lambdas[0], &mut self.init);
+        }
+    }
+
+    /// Gradient of the Lagrangian
+    /// `J + λ_0ᵀ r_0 + Σ λ_{t+1}ᵀ f_t + Σ ν_tᵀ h_t + ν_Nᵀ h_N` with respect to every
+    /// state (`gx[t]`, `t = 0..=N`) and control (`gu[t]`, `t < N`), from the derivatives
+    /// of the last [`ProblemData::compute_derivatives`] (ProxDDP (24)).
+    pub fn lagrangian_gradient(
+        &self,
+        problem: &Problem,
+        lambdas: &[Vec<f64>],
+        nus: &[Vec<f64>],
+        gx: &mut [Vec<f64>],
+        gu: &mut [Vec<f64>],
+    ) {
+        let n = problem.horizon();
+        for t in 0..=n {
+            let g = &mut gx[t];
+            if t < n {
+                let sd = &self.stages[t];
+                g.copy_from_slice(sd.cost.lx());
+                gu[t].copy_from_slice(sd.cost.lu());
+                matvec_t(g, Accum::Add, sd.dyn_jx.as_ref(), &lambdas[t + 1], 1.0);
+                matvec_t(&mut gu[t], Accum::Add, sd.dyn_ju.as_ref(), &lambdas[t + 1], 1.0);
+                let mut off = 0;
+                for (c, cd) in problem.stages()[t].constraints().iter().zip(&sd.constraints) {
+                    let v = &nus[t][off..off + c.nr()];
+                    matvec_t(g, Accum::Add, cd.jx.as_ref(), v, 1.0);
+                    matvec_t(&mut gu[t], Accum::Add, cd.ju.as_ref(), v, 1.0);
+                    off += c.nr();
+                }
+            } else {
+                g.copy_from_slice(self.terminal_cost.lx());
+                let mut off = 0;
+                for (c, cd) in problem.terminal_constraints().iter().zip(&self.terminal_constraints) {
+                    matvec_t(g, Accum::Add, cd.jx.as_ref(), &nus[n][off..off + c.nr()], 1.0);
+                    off += c.nr();
+                }
+            }
+            // The co-state entering from the previous stage, or the initial condition.
+            if t == 0 {
+                matvec_t(g, Accum::Add, self.init.jx.as_ref(), &lambdas[0], 1.0);
+            } else {
+                matvec_t(g, Accum::Add, self.stages[t - 1].dyn_jy.as_ref(), &lambdas[t], 1.0);
+            }
+        }
+    }
+
+    /// Rolls explicit dynamics out from `xs[0]` under the controls `us`, writing
+    /// `xs[1..]` (an initial guess that is dynamically feasible).
+    ///
+    /// # Errors
+    /// If a stage has implicit dynamics or a state becomes non-finite.
+    pub fn rollout(&mut self, problem: &Problem, xs: &mut [Vec<f64>], us: &[Vec<f64>]) -> Result<()> {
+        for (t, stage) in problem.stages().iter().enumerate() {
+            let sd = &mut self.stages[t];
+            match (&stage.dynamics, &mut sd.dynamics) {
+                (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
+                    m.forward(&xs[t], &us[t], d);
+                    if !d.xnext().iter().all(|v| v.is_finite()) {
+                        return Err(Error::non_finite(format!("rollout: state x[{}]", t + 1)));
+                    }
+                    xs[t + 1].copy_from_slice(d.xnext());
+                }
+                _ => {
+                    return Err(Error::InvalidModel(format!(
+                        "rollout: stage {t} has implicit dynamics; provide a state guess instead"
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,287 @@
+//! Tests of problem construction and evaluation with small hand-written models.
+
+use std::sync::Arc;
+
+use super::*;
+use crate::costs::CostData;
+use crate::dynamics::{ExplicitDynamics, ExplicitDynamicsData};
+use crate::functions::StageFunctionData;
+use crate::spaces::VectorSpace;
+
+/// y = x + dt * (x2, sin(x1) + u) on R^2: a pendulum-like nonlinear map.
+struct Pend {
+    space: Arc<dyn Manifold>,
+}
+
+impl ExplicitDynamics for Pend {
+    fn space(&self) -> &Arc<dyn Manifold> {
+        &self.space
+    }
+    fn nu(&self) -> usize {
+        1
+    }
+    fn forward(&self, x: &[f64], u: &[f64], d: &mut ExplicitDynamicsData) {
+        let dt = 0.1;
+        let y = d.xnext_mut();
+        y[0] = x[0] + dt * x[1];
+        y[1] = x[1] + dt * (x[0].sin() + u[0]);
+    }
+    fn jacobians(&self, x: &[f64], _u: &[f64], d: &mut ExplicitDynamicsData) {
+        let dt = 0.1;
+        d.jx.fill(0.0);
+        d.jx[(0, 0)] = 1.0;
+        d.jx[(0, 1)] = dt;
+        d.jx[(1, 0)] = dt * x[0].cos();
+        d.jx[(1, 1)] = 1.0;
+        d.ju.fill(0.0);
+        d.ju[(1, 0)] = dt;
+    }
+}
+
+/// ½|x|² + ½|u|².
+struct Quad {
+    nu: usize,
+}
+
+impl Cost for Quad {
+    fn nx(&self) -> usize {
+        2
+    }
+    fn ndx(&self) -> usize {
+        2
+    }
+    fn nu(&self) -> usize {
+        self.nu
+    }
+    fn evaluate(&self, x: &[f64], u: &[f64], d: &mut CostData) {
+        d.value = 0.5 * (x.iter().map(|v| v * v).sum::<f64>() + u.iter().map(|v| v * v).sum::<f64>());
+    }
+    fn derivatives(&self, x: &[f64], u: &[f64], d: &mut CostData) {
+        for i in 0..2 {
+            d.lx[i] = x[i];
+            d.lxx[(i, i)] = 1.0;
+        }
+        for i in 0..self.nu {
+            d.lu[i] = u[i];
+            d.luu[(i, i)] = 1.0;
+        }
+    }
+}
+
+/// h(x, u) = u (for box-like constraints).
+struct Ctrl;
+
+impl StageFunction for Ctrl {
+    fn nx(&self) -> usize {
+        2
+    }
+    fn ndx(&self) -> usize {
+        2
+    }
+    fn nu(&self) -> usize {
+        1
+    }
+    fn nr(&self) -> usize {
+        1
+    }
+    fn evaluate(&self, _x: &[f64], u: &[f64], d: &mut StageFunctionData) {
+        d.value[0] = u[0];
+    }
+    fn jacobians(&self, _x: &[f64], _u: &[f64], d: &mut StageFunctionData) {
+        d.jx.fill(0.0);
+        d.ju[(0, 0)] = 1.0;
+    }
+}
+
+#[derive(Debug)]
+struct AnySet;
+
+impl ConstraintSet for AnySet {
+    fn penalty(&self, _z: &[f64]) -> f64 {
+        0.0
+    }
+    fn project(&self, z: &[f64], _mu: f64, out: &mut [f64]) {
+        out.copy_from_slice(z);
+    }
+    fn apply_projection_jacobian(&self, _z: &[f64], _mu: f64, _m: faer::MatMut<'_, f64>) {}
+    fn apply_normal_cone_jacobian(&self, _z: &[f64], _mu: f64, mut m: faer::MatMut<'_, f64>) {
+        m.fill(0.0);
+    }
+    fn violation(&self, _z: &[f64]) -> f64 {
+        0.0
+    }
+}
+
+fn problem(n: usize) -> Problem {
+    let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(2));
+    let dynamics = Dynamics::Explicit(Arc::new(Pend { space: space.clone() }));
+    let stage = StageModel::new(Arc::new(Quad { nu: 1 }), dynamics)
+        .unwrap()
+        .with_constraint(StageConstraint::new("u", Arc::new(Ctrl), Arc::new(AnySet)))
+        .unwrap();
+    Problem::new(&[1.0, 0.0], vec![stage; n], Arc::new(Quad { nu: 0 })).unwrap()
+}
+
+fn trajectory(n: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let xs = (0..=n)
+        .map(|t| vec![(t as f64 * 0.3).cos(), (t as f64 * 0.7).sin()])
+        .collect();
+    let us = (0..n).map(|t| vec![0.1 * t as f64 - 0.5]).collect();
+    (xs, us)
+}
+
+#[test]
+fn evaluation_matches_direct_formulas() {
+    let n = 7;
+    let p = problem(n);
+    let (xs, us) = trajectory(n);
+    let mut d = ProblemData::new(&p, 1).unwrap();
+    let cost = d.evaluate(&p, &xs, &us);
+    let expect: f64 = (0..n)
+        .map(|t| 0.5 * (xs[t][0].powi(2) + xs[t][1].powi(2) + us[t][0].powi(2)))
+        .sum::<f64>()
+        + 0.5 * (xs[n][0].powi(2) + xs[n][1].powi(2));
+    assert!((cost - expect).abs() < 1e-14);
+    for t in 0..n {
+        // f = φ(x, u) - y
+        let phi = [xs[t][0] + 0.1 * xs[t][1], xs[t][1] + 0.1 * (xs[t][0].sin() + us[t][0])];
+        for i in 0..2 {
+            assert!((d.stages[t].dyn_value()[i] - (phi[i] - xs[t + 1][i])).abs() < 1e-15);
+        }
+        assert_eq!(d.stages[t].constraints[0].value()[0], us[t][0]);
+    }
+    assert_eq!(d.init.value(), &[xs[0][0] - 1.0, xs[0][1]]);
+    d.compute_derivatives(&p, &xs, &us);
+    let jy = &d.stages[0].dyn_jy;
+    assert_eq!((jy[(0, 0)], jy[(1, 1)], jy[(0, 1)]), (-1.0, -1.0, 0.0));
+    assert!((d.stages[2].dyn_jx[(1, 0)] - 0.1 * xs[2][0].cos()).abs() < 1e-15);
+    assert_eq!(d.init.jx[(0, 0)], 1.0);
+}
+
+#[test]
+fn parallel_evaluation_is_bit_identical() {
+    let n = 33;
+    let p = problem(n);
+    let (xs, us) = trajectory(n);
+    let mut serial = ProblemData::new(&p, 1).unwrap();
+    let mut par = ProblemData::new(&p, 2).unwrap();
+    assert_eq!(par.num_threads(), 2);
+    let (c1, c2) = (serial.evaluate(&p, &xs, &us), par.evaluate(&p, &xs, &us));
+    assert_eq!(c1.to_bits(), c2.to_bits());
+    serial.compute_derivatives(&p, &xs, &us);
+    par.compute_derivatives(&p, &xs, &us);
+    for t in 0..n {
+        let (a, b) = (&serial.stages[t], &par.stages[t]);
+        assert_eq!(a.dyn_value(), b.dyn_value());
+        assert_eq!(a.dyn_jx, b.dyn_jx);
+        assert_eq!(a.cost.lxx, b.cost.lxx);
+    }
+}
+
+#[test]
+fn rollout_is_feasible() {
+    let n = 10;
+    let p = problem(n);
+    let (mut xs, us) = trajectory(n);
+    let mut d = ProblemData::new(&p, 1).unwrap();
+    xs[0] = vec![1.0, 0.0];
+    d.rollout(&p, &mut xs, &us).unwrap();
+    d.evaluate(&p, &xs, &us);
+    for t in 0..n {
+        assert!(d.stages[t].dyn_value().iter().all(|v| v.abs() < 1e-15));
+    }
+}
+
+#[test]
+fn invalid_problems_are_rejected_with_named_errors() {
+    let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(2));
+    let dynamics = Dynamics::Explicit(Arc::new(Pend { space: space.clone() }));
+    // Cost with the wrong control size.
+    let e = StageModel::new(Arc::new(Quad { nu: 2 }), dynamics.clone())
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("control size"), "{e}");
+    let stage = StageModel::new(Arc::new(Quad { nu: 1 }), dynamics).unwrap();
+    // Wrong x0 size, non-finite x0, no stage, terminal cost with controls.
+    let e = Problem::new(&[1.0], vec![stage.clone()], Arc::new(Quad { nu: 0 }))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("x0"), "{e}");
+    let e = Problem::new(&[f64::NAN, 0.0], vec![stage.clone()], Arc::new(Quad { nu: 0 }))
+        .err()
+        .unwrap();
+    assert!(matches!(e, Error::NonFinite { .. }));
+    assert!(Problem::new(&[1.0, 0.0], vec![], Arc::new(Quad { nu: 0 })).is_err());
+    let e = Problem::new(&[1.0, 0.0], vec![stage.clone()], Arc::new(Quad { nu: 1 }))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("terminal cost"), "{e}");
+    // A terminal constraint must not depend on controls; a bad scale is refused.
+    let mut p = Problem::new(&[1.0, 0.0], vec![stage.clone()], Arc::new(Quad { nu: 0 })).unwrap();
+    let e = p
+        .add_terminal_constraint(StageConstraint::new("u", Arc::new(Ctrl), Arc::new(AnySet)))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("terminal constraint `u`"), "{e}");
+    let mut s = stage;
+    let e = s
+        .add_constraint(StageConstraint::new("u", Arc::new(Ctrl), Arc::new(AnySet)).with_scale(-1.0))
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("scale"), "{e}");
+    // Trajectory checks name the entry.
+    let (xs, mut us) = trajectory(1);
+    us[0][0] = f64::INFINITY;
+    let e = p.check_trajectory(&xs, &us).err().unwrap();
+    assert!(e.to_string().contains("us[0]"), "{e}");
+    assert!(ProblemData::new(&p, 0).is_err());
+}
+
+#[test]
+fn kkt_stationarity_in_u_is_the_single_shooting_gradient() {
+    // On a dynamically feasible trajectory with co-states from the adjoint recursion
+    // λ_N = ∇ℓ_N, λ_t = ℓ_x + A_tᵀ λ_{t+1}, the x-stationarity vanishes and ∇_u L is the
+    // gradient of the rolled-out cost, which we compare with central differences.
+    let n = 6;
+    let p = problem(n);
+    let (mut xs, us) = trajectory(n);
+    let mut d = ProblemData::new(&p, 1).unwrap();
+    xs[0] = vec![1.0, 0.0];
+    d.rollout(&p, &mut xs, &us).unwrap();
+    d.evaluate(&p, &xs, &us);
+    d.compute_derivatives(&p, &xs, &us);
+    let mut lambdas = vec![vec![0.0; 2]; n + 1];
+    let mut next = d.terminal_cost.lx().to_vec();
+    for t in (0..n).rev() {
+        lambdas[t + 1] = next.clone();
+        let sd = &d.stages[t];
+        let mut l = sd.cost.lx().to_vec();
+        crate::linalg::matvec_t(&mut l, faer::Accum::Add, sd.dyn_jx.as_ref(), &next, 1.0);
+        next = l;
+    }
+    lambdas[0] = next.iter().map(|v| -v).collect();
+    let nus = vec![vec![0.0; 1]; n].into_iter().chain([vec![]]).collect::<Vec<_>>();
+    let kkt = kkt_residuals(&p, &xs, &us, &lambdas, &nus).unwrap();
+    assert!(kkt.dynamics < 1e-15 && kkt.initial < 1e-15 && kkt.constraints == 0.0);
+
+    let rolled_cost = |us: &[Vec<f64>]| {
+        let mut xs = vec![vec![1.0, 0.0]; n + 1];
+        let mut d = ProblemData::new(&p, 1).unwrap();
+        d.rollout(&p, &mut xs, us).unwrap();
+        d.evaluate(&p, &xs, us)
+    };
+    let mut grad_max: f64 = 0.0;
+    for t in 0..n {
+        let mut up = us.clone();
+        up[t][0] += 1e-6;
+        let mut um = us.clone();
+        um[t][0] -= 1e-6;
+        grad_max = grad_max.max(((rolled_cost(&up) - rolled_cost(&um)) / 2e-6).abs());
+    }
+    assert!(grad_max > 0.1);
+    assert!(
+        (kkt.stationarity - grad_max).abs() < 1e-7,
+        "{} vs {grad_max}",
+        kkt.stationarity
+    );
+}

@@ -1,0 +1,173 @@
+//! Filter step acceptance (Fletcher & Leyffer 2002, with the margins of Wächter &
+//! Biegler's IPOPT).
+//!
+//! The filter stores pairs `(φ_j, θ_j)` of a merit (or cost) value and an infeasibility
+//! measure. A trial `(φ, θ)` is acceptable when no stored pair dominates it, with
+//! margins: for every `j`, `θ ≤ (1 - γ_θ) θ_j` **or** `φ ≤ φ_j - γ_φ θ_j`.
+//! Adding a pair removes the stored pairs it dominates (`φ ≤ φ_j` and `θ ≤ θ_j`), so the
+//! filter stays a Pareto front.
+
+use super::linesearch::{LinesearchOptions, LinesearchResult};
+
+/// A filter of `(φ, θ)` pairs with a fixed capacity (allocated once).
+#[derive(Debug, Clone)]
+pub struct Filter {
+    entries: Vec<(f64, f64)>,
+    capacity: usize,
+    gamma_phi: f64,
+    gamma_theta: f64,
+}
+
+impl Filter {
+    /// An empty filter holding at most `capacity` pairs, with margins `gamma_phi`,
+    /// `gamma_theta` (typically `1e-5`).
+    pub fn new(capacity: usize, gamma_phi: f64, gamma_theta: f64) -> Self {
+        Self {
+            entries: Vec::with_capacity(capacity.max(1)),
+            capacity: capacity.max(1),
+            gamma_phi,
+            gamma_theta,
+        }
+    }
+
+    /// Removes every pair.
+    pub fn clear(&mut self) {
+        self.entries.clear();
+    }
+
+    /// The stored pairs.
+    pub fn entries(&self) -> &[(f64, f64)] {
+        &self.entries
+    }
+
+    /// Whether `(phi, theta)` is acceptable to the filter.
+    pub fn is_acceptable(&self, phi: f64, theta: f64) -> bool {
+        if !(phi.is_finite() && theta.is_finite()) {
+            return false;
+        }
+        self.entries
+            .iter()
+            .all(|&(pj, tj)| self.acceptable_to(phi, theta, pj, tj))
+    }
+
+    fn acceptable_to(&self, phi: f64, theta: f64, pj: f64, tj: f64) -> bool {
+        theta <= (1.0 - self.gamma_theta) * tj || phi <= pj - self.gamma_phi * tj
+    }
+
+    /// Adds `(phi, theta)`, removing the pairs it dominates. When the filter is full
+    /// the pair with the largest infeasibility is dropped first.
+    pub fn add(&mut self, phi: f64, theta: f64) {
+        if !(phi.is_finite() && theta.is_finite()) {
+            return;
+        }
+        self.entries.retain(|&(pj, tj)| !(phi <= pj && theta <= tj));
+        if self.entries.len() == self.capacity {
+            let worst = self
+                .entries
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.1.total_cmp(&b.1.1))
+                .map(|(i, _)| i)
+                .unwrap_or(0);
+            self.entries.swap_remove(worst);
+        }
+        self.entries.push((phi, theta));
+    }
+
+    /// Backtracking search for a step acceptable to the filter and to the current point
+    /// `(phi0, theta0)`; `trial(α)` returns `(φ(α), θ(α))`. On acceptance the current
+    /// point is added to the filter.
+    pub fn search(
+        &mut self,
+        mut trial: impl FnMut(f64) -> (f64, f64),
+        phi0: f64,
+        theta0: f64,
+        opts: &LinesearchOptions,
+    ) -> LinesearchResult {
+        let mut alpha = 1.0;
+        let mut trials = 0;
+        loop {
+            let (phi, theta) = trial(alpha);
+            trials += 1;
+            let ok = self.is_acceptable(phi, theta) && self.acceptable_to(phi, theta, phi0, theta0);
+            if ok {
+                self.add(phi0, theta0);
+                return LinesearchResult {
+                    alpha,
+                    phi,
+                    accepted: true,
+                    trials,
+                };
+            }
+            if trials >= opts.max_trials || alpha <= opts.alpha_min {
+                return LinesearchResult {
+                    alpha,
+                    phi,
+                    accepted: false,
+                    trials,
+                };
+            }
+            alpha = (alpha * opts.contraction_max).max(opts.alpha_min);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dominance_and_margins() {
+        let mut f = Filter::new(8, 1e-5, 1e-5);
+        f.add(10.0, 1.0);
+        f.add(5.0, 2.0);
+        // Better in θ than the first pair: acceptable.
+        assert!(f.is_acceptable(20.0, 0.5));
+        // Better in φ than both pairs (with margin): acceptable.
+        assert!(f.is_acceptable(4.0, 3.0));
+        // Worse in both than (5, 2): rejected.
+        assert!(!f.is_acceptable(6.0, 2.5));
+        // Equal to a stored pair: rejected by the margins.
+        assert!(!f.is_acceptable(5.0, 2.0));
+        // Between the pairs: (7, 1.5) is worse than (5, 2) in φ but better in θ, and
+        // better than (10, 1) in φ: acceptable.
+        assert!(f.is_acceptable(7.0, 1.5));
+        // Adding a pair that dominates both leaves only it.
+        f.add(1.0, 0.1);
+        assert_eq!(f.entries(), &[(1.0, 0.1)]);
+        assert!(!f.is_acceptable(f64::NAN, 0.0));
+    }
+
+    #[test]
+    fn capacity_drops_the_most_infeasible_pair() {
+        let mut f = Filter::new(2, 0.0, 0.0);
+        f.add(1.0, 3.0);
+        f.add(2.0, 2.0);
+        f.add(3.0, 1.0);
+        assert_eq!(f.entries().len(), 2);
+        assert!(f.entries().iter().all(|&(_, t)| t < 3.0));
+    }
+
+    #[test]
+    fn search_backtracks_until_acceptable() {
+        let mut f = Filter::new(8, 1e-5, 1e-5);
+        // Current point (1, 1); trials get better only for α ≤ 0.25.
+        let r = f.search(
+            |a| if a > 0.25 { (2.0, 2.0) } else { (0.5, 0.5) },
+            1.0,
+            1.0,
+            &LinesearchOptions::default(),
+        );
+        assert!(r.accepted);
+        assert_eq!(r.alpha, 0.25);
+        assert_eq!(f.entries(), &[(1.0, 1.0)]);
+        // Now a trial equal to the stored point is rejected until max trials.
+        let opts = LinesearchOptions {
+            max_trials: 3,
+            ..Default::default()
+        };
+        let r = f.search(|_| (1.0, 1.0), 1.0, 1.0, &opts);
+        assert!(!r.accepted);
+        assert_eq!(r.trials, 3);
+    }
+}

@@ -1,0 +1,239 @@
+//! Solvers and what they share: the result type, status, iteration history, initial
+//! guesses, callbacks, line searches and the filter.
+//!
+//! Every solver follows the same life cycle: `setup(&problem)` allocates its workspace
+//! for the problem's dimensions, `solve(&problem, &guess)` runs without allocating and
+//! returns a [`Solution`] whose [`Status`] says how it stopped. The last accepted iterate
+//! is always kept, so a solution can warm-start the next solve.
+
+pub mod filter;
+pub mod linesearch;
+
+use std::fmt;
+use std::time::Duration;
+
+use faer::{Col, Mat};
+
+use crate::error::{Result, check_dim, check_finite};
+use crate::problem::Problem;
+
+/// How a solver stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Status {
+    /// Not solved yet.
+    #[default]
+    NotStarted,
+    /// Primal and dual residuals are below the tolerance.
+    Converged,
+    /// The iteration limit was reached.
+    MaxIterations,
+    /// The line search found no acceptable step.
+    LinesearchFailure,
+    /// A non-finite value appeared in the model evaluation or the step; the last good
+    /// iterate is returned.
+    NonFinite,
+    /// The primal regularisation needed to make the Newton system solvable exceeded its
+    /// upper bound.
+    RegularizationFailure,
+    /// The wall-time budget was exhausted; the best iterate so far is returned.
+    TimeBudget,
+}
+
+impl Status {
+    /// Whether the solver converged.
+    pub fn converged(&self) -> bool {
+        *self == Status::Converged
+    }
+}
+
+impl fmt::Display for Status {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let s = match self {
+            Status::NotStarted => "not started",
+            Status::Converged => "converged",
+            Status::MaxIterations => "maximum iterations reached",
+            Status::LinesearchFailure => "line search failure",
+            Status::NonFinite => "non-finite values",
+            Status::RegularizationFailure => "regularization failure",
+            Status::TimeBudget => "time budget exhausted",
+        };
+        f.write_str(s)
+    }
+}
+
+/// One row of the iteration history (the columns of the iteration table).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct IterationRecord {
+    /// Iteration number (Newton steps taken before this row).
+    pub iter: usize,
+    /// Accepted step length.
+    pub alpha: f64,
+    /// Inner (subproblem) criterion, e.g. ProxDDP (19).
+    pub inner_crit: f64,
+    /// Primal residual (dynamics and constraint violation), e.g. ProxDDP (53).
+    pub prim_err: f64,
+    /// Dual residual (Lagrangian gradient), e.g. ProxDDP (52).
+    pub dual_err: f64,
+    /// Primal regularisation used in the Newton system.
+    pub preg: f64,
+    /// Total cost.
+    pub cost: f64,
+    /// Directional derivative of the merit function along the step.
+    pub dphi0: f64,
+    /// Merit function value after the step.
+    pub merit: f64,
+    /// Merit change `merit(α) - merit(0)`.
+    pub dmerit: f64,
+    /// Augmented-Lagrangian (outer) iteration.
+    pub al_iter: usize,
+    /// Augmented-Lagrangian penalty parameter.
+    pub mu: f64,
+}
+
+/// The result of a solve: trajectory, multipliers, gains, status and history.
+///
+/// Multiplier conventions: the Lagrangian is
+/// `J + λ_0ᵀ r_0(x_0) + Σ_t λ_{t+1}ᵀ f_t(x_t, u_t, x_{t+1}) + Σ_t ν_tᵀ h_t(x_t, u_t) + ν_Nᵀ h_N(x_N)`
+/// with `f_t = φ(x_t, u_t) ⊖ x_{t+1}` for explicit dynamics, so `λ_{t+1}` is the
+/// co-state (the gradient of the cost-to-go at `x_{t+1}`).
+#[derive(Debug, Clone, Default)]
+pub struct Solution {
+    /// States `x_0..x_N`.
+    pub xs: Vec<Vec<f64>>,
+    /// Controls `u_0..u_{N-1}`.
+    pub us: Vec<Vec<f64>>,
+    /// Co-states: `λ_0` (initial condition), then `λ_{t+1}` (dynamics of stage `t`).
+    pub lambdas: Vec<Vec<f64>>,
+    /// Path-constraint multipliers `ν_0..ν_{N-1}` stacked per stage, then the terminal `ν_N`.
+    pub nus: Vec<Vec<f64>>,
+    /// Feedforward gains `k_t` of the last backward pass.
+    pub feedforward: Vec<Col<f64>>,
+    /// Feedback gains `K_t` (`nu x ndx`) of the last backward pass: `δu = k + K δx`.
+    pub feedback: Vec<Mat<f64>>,
+    /// How the solver stopped.
+    pub status: Status,
+    /// Newton / DDP iterations taken.
+    pub iterations: usize,
+    /// Outer (augmented-Lagrangian) iterations.
+    pub al_iterations: usize,
+    /// Final primal residual.
+    pub prim_err: f64,
+    /// Final dual residual.
+    pub dual_err: f64,
+    /// Final total cost.
+    pub cost: f64,
+    /// Final augmented-Lagrangian penalty parameter (0 for unconstrained solvers).
+    pub mu: f64,
+    /// Wall time of the solve.
+    pub solve_time: Duration,
+    /// One record per iteration (capacity reserved at setup).
+    pub history: Vec<IterationRecord>,
+}
+
+impl Solution {
+    /// A zero solution shaped for `problem`, with `history_capacity` history rows
+    /// reserved.
+    pub fn new(problem: &Problem, history_capacity: usize) -> Self {
+        let n = problem.horizon();
+        let xs = (0..=n).map(|t| vec![0.0; problem.space(t).nx()]).collect();
+        let us = (0..n).map(|t| vec![0.0; problem.nu(t)]).collect();
+        let mut lambdas = vec![vec![0.0; problem.nc0()]];
+        lambdas.extend((0..n).map(|t| vec![0.0; problem.space(t + 1).ndx()]));
+        let mut nus: Vec<Vec<f64>> = problem.stages().iter().map(|s| vec![0.0; s.nc()]).collect();
+        nus.push(vec![0.0; problem.terminal_constraints().iter().map(|c| c.nr()).sum()]);
+        let feedforward = (0..n).map(|t| Col::zeros(problem.nu(t))).collect();
+        let feedback = (0..n)
+            .map(|t| Mat::zeros(problem.nu(t), problem.space(t).ndx()))
+            .collect();
+        Self {
+            xs,
+            us,
+            lambdas,
+            nus,
+            feedforward,
+            feedback,
+            history: Vec::with_capacity(history_capacity),
+            ..Default::default()
+        }
+    }
+}
+
+/// A starting point: states and controls, optionally multipliers (warm start).
+///
+/// States need not satisfy the dynamics: multiple-shooting solvers start from
+/// dynamically infeasible guesses.
+#[derive(Debug, Clone, Copy)]
+pub struct InitialGuess<'a> {
+    /// States `x_0..x_N`.
+    pub xs: &'a [Vec<f64>],
+    /// Controls `u_0..u_{N-1}`.
+    pub us: &'a [Vec<f64>],
+    /// Co-states, as in [`Solution::lambdas`] (zero if absent).
+    pub lambdas: Option<&'a [Vec<f64>]>,
+    /// Path multipliers, as in [`Solution::nus`] (zero if absent).
+    pub nus: Option<&'a [Vec<f64>]>,
+}
+
+impl<'a> InitialGuess<'a> {
+    /// A primal guess without multipliers.
+    pub fn primal(xs: &'a [Vec<f64>], us: &'a [Vec<f64>]) -> Self {
+        Self {
+            xs,
+            us,
+            lambdas: None,
+            nus: None,
+        }
+    }
+
+    /// The full primal-dual point of a previous solution (warm start).
+    pub fn from_solution(s: &'a Solution) -> Self {
+        Self {
+            xs: &s.xs,
+            us: &s.us,
+            lambdas: Some(&s.lambdas),
+            nus: Some(&s.nus),
+        }
+    }
+
+    /// Checks sizes and finiteness against `problem`.
+    ///
+    /// # Errors
+    /// Names the first offending entry.
+    pub fn check(&self, problem: &Problem) -> Result<()> {
+        problem.check_trajectory(self.xs, self.us)?;
+        let n = problem.horizon();
+        if let Some(l) = self.lambdas {
+            check_dim("number of co-states lambdas (N + 1)", n + 1, l.len())?;
+            check_dim("lambdas[0] size (initial constraint rows)", problem.nc0(), l[0].len())?;
+            for t in 0..n {
+                check_dim(
+                    format!("lambdas[{}] size", t + 1),
+                    problem.space(t + 1).ndx(),
+                    l[t + 1].len(),
+                )?;
+            }
+            for (t, v) in l.iter().enumerate() {
+                check_finite(format!("lambdas[{t}]"), v)?;
+            }
+        }
+        if let Some(v) = self.nus {
+            check_dim("number of path multipliers nus (N + 1)", n + 1, v.len())?;
+            for (t, s) in problem.stages().iter().enumerate() {
+                check_dim(format!("nus[{t}] size"), s.nc(), v[t].len())?;
+            }
+            let ncn: usize = problem.terminal_constraints().iter().map(|c| c.nr()).sum();
+            check_dim(format!("nus[{n}] size (terminal constraints)"), ncn, v[n].len())?;
+            for (t, s) in v.iter().enumerate() {
+                check_finite(format!("nus[{t}]"), s)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Called by solvers after every iteration; return `false` to stop the solve (the
+/// status is then that of the last iteration's checks, `MaxIterations` if none applied).
+pub trait Callback {
+    /// Receives the record of the iteration just finished.
+    fn on_iteration(&mut self, record: &IterationRecord) -> bool;
+}
