@@ -12,6 +12,7 @@ use std::sync::Arc;
 
 use faer::{Col, Mat};
 
+pub mod autodiff;
 pub mod check;
 mod compose;
 mod linear;

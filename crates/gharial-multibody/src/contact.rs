@@ -1,0 +1,638 @@
+//! Constrained forward dynamics with rigid 3D (point) and 6D (frame) contacts, and its
+//! derivatives.
+//!
+//! The KKT system `[[M, Jcᵀ], [Jc, 0]] [ddq; −λ] = [τ − nle; −γ]` is solved through the
+//! tree-sparse factorization of M and the Cholesky factor of the Delassus matrix
+//! `Λ = Jc M⁻¹ Jcᵀ`. The constraint is `g(q, v, ddq) = a_c + K_d v_c + K_p e = 0` (Baumgarte),
+//! where `a_c` is the classical acceleration of the contact point (3D) or the spatial
+//! acceleration of the contact frame (6D) in the contact's reference frame, `v_c` its
+//! velocity and `e` its placement error with respect to `reference` (3D: `p − p_ref`,
+//! 6D: `log6(refM⁻¹ oMc)` in LOCAL, rotated to world axes in LWA). λ is the force
+//! (3D) or wrench (6D) the environment applies to the robot at the contact origin, in the
+//! reference frame.
+//!
+//! Derivatives differentiate the KKT system: with `r1 = −∂(RNEA(q, v, ddq) − Jcᵀλ)` and
+//! `r2 = −∂g`, `∂λ = Λ⁻¹ (r2 − Jc M⁻¹ r1)` and `∂ddq = M⁻¹ r1 + M⁻¹ Jcᵀ ∂λ`
+//! (plain derivatives in LOCAL and LWA; q-derivatives along `q ⊕ δ`).
+
+use crate::data::{Data, check_data};
+use crate::derivatives::rnea_derivatives_kernel;
+use crate::dynamics::{factor_mass_matrix, minv_from_factor};
+use crate::error::{Error, Result, check_vec};
+use crate::kinematics::{jacobian_step, joint_motion, placement_step};
+use crate::lie::{jlog6_blocks, log6};
+use crate::linalg::{axpy, cholesky_factor, cholesky_solve, cholesky_solve_right, ltdl_solve_rows};
+use crate::model::{Model, NONE, ReferenceFrame};
+use crate::spatial::{Force, Mat3, Motion, Se3, Vec3};
+use faer::MatRef;
+
+/// Kind of rigid contact.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ContactType {
+    /// Point contact: the contact point does not accelerate (3 rows).
+    Contact3D,
+    /// Frame contact: the contact frame does not accelerate (6 rows).
+    Contact6D,
+}
+
+/// A rigid contact between a point or frame of the robot and the world.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ContactModel {
+    /// 3D or 6D.
+    pub kind: ContactType,
+    /// Joint the contact frame moves with.
+    pub joint: usize,
+    /// Placement of the contact frame in the joint frame.
+    pub placement: Se3,
+    /// `Local` or `LocalWorldAligned`.
+    pub reference_frame: ReferenceFrame,
+    /// Baumgarte position gain.
+    pub kp: f64,
+    /// Baumgarte velocity gain.
+    pub kd: f64,
+    /// World placement the position term is measured against (identity by default).
+    pub reference: Se3,
+}
+
+impl ContactModel {
+    /// Contact at a joint-attached placement.
+    pub fn new(
+        model: &Model,
+        kind: ContactType,
+        joint: usize,
+        placement: Se3,
+        reference_frame: ReferenceFrame,
+    ) -> Result<Self> {
+        if joint == 0 || joint >= model.njoints() {
+            return Err(Error::Invalid(format!(
+                "contact: joint {joint} is not a moving joint of the model"
+            )));
+        }
+        if reference_frame == ReferenceFrame::World {
+            return Err(Error::Invalid(
+                "contact: reference frame must be Local or LocalWorldAligned".into(),
+            ));
+        }
+        Ok(Self {
+            kind,
+            joint,
+            placement,
+            reference_frame,
+            kp: 0.0,
+            kd: 0.0,
+            reference: Se3::identity(),
+        })
+    }
+
+    /// Contact at a frame of the model.
+    pub fn from_frame(model: &Model, kind: ContactType, frame: usize, reference_frame: ReferenceFrame) -> Result<Self> {
+        model.check_frame(frame)?;
+        let fr = &model.frames()[frame];
+        Self::new(model, kind, fr.parent_joint, fr.placement, reference_frame)
+    }
+
+    /// Number of constraint rows (3 or 6).
+    pub fn size(&self) -> usize {
+        match self.kind {
+            ContactType::Contact3D => 3,
+            ContactType::Contact6D => 6,
+        }
+    }
+}
+
+/// Workspace and results of the constrained dynamics for one set of contacts.
+#[derive(Clone, Debug)]
+pub struct ContactData {
+    nc: usize,
+    nv: usize,
+    ncontacts: usize,
+    q: Vec<f64>,
+    v: Vec<f64>,
+    jc: Vec<f64>,
+    jcminv: Vec<f64>,
+    delassus: Vec<f64>,
+    gamma: Vec<f64>,
+    lambda: Vec<f64>,
+    ddq: Vec<f64>,
+    ddq_dq_t: Vec<f64>,
+    ddq_dv_t: Vec<f64>,
+    ddq_dtau_t: Vec<f64>,
+    dl_dq_t: Vec<f64>,
+    dl_dv_t: Vec<f64>,
+    dl_dtau_t: Vec<f64>,
+    chain: Vec<usize>,
+}
+
+impl ContactData {
+    /// Allocates the workspace for these contacts.
+    pub fn new(model: &Model, contacts: &[ContactModel]) -> Result<Self> {
+        for c in contacts {
+            if c.joint == 0 || c.joint >= model.njoints() {
+                return Err(Error::Invalid(format!(
+                    "contact: joint {} is not a moving joint of the model",
+                    c.joint
+                )));
+            }
+        }
+        let nc: usize = contacts.iter().map(|c| c.size()).sum();
+        let nv = model.nv();
+        Ok(Self {
+            nc,
+            nv,
+            ncontacts: contacts.len(),
+            q: vec![0.0; model.nq()],
+            v: vec![0.0; nv],
+            jc: vec![0.0; nc * nv],
+            jcminv: vec![0.0; nc * nv],
+            delassus: vec![0.0; nc * nc],
+            gamma: vec![0.0; nc],
+            lambda: vec![0.0; nc],
+            ddq: vec![0.0; nv],
+            ddq_dq_t: vec![0.0; nv * nv],
+            ddq_dv_t: vec![0.0; nv * nv],
+            ddq_dtau_t: vec![0.0; nv * nv],
+            dl_dq_t: vec![0.0; nc * nv],
+            dl_dv_t: vec![0.0; nc * nv],
+            dl_dtau_t: vec![0.0; nc * nv],
+            chain: Vec::with_capacity(nv),
+        })
+    }
+
+    /// Total number of constraint rows.
+    pub fn nc(&self) -> usize {
+        self.nc
+    }
+
+    /// Constrained joint accelerations.
+    pub fn ddq(&self) -> &[f64] {
+        &self.ddq
+    }
+
+    /// Stacked contact forces λ (environment on robot, in each contact's reference frame).
+    pub fn lambda(&self) -> &[f64] {
+        &self.lambda
+    }
+
+    /// Contact force of contact `k` as a 6D wrench (3D contacts: zero torque).
+    pub fn contact_force(&self, contacts: &[ContactModel], k: usize) -> Force {
+        let off: usize = contacts[..k].iter().map(|c| c.size()).sum();
+        let l = &self.lambda[off..off + contacts[k].size()];
+        match contacts[k].kind {
+            ContactType::Contact3D => Force::new(Vec3::new(l[0], l[1], l[2]), Vec3::zeros()),
+            ContactType::Contact6D => Force::new(Vec3::new(l[0], l[1], l[2]), Vec3::new(l[3], l[4], l[5])),
+        }
+    }
+
+    /// Constraint Jacobian Jc (nc × nv).
+    pub fn constraint_jacobian(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.jc, self.nc, self.nv)
+    }
+
+    /// ∂ddq/∂q (nv × nv).
+    pub fn ddq_dq(&self) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice(&self.ddq_dq_t, self.nv, self.nv)
+    }
+
+    /// ∂ddq/∂v (nv × nv).
+    pub fn ddq_dv(&self) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice(&self.ddq_dv_t, self.nv, self.nv)
+    }
+
+    /// ∂ddq/∂τ (nv × nv).
+    pub fn ddq_dtau(&self) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice(&self.ddq_dtau_t, self.nv, self.nv)
+    }
+
+    /// ∂λ/∂q (nc × nv).
+    pub fn dlambda_dq(&self) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice(&self.dl_dq_t, self.nc, self.nv)
+    }
+
+    /// ∂λ/∂v (nc × nv).
+    pub fn dlambda_dv(&self) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice(&self.dl_dv_t, self.nc, self.nv)
+    }
+
+    /// ∂λ/∂τ (nc × nv).
+    pub fn dlambda_dtau(&self) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice(&self.dl_dtau_t, self.nc, self.nv)
+    }
+}
+
+fn check_sizes(model: &Model, contacts: &[ContactModel], cdata: &ContactData) -> Result<()> {
+    let nc: usize = contacts.iter().map(|c| c.size()).sum();
+    if nc != cdata.nc || contacts.len() != cdata.ncontacts || cdata.nv != model.nv() {
+        return Err(Error::Invalid(format!(
+            "contact data was created for {} contacts ({} rows, nv = {}), called with {} contacts ({} rows, nv = {})",
+            cdata.ncontacts,
+            cdata.nc,
+            cdata.nv,
+            contacts.len(),
+            nc,
+            model.nv()
+        )));
+    }
+    for c in contacts {
+        if c.joint == 0 || c.joint >= model.njoints() {
+            return Err(Error::Invalid(format!(
+                "contact: joint {} is not a moving joint of the model",
+                c.joint
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// One pass computing the mass matrix (in `data.m`) and the nonlinear effects (in
+/// `data.nle`); leaves the drift accelerations (ddq = 0, gravity included) in `oa_gf`.
+pub(crate) fn mass_matrix_and_nle(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
+    let nv = model.nv;
+    data.oa_gf[0] = -model.gravity;
+    for i in 1..model.njoints() {
+        placement_step(model, data, i, q);
+        jacobian_step(model, data, i);
+        let p = model.parents[i];
+        let oy = model.inertias[i].transformed(&data.o_mi[i]);
+        data.o_ycrb[i] = oy;
+        let vj = joint_motion(model, data, i, v);
+        let ovp = data.ov[p];
+        let ov = ovp + vj;
+        let oa = data.oa_gf[p] + ovp.cross(&vj);
+        data.ov[i] = ov;
+        data.oa_gf[i] = oa;
+        let oh = oy.mul_motion(&ov);
+        data.of[i] = oy.mul_motion(&oa) + ov.cross_force(&oh);
+    }
+    data.m.fill(0.0);
+    for i in (1..model.njoints()).rev() {
+        let jm = model.joints[i];
+        let y = data.o_ycrb[i];
+        let f = data.of[i];
+        for c in jm.idx_v..jm.idx_v + jm.nv {
+            data.nle[c] = data.j[c].dot(&f);
+            let yc = y.mul_motion(&data.j[c]);
+            let mut r = jm.idx_v + jm.nv - 1;
+            while r != NONE {
+                let mrc = data.j[r].dot(&yc);
+                data.m[c * nv + r] = mrc;
+                data.m[r * nv + c] = mrc;
+                r = model.dof_parent[r];
+            }
+        }
+        let p = model.parents[i];
+        if p != 0 {
+            data.o_ycrb[p] += y;
+            data.of[p] += f;
+        }
+    }
+    for k in 0..nv {
+        data.m[k * nv + k] += model.armature[k];
+    }
+}
+
+/// Placement-error twist of a 6D contact (LOCAL coordinates).
+fn placement_error(c: &ContactModel, o_mc: &Se3) -> Motion {
+    log6(&c.reference.inv_compose(o_mc))
+}
+
+/// Constrained forward dynamics: solves for `ddq` and `λ` (read with
+/// [`ContactData::ddq`], [`ContactData::lambda`]). Exact KKT solve, no regularization.
+#[allow(clippy::too_many_arguments)]
+pub fn constraint_dynamics(
+    model: &Model,
+    data: &mut Data,
+    contacts: &[ContactModel],
+    cdata: &mut ContactData,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+) -> Result<()> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    check_vec("v", v, model.nv)?;
+    check_vec("tau", tau, model.nv)?;
+    check_sizes(model, contacts, cdata)?;
+    let (nv, nc) = (model.nv, cdata.nc);
+    cdata.q.copy_from_slice(q);
+    cdata.v.copy_from_slice(v);
+    mass_matrix_and_nle(model, data, q, v);
+    factor_mass_matrix(model, data)?;
+    // Unconstrained accelerations.
+    for k in 0..nv {
+        cdata.ddq[k] = tau[k] - data.nle[k];
+    }
+    ltdl_solve_rows(nv, 1, &model.dof_parent, &data.l, &data.d, &mut cdata.ddq);
+    // Contact Jacobian and drift.
+    cdata.jc.fill(0.0);
+    let g = model.gravity;
+    let mut off = 0;
+    for c in contacts {
+        let i = c.joint;
+        let o_mc = data.o_mi[i].compose(&c.placement);
+        let p = o_mc.translation;
+        let rt = o_mc.rotation.transpose();
+        let ov = data.ov[i];
+        let oa0 = data.oa_gf[i] + g;
+        let mut k = model.last_dof(i);
+        while k != NONE {
+            let col = contact_row(c, &o_mc, &data.j[k]);
+            for r in 0..c.size() {
+                cdata.jc[k * nc + off + r] = col[r];
+            }
+            k = model.dof_parent[k];
+        }
+        let gam = contact_constraint(c, &o_mc, &ov, &oa0, &p, &rt);
+        cdata.gamma[off..off + c.size()].copy_from_slice(&gam[..c.size()]);
+        off += c.size();
+    }
+    // Jc M⁻¹ (rows of M⁻¹ Jcᵀ), Delassus matrix and its Cholesky factor.
+    cdata.jcminv.copy_from_slice(&cdata.jc);
+    ltdl_solve_rows(nv, nc, &model.dof_parent, &data.l, &data.d, &mut cdata.jcminv);
+    cdata.delassus.fill(0.0);
+    for k in 0..nv {
+        let a = &cdata.jcminv[k * nc..(k + 1) * nc];
+        let b = &cdata.jc[k * nc..(k + 1) * nc];
+        for (bj, &bv) in b.iter().enumerate() {
+            if bv != 0.0 {
+                axpy(bv, a, &mut cdata.delassus[bj * nc..(bj + 1) * nc]);
+            }
+        }
+    }
+    cholesky_factor(nc, &mut cdata.delassus, "Delassus matrix Jc M⁻¹ Jcᵀ")?;
+    // λ = −Λ⁻¹ (Jc ddq_free + γ).
+    for r in 0..nc {
+        cdata.lambda[r] = -cdata.gamma[r];
+    }
+    for k in 0..nv {
+        axpy(-cdata.ddq[k], &cdata.jc[k * nc..(k + 1) * nc], &mut cdata.lambda);
+    }
+    cholesky_solve(nc, &cdata.delassus, &mut cdata.lambda);
+    // ddq = ddq_free + M⁻¹ Jcᵀ λ.
+    for k in 0..nv {
+        let s: f64 = cdata.jcminv[k * nc..(k + 1) * nc]
+            .iter()
+            .zip(&cdata.lambda)
+            .map(|(a, b)| a * b)
+            .sum();
+        cdata.ddq[k] += s;
+    }
+    data.ddq.copy_from_slice(&cdata.ddq);
+    Ok(())
+}
+
+/// Constraint row block (3 or 6 entries) of one world Jacobian column.
+#[inline]
+fn contact_row(c: &ContactModel, o_mc: &Se3, j: &Motion) -> [f64; 6] {
+    let p = &o_mc.translation;
+    match (c.kind, c.reference_frame) {
+        (ContactType::Contact3D, ReferenceFrame::Local) => {
+            let jp = j.shifted_to(p).linear;
+            let l = o_mc.rotation.tr_mul(&jp);
+            [l.x, l.y, l.z, 0.0, 0.0, 0.0]
+        }
+        (ContactType::Contact3D, _) => {
+            let l = j.shifted_to(p).linear;
+            [l.x, l.y, l.z, 0.0, 0.0, 0.0]
+        }
+        (ContactType::Contact6D, ReferenceFrame::Local) => o_mc.act_inv_motion(j).to_array(),
+        (ContactType::Contact6D, _) => j.shifted_to(p).to_array(),
+    }
+}
+
+/// Value of the constraint function `g = a_c + Kd v_c + Kp e` for body velocity `ov` and
+/// spatial acceleration `oa` (world frame, no gravity).
+fn contact_constraint(c: &ContactModel, o_mc: &Se3, ov: &Motion, oa: &Motion, p: &Vec3, rt: &Mat3) -> [f64; 6] {
+    match c.kind {
+        ContactType::Contact3D => {
+            let gw = contact3d_world(c, ov, oa, p);
+            let g = if c.reference_frame == ReferenceFrame::Local {
+                rt * gw
+            } else {
+                gw
+            };
+            [g.x, g.y, g.z, 0.0, 0.0, 0.0]
+        }
+        ContactType::Contact6D => {
+            let e = if c.kp != 0.0 {
+                placement_error(c, o_mc)
+            } else {
+                Motion::zero()
+            };
+            let g = if c.reference_frame == ReferenceFrame::Local {
+                o_mc.act_inv_motion(oa) + o_mc.act_inv_motion(ov) * c.kd + e * c.kp
+            } else {
+                let r = &o_mc.rotation;
+                oa.shifted_to(p) + ov.shifted_to(p) * c.kd + Motion::new(r * e.linear, r * e.angular) * c.kp
+            };
+            g.to_array()
+        }
+    }
+}
+
+/// World-axes 3D constraint: `ẍ + Kd ẋ + Kp (p − p_ref)`.
+#[inline]
+fn contact3d_world(c: &ContactModel, ov: &Motion, oa: &Motion, p: &Vec3) -> Vec3 {
+    let vp = ov.shifted_to(p).linear;
+    let ap = oa.shifted_to(p).linear;
+    ap + ov.angular.cross(&vp) + vp * c.kd + (p - c.reference.translation) * c.kp
+}
+
+/// Derivatives of the constrained dynamics at the point of the last
+/// [`constraint_dynamics`] call (same `data` and `cdata`): `ddq_dq`, `ddq_dv`,
+/// `ddq_dtau`, `dlambda_dq`, `dlambda_dv`, `dlambda_dtau`.
+pub fn compute_constraint_dynamics_derivatives(
+    model: &Model,
+    data: &mut Data,
+    contacts: &[ContactModel],
+    cdata: &mut ContactData,
+) -> Result<()> {
+    check_sizes(model, contacts, cdata)?;
+    check_data(model, data)?;
+    let (nv, nc) = (model.nv, cdata.nc);
+    let q = std::mem::take(&mut cdata.q);
+    let v = std::mem::take(&mut cdata.v);
+    let mut m = std::mem::take(&mut data.m);
+    // ∂τ/∂q, ∂τ/∂v of RNEA(q, v, ddq), stored transposed; the factorization of M from
+    // `constraint_dynamics` stays valid (same q).
+    rnea_derivatives_kernel::<true>(
+        model,
+        data,
+        &q,
+        &v,
+        &cdata.ddq,
+        &mut cdata.ddq_dq_t,
+        &mut cdata.ddq_dv_t,
+        &mut m,
+    );
+    data.m = m;
+    cdata.q = q;
+    cdata.v = v;
+    let g = model.gravity;
+    // Subtract ∂(Jcᵀ λ)/∂q and build −∂g (stored transposed in dl_*_t).
+    cdata.dl_dq_t.fill(0.0);
+    cdata.dl_dv_t.fill(0.0);
+    let mut off = 0;
+    for (ci, c) in contacts.iter().enumerate() {
+        let i = c.joint;
+        let o_mc = data.o_mi[i].compose(&c.placement);
+        let p = o_mc.translation;
+        let r = o_mc.rotation;
+        let ov = data.ov[i];
+        let oa = data.oa_gf[i] + g;
+        let f6 = cdata.contact_force(contacts, ci);
+        // World wrench at the world origin and world linear force.
+        let (of, flin) = match c.reference_frame {
+            ReferenceFrame::Local => {
+                let w = o_mc.act_force(&f6);
+                (w, w.linear)
+            }
+            _ => (Force::new(f6.linear, f6.angular + p.cross(&f6.linear)), f6.linear),
+        };
+        let local = c.reference_frame == ReferenceFrame::Local;
+        cdata.chain.clear();
+        let mut k = model.last_dof(i);
+        while k != NONE {
+            cdata.chain.push(k);
+            k = model.dof_parent[k];
+        }
+        for &rr in &cdata.chain {
+            let jr = data.j[rr];
+            for &cc in &cdata.chain {
+                let jc = data.j[cc];
+                let c_below_or_same = model.dof_joint[cc] <= model.dof_joint[rr];
+                let mut val = 0.0;
+                if local {
+                    if !c_below_or_same {
+                        val = jr.dot(&jc.cross_force(&of));
+                    }
+                } else {
+                    let jp = jc.shifted_to(&p).linear;
+                    val = jr.angular.dot(&jp.cross(&flin));
+                    if c_below_or_same {
+                        val -= jr.dot(&jc.cross_force(&of));
+                    }
+                }
+                cdata.ddq_dq_t[rr * nv + cc] -= val;
+            }
+        }
+        // −∂g/∂q and −∂g/∂v, columns over the support.
+        let (w, alpha) = (ov.angular, oa.angular);
+        let vp = ov.shifted_to(&p).linear;
+        let e = if c.kind == ContactType::Contact6D && c.kp != 0.0 {
+            placement_error(c, &o_mc)
+        } else {
+            Motion::zero()
+        };
+        let (jl, jc_blk) = jlog6_blocks(&e);
+        for &cc in &cdata.chain {
+            let jc = data.j[cc];
+            let dvdq = data.dvdq[cc];
+            let dadqk = data.dadq[cc] + g.cross(&jc);
+            let dov_q = jc.cross(&ov) + dvdq;
+            let doa_q = jc.cross(&oa) + dadqk - ov.cross(&dvdq);
+            let doa_v = data.dadv[cc] - ov.cross(&jc);
+            let jp = jc.shifted_to(&p).linear;
+            let (gq, gv): ([f64; 6], [f64; 6]) = match c.kind {
+                ContactType::Contact3D => {
+                    let dvp_q = dov_q.shifted_to(&p).linear + w.cross(&jp);
+                    let dap_q = doa_q.shifted_to(&p).linear + alpha.cross(&jp);
+                    let dx_q = dap_q + dov_q.angular.cross(&vp) + w.cross(&dvp_q);
+                    let mut dq = dx_q + dvp_q * c.kd + jp * c.kp;
+                    let dx_v = doa_v.shifted_to(&p).linear + jc.angular.cross(&vp) + w.cross(&jp);
+                    let mut dv = dx_v + jp * c.kd;
+                    if local {
+                        let gw = contact3d_world(c, &ov, &oa, &p);
+                        dq = r.tr_mul(&(dq + gw.cross(&jc.angular)));
+                        dv = r.tr_mul(&dv);
+                    }
+                    ([dq.x, dq.y, dq.z, 0.0, 0.0, 0.0], [dv.x, dv.y, dv.z, 0.0, 0.0, 0.0])
+                }
+                ContactType::Contact6D => {
+                    let jloc = o_mc.act_inv_motion(&jc);
+                    let de = Motion::new(jl * jloc.linear + jc_blk * jloc.angular, jl * jloc.angular);
+                    if local {
+                        let dq = o_mc.act_inv_motion(&(dadqk - ov.cross(&dvdq)))
+                            + o_mc.act_inv_motion(&dvdq) * c.kd
+                            + de * c.kp;
+                        let dv = o_mc.act_inv_motion(&doa_v) + jloc * c.kd;
+                        (dq.to_array(), dv.to_array())
+                    } else {
+                        let mut dq = doa_q.shifted_to(&p);
+                        dq.linear += alpha.cross(&jp);
+                        let mut dvel = dov_q.shifted_to(&p);
+                        dvel.linear += w.cross(&jp);
+                        let de_w = Motion::new(
+                            jc.angular.cross(&(r * e.linear)) + r * de.linear,
+                            jc.angular.cross(&(r * e.angular)) + r * de.angular,
+                        );
+                        let dq = dq + dvel * c.kd + de_w * c.kp;
+                        let dv = doa_v.shifted_to(&p) + jc.shifted_to(&p) * c.kd;
+                        (dq.to_array(), dv.to_array())
+                    }
+                }
+            };
+            for rrow in 0..c.size() {
+                cdata.dl_dq_t[(off + rrow) * nv + cc] = -gq[rrow];
+                cdata.dl_dv_t[(off + rrow) * nv + cc] = -gv[rrow];
+            }
+        }
+        off += c.size();
+    }
+    // r1 = −(∂τ − ∂(Jcᵀλ)), Yᵀ = r1ᵀ M⁻¹.
+    for x in [&mut cdata.ddq_dq_t, &mut cdata.ddq_dv_t] {
+        x.iter_mut().for_each(|e| *e = -*e);
+        ltdl_solve_rows(nv, nv, &model.dof_parent, &data.l, &data.d, x);
+    }
+    // Zᵀ = r2ᵀ − Yᵀ Jcᵀ; ∂λᵀ = Zᵀ Λ⁻¹; ∂ddqᵀ = Yᵀ + ∂λᵀ Jc M⁻¹.
+    for (yt, zt) in [
+        (&mut cdata.ddq_dq_t, &mut cdata.dl_dq_t),
+        (&mut cdata.ddq_dv_t, &mut cdata.dl_dv_t),
+    ] {
+        kkt_back_substitution(nv, nc, &cdata.jc, &cdata.jcminv, &cdata.delassus, yt, zt);
+    }
+    // τ: ∂λ/∂τ = −Λ⁻¹ Jc M⁻¹, ∂ddq/∂τ = M⁻¹ + M⁻¹ Jcᵀ ∂λ/∂τ.
+    minv_from_factor(model, data);
+    cdata.ddq_dtau_t.copy_from_slice(&data.minv);
+    for k in 0..nv {
+        for a in 0..nc {
+            cdata.dl_dtau_t[a * nv + k] = -cdata.jcminv[k * nc + a];
+        }
+    }
+    cholesky_solve_right(nc, nv, &cdata.delassus, &mut cdata.dl_dtau_t);
+    for j in 0..nv {
+        let col = &mut cdata.ddq_dtau_t[j * nv..(j + 1) * nv];
+        for a in 0..nc {
+            axpy(cdata.jcminv[j * nc + a], &cdata.dl_dtau_t[a * nv..(a + 1) * nv], col);
+        }
+    }
+    Ok(())
+}
+
+/// Given `yt = Yᵀ` (nv × nv, Y = M⁻¹ r1) and `zt = r2ᵀ` (nv × nc), computes
+/// `∂λᵀ = (r2 − Jc Y)ᵀ Λ⁻¹` into `zt` and `∂ddqᵀ = Yᵀ + ∂λᵀ Jc M⁻¹` into `yt`.
+fn kkt_back_substitution(
+    nv: usize,
+    nc: usize,
+    jc: &[f64],
+    jcminv: &[f64],
+    chol: &[f64],
+    yt: &mut [f64],
+    zt: &mut [f64],
+) {
+    for k in 0..nv {
+        let ycol = &yt[k * nv..(k + 1) * nv];
+        for a in 0..nc {
+            let jak = jc[k * nc + a];
+            if jak != 0.0 {
+                axpy(-jak, ycol, &mut zt[a * nv..(a + 1) * nv]);
+            }
+        }
+    }
+    cholesky_solve_right(nc, nv, chol, zt);
+    for j in 0..nv {
+        let col = &mut yt[j * nv..(j + 1) * nv];
+        for a in 0..nc {
+            axpy(jcminv[j * nc + a], &zt[a * nv..(a + 1) * nv], col);
+        }
+    }
+}

@@ -1,0 +1,240 @@
+//! Preallocated workspace and results of the algorithms.
+//!
+//! All spatial quantities are stored in the world frame (Featherstone's "spatial"
+//! formulation, Pinocchio's `WORLD` convention); local quantities are obtained by the
+//! accessors. Dense matrices are stored as column-major `Vec<f64>` and exposed as faer
+//! views.
+
+use crate::error::{Error, Result};
+use crate::model::Model;
+use crate::spatial::{Force, Inertia, Mat3, Motion, Se3, Sym6, Vec3};
+use faer::MatRef;
+
+/// Workspace of every algorithm for one model; create it with [`Model::create_data`].
+/// After creation no algorithm allocates.
+#[derive(Clone, Debug)]
+pub struct Data {
+    pub(crate) nv: usize,
+    // Per joint.
+    pub(crate) li_mi: Vec<Se3>,
+    pub(crate) o_mi: Vec<Se3>,
+    pub(crate) ov: Vec<Motion>,
+    pub(crate) oa: Vec<Motion>,
+    pub(crate) oa_gf: Vec<Motion>,
+    pub(crate) o_y: Vec<Inertia>,
+    pub(crate) o_ycrb: Vec<Inertia>,
+    pub(crate) oh: Vec<Force>,
+    pub(crate) of: Vec<Force>,
+    pub(crate) c: Vec<Motion>,
+    pub(crate) ia: Vec<Sym6>,
+    pub(crate) pa: Vec<Force>,
+    pub(crate) dinv: Vec<[[f64; 6]; 6]>,
+    pub(crate) tcrb: Vec<Mat3>,
+    pub(crate) hcrb: Vec<Force>,
+    // Per degree of freedom.
+    pub(crate) j: Vec<Motion>,
+    pub(crate) dvdq: Vec<Motion>,
+    pub(crate) dadq: Vec<Motion>,
+    pub(crate) dadv: Vec<Motion>,
+    pub(crate) u: Vec<Force>,
+    pub(crate) udinv: Vec<Force>,
+    pub(crate) u_tau: Vec<f64>,
+    // Per frame.
+    pub(crate) o_mf: Vec<Se3>,
+    // Results.
+    pub(crate) tau: Vec<f64>,
+    pub(crate) nle: Vec<f64>,
+    pub(crate) g: Vec<f64>,
+    pub(crate) ddq: Vec<f64>,
+    pub(crate) m: Vec<f64>,
+    pub(crate) minv: Vec<f64>,
+    pub(crate) dtau_dq: Vec<f64>,
+    pub(crate) dtau_dv: Vec<f64>,
+    /// Transposed storage (row-major) of `ddq_dq`.
+    pub(crate) ddq_dq_t: Vec<f64>,
+    /// Transposed storage (row-major) of `ddq_dv`.
+    pub(crate) ddq_dv_t: Vec<f64>,
+    pub(crate) l: Vec<f64>,
+    pub(crate) d: Vec<f64>,
+    pub(crate) jcom: Vec<f64>,
+    pub(crate) mass: f64,
+    pub(crate) com: Vec3,
+    pub(crate) vcom: Vec3,
+    pub(crate) acom: Vec3,
+}
+
+/// Checks that `data` was created for a model of the same shape as `model`.
+pub(crate) fn check_data(model: &Model, data: &Data) -> Result<()> {
+    if data.li_mi.len() != model.njoints() || data.nv != model.nv() || data.o_mf.len() != model.nframes() {
+        return Err(Error::Invalid(format!(
+            "data was created for a model with {} joints, nv = {}, {} frames; model `{}` has {} joints, nv = {}, {} frames",
+            data.li_mi.len(),
+            data.nv,
+            data.o_mf.len(),
+            model.name,
+            model.njoints(),
+            model.nv(),
+            model.nframes()
+        )));
+    }
+    Ok(())
+}
+
+impl Data {
+    /// Allocates the workspace for `model`.
+    pub fn new(model: &Model) -> Self {
+        let n = model.njoints();
+        let nv = model.nv();
+        let nf = model.nframes();
+        Self {
+            nv,
+            li_mi: vec![Se3::identity(); n],
+            o_mi: vec![Se3::identity(); n],
+            ov: vec![Motion::zero(); n],
+            oa: vec![Motion::zero(); n],
+            oa_gf: vec![Motion::zero(); n],
+            o_y: vec![Inertia::zero(); n],
+            o_ycrb: vec![Inertia::zero(); n],
+            oh: vec![Force::zero(); n],
+            of: vec![Force::zero(); n],
+            c: vec![Motion::zero(); n],
+            ia: vec![Sym6::default(); n],
+            pa: vec![Force::zero(); n],
+            dinv: vec![[[0.0; 6]; 6]; n],
+            tcrb: vec![Mat3::zeros(); n],
+            hcrb: vec![Force::zero(); n],
+            j: vec![Motion::zero(); nv],
+            dvdq: vec![Motion::zero(); nv],
+            dadq: vec![Motion::zero(); nv],
+            dadv: vec![Motion::zero(); nv],
+            u: vec![Force::zero(); nv],
+            udinv: vec![Force::zero(); nv],
+            u_tau: vec![0.0; nv],
+            o_mf: vec![Se3::identity(); nf],
+            tau: vec![0.0; nv],
+            nle: vec![0.0; nv],
+            g: vec![0.0; nv],
+            ddq: vec![0.0; nv],
+            m: vec![0.0; nv * nv],
+            minv: vec![0.0; nv * nv],
+            dtau_dq: vec![0.0; nv * nv],
+            dtau_dv: vec![0.0; nv * nv],
+            ddq_dq_t: vec![0.0; nv * nv],
+            ddq_dv_t: vec![0.0; nv * nv],
+            l: vec![0.0; nv * nv],
+            d: vec![0.0; nv],
+            jcom: vec![0.0; 3 * nv],
+            mass: 0.0,
+            com: Vec3::zeros(),
+            vcom: Vec3::zeros(),
+            acom: Vec3::zeros(),
+        }
+    }
+
+    /// Placement of joint frame `i` in the world (`oMi`). Panics if the index is out of range.
+    pub fn joint_placement(&self, i: usize) -> &Se3 {
+        &self.o_mi[i]
+    }
+
+    /// Placement of joint `i` in its parent joint frame (`liMi`). Panics if the index is out of range.
+    pub fn joint_relative_placement(&self, i: usize) -> &Se3 {
+        &self.li_mi[i]
+    }
+
+    /// Placement of frame `f` in the world (`oMf`), after `update_frame_placements`. Panics if the index is out of range.
+    pub fn frame_placement(&self, f: usize) -> &Se3 {
+        &self.o_mf[f]
+    }
+
+    /// Joint torques of the last `rnea` (or `compute_rnea_derivatives`).
+    pub fn tau(&self) -> &[f64] {
+        &self.tau
+    }
+
+    /// Nonlinear effects `C(q, v) v + g(q)` of the last `nonlinear_effects`.
+    pub fn nle(&self) -> &[f64] {
+        &self.nle
+    }
+
+    /// Generalized gravity `g(q)` of the last `generalized_gravity`.
+    pub fn generalized_gravity(&self) -> &[f64] {
+        &self.g
+    }
+
+    /// Joint accelerations of the last `aba` (or `compute_aba_derivatives`).
+    pub fn ddq(&self) -> &[f64] {
+        &self.ddq
+    }
+
+    /// Joint-space inertia matrix (full symmetric), after `crba` or the derivatives.
+    pub fn mass_matrix(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.m, self.nv, self.nv)
+    }
+
+    /// Inverse of the mass matrix, after `compute_minverse` or `compute_aba_derivatives`.
+    pub fn minv(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.minv, self.nv, self.nv)
+    }
+
+    /// ∂tau/∂q of the last `compute_rnea_derivatives`.
+    pub fn dtau_dq(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.dtau_dq, self.nv, self.nv)
+    }
+
+    /// ∂tau/∂v of the last `compute_rnea_derivatives`.
+    pub fn dtau_dv(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.dtau_dv, self.nv, self.nv)
+    }
+
+    /// ∂ddq/∂q of the last `compute_aba_derivatives`.
+    pub fn ddq_dq(&self) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice(&self.ddq_dq_t, self.nv, self.nv)
+    }
+
+    /// ∂ddq/∂v of the last `compute_aba_derivatives`.
+    pub fn ddq_dv(&self) -> MatRef<'_, f64> {
+        MatRef::from_row_major_slice(&self.ddq_dv_t, self.nv, self.nv)
+    }
+
+    /// Total mass (universe excluded), after `center_of_mass` or `jacobian_center_of_mass`.
+    pub fn total_mass(&self) -> f64 {
+        self.mass
+    }
+
+    /// Centre of mass in the world, after `center_of_mass`.
+    pub fn com(&self) -> &Vec3 {
+        &self.com
+    }
+
+    /// Velocity of the centre of mass, after `center_of_mass` with a velocity.
+    pub fn vcom(&self) -> &Vec3 {
+        &self.vcom
+    }
+
+    /// Acceleration of the centre of mass (no gravity), after `center_of_mass` with an acceleration.
+    pub fn acom(&self) -> &Vec3 {
+        &self.acom
+    }
+
+    /// Jacobian of the centre of mass (3 × nv), after `jacobian_center_of_mass`.
+    pub fn jacobian_com(&self) -> MatRef<'_, f64> {
+        MatRef::from_column_major_slice(&self.jcom, 3, self.nv)
+    }
+
+    /// World-frame Jacobian column of degree of freedom `k`, after a kinematic pass. Panics if the index is out of range.
+    pub fn joint_jacobian_column(&self, k: usize) -> &Motion {
+        &self.j[k]
+    }
+
+    /// Spatial force transmitted from the parent to the subtree of joint `i` (gravity
+    /// included), in the world frame, after `rnea`. Panics if `i` is out of range.
+    pub fn joint_force_world(&self, i: usize) -> &Force {
+        &self.of[i]
+    }
+
+    /// The same force in the frame of joint `i` (Pinocchio's `data.f[i]`). Panics if `i` is
+    /// out of range.
+    pub fn joint_force_local(&self, i: usize) -> Force {
+        self.o_mi[i].act_inv_force(&self.of[i])
+    }
+}

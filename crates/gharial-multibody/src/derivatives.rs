@@ -1,0 +1,359 @@
+//! Analytical derivatives of kinematics, RNEA and ABA (Carpentier & Mansard, "Analytical
+//! derivatives of rigid body dynamics algorithms", RSS 2018), in the world frame.
+//!
+//! For a tangent perturbation of dof c (joint j, parent joint λ), every quantity `x`
+//! attached to a body in the subtree of j moves as `∂(oX x)/∂q_c = J_c × (oX x)`. This
+//! gives, per dof, the world-frame columns
+//! `dVdq_c = ov_λ × J_c`, `dJ_c = ov_j × J_c`, `dAdq_c = oa_λ × J_c + ov_λ × dVdq_c`,
+//! `dAdv_c = dJ_c + dVdq_c`, and for a body i in the subtree of j the plain derivatives
+//! `∂ov_i/∂q_c = J_c × ov_i + dVdq_c`, `∂oa_i/∂q_c = J_c × oa_i + dAdq_c − ov_i × dVdq_c`,
+//! `∂oa_i/∂v_c = dAdv_c − ov_i × J_c`.
+//!
+//! RNEA: with `Ycrb_i`, the subtree force `F_i`, and the subtree operator
+//! `D_i = Σ_k (Ẏ_k + [· ×* h_k]) = [[0, −2[h_f]×], [0, T_i]]` (time derivative of the world
+//! inertias plus the momentum cross term), for rows r of joint i and columns c in its
+//! support: `∂τ_r/∂q_c = dAdq_c·(Ycrb_i J_r) + dVdq_c·(D_iᵀ J_r)` and for rows r of the
+//! strict ancestors of joint i and its columns c:
+//! `∂τ_r/∂q_c = J_r·(Ycrb_i dAdq_c + D_i dVdq_c + J_c ×* F_i)`; the same with
+//! `(dAdv_c, J_c)` for v and `(J_c, 0)` for a (the CRBA).
+
+use crate::data::{Data, check_data};
+use crate::dynamics::{aba_unchecked, factor_mass_matrix, minv_from_factor};
+use crate::error::{Error, Result, check_vec};
+use crate::kinematics::{express_motion, frame_placement_of, jacobian_step, joint_motion, placement_step};
+use crate::linalg::ltdl_solve_rows;
+use crate::model::{Model, NONE, ReferenceFrame};
+use crate::spatial::{Force, Inertia, Mat3, Motion, Se3, Vec3, skew};
+use faer::MatMut;
+
+/// `T_k` block of `D_k` for a body with world inertia `y`, velocity `ov` and momentum `oh`:
+/// `[ω]× I_o − I_o [ω]× − (h νᵀ + ν hᵀ − 2 (ν·h) I) − [h_τ]×`.
+#[inline]
+fn t_block(y: &Inertia, ov: &Motion, oh: &Force) -> Mat3 {
+    let w = skew(&ov.angular);
+    let h = &y.first_moment;
+    let nu = &ov.linear;
+    let mut t = w * y.rotational - y.rotational * w - (h * nu.transpose() + nu * h.transpose()) - skew(&oh.angular);
+    let d = 2.0 * nu.dot(h);
+    t[(0, 0)] += d;
+    t[(1, 1)] += d;
+    t[(2, 2)] += d;
+    t
+}
+
+/// `D m = [−2 h_f × m_ang, T m_ang]`.
+#[inline]
+fn d_mul(hf: &Vec3, t: &Mat3, m: &Motion) -> Force {
+    Force::new(hf.cross(&m.angular) * -2.0, t * m.angular)
+}
+
+/// Forward pass of the kinematic derivatives: `oMi`, `J`, `ov`, `oa` (no gravity) and the
+/// per-dof columns `dJ`, `dVdq`, `dAdq`, `dAdv`.
+pub fn compute_forward_kinematics_derivatives(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+) -> Result<()> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    check_vec("v", v, model.nv)?;
+    check_vec("a", a, model.nv)?;
+    for i in 1..model.njoints() {
+        placement_step(model, data, i, q);
+        jacobian_step(model, data, i);
+        let p = model.parents[i];
+        let vj = joint_motion(model, data, i, v);
+        let aj = joint_motion(model, data, i, a);
+        let (ovp, oap) = (data.ov[p], data.oa[p]);
+        let ov = ovp + vj;
+        data.ov[i] = ov;
+        data.oa[i] = oap + aj + ovp.cross(&vj);
+        let jm = model.joints[i];
+        for k in jm.idx_v..jm.idx_v + jm.nv {
+            let jk = data.j[k];
+            let dvdq = ovp.cross(&jk);
+            let dj = ov.cross(&jk);
+            data.dvdq[k] = dvdq;
+            data.dadq[k] = oap.cross(&jk) + ovp.cross(&dvdq);
+            data.dadv[k] = dj + dvdq;
+        }
+    }
+    Ok(())
+}
+
+fn check_6xnv(what: &str, m: &MatMut<'_, f64>, nv: usize) -> Result<()> {
+    if m.nrows() != 6 || m.ncols() != nv {
+        return Err(Error::Invalid(format!(
+            "{what}: output is {}x{}, expected 6x{nv}",
+            m.nrows(),
+            m.ncols()
+        )));
+    }
+    Ok(())
+}
+
+fn put_col(m: &mut MatMut<'_, f64>, c: usize, x: &Motion) {
+    let a = x.to_array();
+    for r in 0..6 {
+        m[(r, c)] = a[r];
+    }
+}
+
+/// Expresses a derivative column given in the world frame (as a plain derivative of a
+/// world quantity, and as the derivative of the quantity seen from the moving body):
+/// LOCAL uses `body` (`oMf⁻¹ · body`), WORLD uses `world`, LWA shifts `world` to the
+/// frame origin (Pinocchio's convention: the motion of the origin is not differentiated).
+#[inline]
+fn express_derivative(o_mf: &Se3, rf: ReferenceFrame, body: &Motion, world: &Motion) -> Motion {
+    match rf {
+        ReferenceFrame::Local => o_mf.act_inv_motion(body),
+        ReferenceFrame::World => *world,
+        ReferenceFrame::LocalWorldAligned => world.shifted_to(&o_mf.translation),
+    }
+}
+
+/// Derivatives of the spatial velocity of frame `frame` in `rf` with respect to q and v,
+/// after [`compute_forward_kinematics_derivatives`] (6 × nv each). In LWA the q-derivative
+/// follows Pinocchio: it omits the term due to the motion of the frame origin.
+pub fn frame_velocity_derivatives(
+    model: &Model,
+    data: &Data,
+    frame: usize,
+    rf: ReferenceFrame,
+    mut dv_dq: MatMut<'_, f64>,
+    mut dv_dv: MatMut<'_, f64>,
+) -> Result<()> {
+    model.check_frame(frame)?;
+    check_data(model, data)?;
+    check_6xnv("dv_dq", &dv_dq, model.nv)?;
+    check_6xnv("dv_dv", &dv_dv, model.nv)?;
+    dv_dq.fill(0.0);
+    dv_dv.fill(0.0);
+    let o_mf = frame_placement_of(model, data, frame);
+    let i = model.frames[frame].parent_joint;
+    let ov = data.ov[i];
+    let mut c = model.last_dof(i);
+    while c != NONE {
+        let jc = data.j[c];
+        let dvdq = data.dvdq[c];
+        put_col(
+            &mut dv_dq,
+            c,
+            &express_derivative(&o_mf, rf, &dvdq, &(jc.cross(&ov) + dvdq)),
+        );
+        put_col(&mut dv_dv, c, &express_motion(&o_mf, &jc, rf));
+        c = model.dof_parent[c];
+    }
+    Ok(())
+}
+
+/// Derivatives of the spatial velocity and acceleration of frame `frame` in `rf`, after
+/// [`compute_forward_kinematics_derivatives`] (6 × nv each): `dv_dq`, `da_dq`, `da_dv`,
+/// `da_da` (`= dv_dv`, the frame Jacobian). LWA q-derivatives as in
+/// [`frame_velocity_derivatives`].
+pub fn frame_acceleration_derivatives(
+    model: &Model,
+    data: &Data,
+    frame: usize,
+    rf: ReferenceFrame,
+    mut dv_dq: MatMut<'_, f64>,
+    mut da_dq: MatMut<'_, f64>,
+    mut da_dv: MatMut<'_, f64>,
+    mut da_da: MatMut<'_, f64>,
+) -> Result<()> {
+    model.check_frame(frame)?;
+    check_data(model, data)?;
+    for (w, m) in [
+        ("dv_dq", &dv_dq),
+        ("da_dq", &da_dq),
+        ("da_dv", &da_dv),
+        ("da_da", &da_da),
+    ] {
+        check_6xnv(w, m, model.nv)?;
+    }
+    dv_dq.fill(0.0);
+    da_dq.fill(0.0);
+    da_dv.fill(0.0);
+    da_da.fill(0.0);
+    let o_mf = frame_placement_of(model, data, frame);
+    let i = model.frames[frame].parent_joint;
+    let (ov, oa) = (data.ov[i], data.oa[i]);
+    let mut c = model.last_dof(i);
+    while c != NONE {
+        let jc = data.j[c];
+        let dvdq = data.dvdq[c];
+        put_col(
+            &mut dv_dq,
+            c,
+            &express_derivative(&o_mf, rf, &dvdq, &(jc.cross(&ov) + dvdq)),
+        );
+        let body_q = data.dadq[c] - ov.cross(&dvdq);
+        put_col(
+            &mut da_dq,
+            c,
+            &express_derivative(&o_mf, rf, &body_q, &(jc.cross(&oa) + body_q)),
+        );
+        let body_v = data.dadv[c] - ov.cross(&jc);
+        put_col(&mut da_dv, c, &express_motion(&o_mf, &body_v, rf));
+        put_col(&mut da_da, c, &express_motion(&o_mf, &jc, rf));
+        c = model.dof_parent[c];
+    }
+    Ok(())
+}
+
+/// The RNEA derivative recursion at (q, v, a). Writes `dtau_dq`, `dtau_dv` and `M` into
+/// `dq`, `dv`, `m` (column-major, or row-major when `T`), `tau` into `data.tau`, and
+/// leaves the world-frame kinematics (`oMi`, `J`, `ov`, `oa_gf`, ...) in `data`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn rnea_derivatives_kernel<const T: bool>(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    a: &[f64],
+    dq: &mut [f64],
+    dv: &mut [f64],
+    m: &mut [f64],
+) {
+    let nv = model.nv;
+    let idx = |r: usize, c: usize| if T { r * nv + c } else { c * nv + r };
+    dq.fill(0.0);
+    dv.fill(0.0);
+    m.fill(0.0);
+    data.oa_gf[0] = -model.gravity;
+    for i in 1..model.njoints() {
+        placement_step(model, data, i, q);
+        jacobian_step(model, data, i);
+        let p = model.parents[i];
+        let oy = model.inertias[i].transformed(&data.o_mi[i]);
+        let vj = joint_motion(model, data, i, v);
+        let (ovp, oap) = (data.ov[p], data.oa_gf[p]);
+        let ov = ovp + vj;
+        let oa = oap + joint_motion(model, data, i, a) + ovp.cross(&vj);
+        data.ov[i] = ov;
+        data.oa_gf[i] = oa;
+        let oh = oy.mul_motion(&ov);
+        data.o_y[i] = oy;
+        data.o_ycrb[i] = oy;
+        data.hcrb[i] = oh;
+        data.tcrb[i] = t_block(&oy, &ov, &oh);
+        data.of[i] = oy.mul_motion(&oa) + ov.cross_force(&oh);
+        let jm = model.joints[i];
+        for k in jm.idx_v..jm.idx_v + jm.nv {
+            let jk = data.j[k];
+            let dvdq = ovp.cross(&jk);
+            let dj = ov.cross(&jk);
+            data.dvdq[k] = dvdq;
+            data.dadq[k] = oap.cross(&jk) + ovp.cross(&dvdq);
+            data.dadv[k] = dj + dvdq;
+        }
+    }
+    for i in (1..model.njoints()).rev() {
+        let jm = model.joints[i];
+        let (iv, nvj) = (jm.idx_v, jm.nv);
+        let y = data.o_ycrb[i];
+        let hf = data.hcrb[i].linear;
+        let t = data.tcrb[i];
+        let f = data.of[i];
+        for r in iv..iv + nvj {
+            let jr = data.j[r];
+            data.tau[r] = jr.dot(&f) + model.armature[r] * a[r];
+            let ar = y.mul_motion(&jr);
+            // Dᵀ J_r = [0, 2 h_f × J_r,lin + Tᵀ J_r,ang]
+            let br = hf.cross(&jr.linear) * 2.0 + t.tr_mul(&jr.angular);
+            let mut c = iv + nvj - 1;
+            while c != NONE {
+                let k = idx(r, c);
+                dq[k] = data.dadq[c].dot(&ar) + data.dvdq[c].angular.dot(&br);
+                dv[k] = data.dadv[c].dot(&ar) + data.j[c].angular.dot(&br);
+                m[k] = data.j[c].dot(&ar);
+                c = model.dof_parent[c];
+            }
+        }
+        let first = model.dof_parent[iv];
+        if first != NONE {
+            for c in iv..iv + nvj {
+                let jc = data.j[c];
+                let phi = y.mul_motion(&data.dadq[c]) + d_mul(&hf, &t, &data.dvdq[c]) + jc.cross_force(&f);
+                let psi = y.mul_motion(&data.dadv[c]) + d_mul(&hf, &t, &jc);
+                let om = y.mul_motion(&jc);
+                let mut r = first;
+                while r != NONE {
+                    let jr = &data.j[r];
+                    let k = idx(r, c);
+                    dq[k] = jr.dot(&phi);
+                    dv[k] = jr.dot(&psi);
+                    m[k] = jr.dot(&om);
+                    r = model.dof_parent[r];
+                }
+            }
+        }
+        let p = model.parents[i];
+        if p != 0 {
+            data.o_ycrb[p] += y;
+            let h = data.hcrb[i];
+            data.hcrb[p] += h;
+            data.tcrb[p] += t;
+            data.of[p] += f;
+        }
+    }
+    for k in 0..nv {
+        m[idx(k, k)] += model.armature[k];
+    }
+}
+
+/// Derivatives of the inverse dynamics at (q, v, a): `dtau_dq`, `dtau_dv` and
+/// `dtau_da = M`, read with [`Data::dtau_dq`], [`Data::dtau_dv`], [`Data::mass_matrix`];
+/// also computes `tau` ([`Data::tau`]).
+pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<()> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    check_vec("v", v, model.nv)?;
+    check_vec("a", a, model.nv)?;
+    let mut dq = std::mem::take(&mut data.dtau_dq);
+    let mut dv = std::mem::take(&mut data.dtau_dv);
+    let mut m = std::mem::take(&mut data.m);
+    rnea_derivatives_kernel::<false>(model, data, q, v, a, &mut dq, &mut dv, &mut m);
+    data.dtau_dq = dq;
+    data.dtau_dv = dv;
+    data.m = m;
+    Ok(())
+}
+
+/// Derivatives of the forward dynamics at (q, v, tau): `ddq_dq = −M⁻¹ ∂τ/∂q`,
+/// `ddq_dv = −M⁻¹ ∂τ/∂v` (RNEA derivatives at `a = aba(q, v, tau)`) and
+/// `ddq_dtau = M⁻¹`, read with [`Data::ddq_dq`], [`Data::ddq_dv`], [`Data::minv`];
+/// also computes `ddq` ([`Data::ddq`]) and `M`.
+pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64]) -> Result<()> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    check_vec("v", v, model.nv)?;
+    check_vec("tau", tau, model.nv)?;
+    aba_unchecked(model, data, q, v, tau)?;
+    aba_derivatives_from_ddq(model, data, q, v)
+}
+
+/// ABA derivatives once `data.ddq` holds the accelerations.
+pub(crate) fn aba_derivatives_from_ddq(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<()> {
+    let nv = model.nv;
+    let ddq = std::mem::take(&mut data.ddq);
+    let mut dq = std::mem::take(&mut data.ddq_dq_t);
+    let mut dv = std::mem::take(&mut data.ddq_dv_t);
+    let mut m = std::mem::take(&mut data.m);
+    rnea_derivatives_kernel::<true>(model, data, q, v, &ddq, &mut dq, &mut dv, &mut m);
+    data.ddq = ddq;
+    data.m = m;
+    let res = factor_mass_matrix(model, data);
+    if res.is_ok() {
+        minv_from_factor(model, data);
+        for x in [&mut dq, &mut dv] {
+            ltdl_solve_rows(nv, nv, &model.dof_parent, &data.l, &data.d, x);
+            x.iter_mut().for_each(|e| *e = -*e);
+        }
+    }
+    data.ddq_dq_t = dq;
+    data.ddq_dv_t = dv;
+    res
+}

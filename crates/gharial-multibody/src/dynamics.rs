@@ -1,0 +1,334 @@
+//! Inverse and forward dynamics: RNEA, nonlinear effects, generalized gravity, CRBA, ABA,
+//! M⁻¹, centre of mass — all in the world frame (Featherstone, RBDA ch. 5-7).
+
+use crate::data::{Data, check_data};
+use crate::error::{Error, Result, check_vec};
+use crate::kinematics::{jacobian_step, joint_motion, placement_step};
+use crate::linalg::{ltdl_factor, ltdl_solve_rows, small_spd_inverse};
+use crate::model::{Model, NONE};
+use crate::spatial::{Force, Motion, Sym6, Vec3};
+use faer::MatRef;
+
+/// Recursive Newton-Euler pass in the world frame. `v` or `a` absent means zero.
+/// Fills `oMi`, `J`, `ov`, `oa_gf`, `oY`, `oh`, `of` (subtree forces) and `tau`.
+fn rnea_pass(model: &Model, data: &mut Data, q: &[f64], v: Option<&[f64]>, a: Option<&[f64]>) {
+    data.oa_gf[0] = -model.gravity;
+    for i in 1..model.njoints() {
+        placement_step(model, data, i, q);
+        jacobian_step(model, data, i);
+        let p = model.parents[i];
+        let oy = model.inertias[i].transformed(&data.o_mi[i]);
+        data.o_y[i] = oy;
+        let mut oa = data.oa_gf[p];
+        let mut ov = data.ov[p];
+        if let Some(v) = v {
+            let vj = joint_motion(model, data, i, v);
+            oa += ov.cross(&vj);
+            ov += vj;
+        }
+        if let Some(a) = a {
+            oa += joint_motion(model, data, i, a);
+        }
+        data.ov[i] = ov;
+        data.oa_gf[i] = oa;
+        let oh = oy.mul_motion(&ov);
+        data.oh[i] = oh;
+        data.of[i] = oy.mul_motion(&oa) + ov.cross_force(&oh);
+    }
+    for i in (1..model.njoints()).rev() {
+        let jm = &model.joints[i];
+        let f = data.of[i];
+        for k in jm.idx_v..jm.idx_v + jm.nv {
+            data.tau[k] = data.j[k].dot(&f);
+        }
+        let p = model.parents[i];
+        if p != 0 {
+            data.of[p] += f;
+        }
+    }
+    if let Some(a) = a {
+        for k in 0..model.nv {
+            data.tau[k] += model.armature[k] * a[k];
+        }
+    }
+}
+
+/// Inverse dynamics `tau = M(q) a + C(q, v) v + g(q)` (armature included).
+pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<&'d [f64]> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    check_vec("v", v, model.nv)?;
+    check_vec("a", a, model.nv)?;
+    rnea_pass(model, data, q, Some(v), Some(a));
+    for i in 1..model.njoints() {
+        data.oa[i] = data.oa_gf[i] + model.gravity;
+    }
+    Ok(&data.tau)
+}
+
+/// Nonlinear effects `C(q, v) v + g(q)`.
+pub fn nonlinear_effects<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64]) -> Result<&'d [f64]> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    check_vec("v", v, model.nv)?;
+    rnea_pass(model, data, q, Some(v), None);
+    data.nle.copy_from_slice(&data.tau);
+    Ok(&data.nle)
+}
+
+/// Generalized gravity `g(q)`.
+pub fn generalized_gravity<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d [f64]> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    for i in 0..model.njoints() {
+        data.ov[i] = Motion::zero();
+    }
+    rnea_pass(model, data, q, None, None);
+    data.g.copy_from_slice(&data.tau);
+    Ok(&data.g)
+}
+
+/// Composite-rigid-body algorithm: the full symmetric joint-space inertia matrix
+/// (armature on the diagonal).
+pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<MatRef<'d, f64>> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    crba_unchecked(model, data, q);
+    Ok(data.mass_matrix())
+}
+
+pub(crate) fn crba_unchecked(model: &Model, data: &mut Data, q: &[f64]) {
+    let nv = model.nv;
+    for i in 1..model.njoints() {
+        placement_step(model, data, i, q);
+        jacobian_step(model, data, i);
+        data.o_ycrb[i] = model.inertias[i].transformed(&data.o_mi[i]);
+    }
+    data.m.fill(0.0);
+    for i in (1..model.njoints()).rev() {
+        let jm = model.joints[i];
+        let y = data.o_ycrb[i];
+        for c in jm.idx_v..jm.idx_v + jm.nv {
+            let f = y.mul_motion(&data.j[c]);
+            // Rows of the joint itself and of its ancestors (tree sparsity).
+            let mut r = jm.idx_v + jm.nv - 1;
+            while r != NONE {
+                let mrc = data.j[r].dot(&f);
+                data.m[c * nv + r] = mrc;
+                data.m[r * nv + c] = mrc;
+                r = model.dof_parent[r];
+            }
+        }
+        let p = model.parents[i];
+        if p != 0 {
+            data.o_ycrb[p] += y;
+        }
+    }
+    for k in 0..nv {
+        data.m[k * nv + k] += model.armature[k];
+    }
+}
+
+/// Articulated-body algorithm in the world frame; fills `ddq` and `oa_gf`.
+pub(crate) fn aba_unchecked(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64]) -> Result<()> {
+    let n = model.njoints();
+    for i in 1..n {
+        placement_step(model, data, i, q);
+        jacobian_step(model, data, i);
+        let p = model.parents[i];
+        let oy = model.inertias[i].transformed(&data.o_mi[i]);
+        data.o_y[i] = oy;
+        let vj = joint_motion(model, data, i, v);
+        let ovp = data.ov[p];
+        let ov = ovp + vj;
+        data.ov[i] = ov;
+        data.c[i] = ovp.cross(&vj);
+        data.ia[i] = Sym6::from_inertia(&oy);
+        let oh = oy.mul_motion(&ov);
+        data.oh[i] = oh;
+        data.pa[i] = ov.cross_force(&oh);
+    }
+    for i in (1..n).rev() {
+        let jm = model.joints[i];
+        let (iv, nvj) = (jm.idx_v, jm.nv);
+        let ia = data.ia[i];
+        let pa = data.pa[i];
+        for k in iv..iv + nvj {
+            data.u[k] = ia.mul_motion(&data.j[k]);
+            data.u_tau[k] = tau[k] - data.j[k].dot(&pa);
+        }
+        if nvj == 1 {
+            let d = data.j[iv].dot(&data.u[iv]) + model.armature[iv];
+            if !(d > 0.0 && d.is_finite()) {
+                return Err(Error::NotPositiveDefinite {
+                    what: format!("articulated inertia of joint {}", model.names[i]),
+                    index: iv,
+                    value: d,
+                });
+            }
+            data.dinv[i][0][0] = 1.0 / d;
+            data.udinv[iv] = data.u[iv] * (1.0 / d);
+        } else {
+            let mut dm = [[0.0; 6]; 6];
+            for r in 0..nvj {
+                for c in 0..nvj {
+                    dm[r][c] = data.j[iv + r].dot(&data.u[iv + c]);
+                }
+                dm[r][r] += model.armature[iv + r];
+            }
+            small_spd_inverse(nvj, &mut dm)?;
+            data.dinv[i] = dm;
+            for c in 0..nvj {
+                let mut x = Force::zero();
+                for r in 0..nvj {
+                    x += data.u[iv + r] * dm[r][c];
+                }
+                data.udinv[iv + c] = x;
+            }
+        }
+        let p = model.parents[i];
+        if p != 0 {
+            let mut ia_a = ia;
+            let mut pa_a = pa;
+            for k in iv..iv + nvj {
+                ia_a.sub_outer(&data.udinv[k], &data.u[k]);
+                pa_a += data.udinv[k] * data.u_tau[k];
+            }
+            pa_a += ia_a.mul_motion(&data.c[i]);
+            data.ia[p] += ia_a;
+            data.pa[p] += pa_a;
+        }
+    }
+    data.oa_gf[0] = -model.gravity;
+    for i in 1..n {
+        let jm = model.joints[i];
+        let (iv, nvj) = (jm.idx_v, jm.nv);
+        let p = model.parents[i];
+        let mut oa = data.oa_gf[p] + data.c[i];
+        let mut rhs = [0.0; 6];
+        for k in 0..nvj {
+            rhs[k] = data.u_tau[iv + k] - data.u[iv + k].dot_motion(&oa);
+        }
+        let dinv = &data.dinv[i];
+        for r in 0..nvj {
+            let mut s = 0.0;
+            for c in 0..nvj {
+                s += dinv[r][c] * rhs[c];
+            }
+            data.ddq[iv + r] = s;
+            oa += data.j[iv + r] * s;
+        }
+        data.oa_gf[i] = oa;
+    }
+    Ok(())
+}
+
+/// Forward dynamics `ddq = M⁻¹ (tau − C v − g)` by the articulated-body algorithm.
+pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64]) -> Result<&'d [f64]> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    check_vec("v", v, model.nv)?;
+    check_vec("tau", tau, model.nv)?;
+    aba_unchecked(model, data, q, v, tau)?;
+    Ok(&data.ddq)
+}
+
+/// Factorizes `data.m` into `data.l`, `data.d` (`M = Lᵀ D L`).
+pub(crate) fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<()> {
+    data.l.copy_from_slice(&data.m);
+    ltdl_factor(model.nv, &model.dof_parent, &mut data.l, &mut data.d)
+}
+
+/// `M⁻¹` from the factorization in `data.l`, `data.d`.
+pub(crate) fn minv_from_factor(model: &Model, data: &mut Data) {
+    let nv = model.nv;
+    data.minv.fill(0.0);
+    for k in 0..nv {
+        data.minv[k * nv + k] = 1.0;
+    }
+    ltdl_solve_rows(nv, nv, &model.dof_parent, &data.l, &data.d, &mut data.minv);
+}
+
+/// Inverse of the joint-space inertia matrix (CRBA and a tree-sparse `Lᵀ D L`
+/// factorization).
+pub fn compute_minverse<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<MatRef<'d, f64>> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    crba_unchecked(model, data, q);
+    factor_mass_matrix(model, data)?;
+    minv_from_factor(model, data);
+    Ok(data.minv())
+}
+
+/// Centre of mass of the bodies (universe excluded): position, velocity and
+/// acceleration (no gravity) in the world frame. Runs forward kinematics.
+pub fn center_of_mass<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<&'d Vec3> {
+    crate::kinematics::forward_kinematics(model, data, q, v, a)?;
+    let (mut m, mut h, mut mv, mut ma) = (0.0, Vec3::zeros(), Vec3::zeros(), Vec3::zeros());
+    for i in 1..model.njoints() {
+        let y = model.inertias[i].transformed(&data.o_mi[i]);
+        let (ov, oa) = (&data.ov[i], &data.oa[i]);
+        let hk = y.first_moment;
+        m += y.mass;
+        h += hk;
+        // Σ m_k ẋ_k with ẋ = v + ω × c, Σ m_k ẍ_k with ẍ = a + α × c + ω × ẋ.
+        let mvk = ov.linear * y.mass + ov.angular.cross(&hk);
+        mv += mvk;
+        ma += oa.linear * y.mass + oa.angular.cross(&hk) + ov.angular.cross(&mvk);
+    }
+    if m <= 0.0 {
+        return Err(Error::Invalid(format!(
+            "center_of_mass: model `{}` has no mass",
+            model.name
+        )));
+    }
+    data.mass = m;
+    data.com = h / m;
+    data.vcom = mv / m;
+    data.acom = ma / m;
+    Ok(&data.com)
+}
+
+/// Jacobian of the centre of mass (3 × nv, world frame); also updates `com`.
+pub fn jacobian_center_of_mass<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<MatRef<'d, f64>> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    for i in 1..model.njoints() {
+        placement_step(model, data, i, q);
+        jacobian_step(model, data, i);
+        data.o_ycrb[i] = model.inertias[i].transformed(&data.o_mi[i]);
+    }
+    for i in (1..model.njoints()).rev() {
+        let p = model.parents[i];
+        if p != 0 {
+            let y = data.o_ycrb[i];
+            data.o_ycrb[p] += y;
+        }
+    }
+    let mut total = 0.0;
+    let mut h = Vec3::zeros();
+    for i in 1..model.njoints() {
+        if model.parents[i] == 0 {
+            total += data.o_ycrb[i].mass;
+            h += data.o_ycrb[i].first_moment;
+        }
+    }
+    if total <= 0.0 {
+        return Err(Error::Invalid(format!(
+            "jacobian_center_of_mass: model `{}` has no mass",
+            model.name
+        )));
+    }
+    for i in 1..model.njoints() {
+        let jm = model.joints[i];
+        let y = &data.o_ycrb[i];
+        for k in jm.idx_v..jm.idx_v + jm.nv {
+            let jk = &data.j[k];
+            let col = (jk.linear * y.mass + jk.angular.cross(&y.first_moment)) / total;
+            data.jcom[3 * k..3 * k + 3].copy_from_slice(col.as_slice());
+        }
+    }
+    data.mass = total;
+    data.com = h / total;
+    Ok(data.jacobian_com())
+}

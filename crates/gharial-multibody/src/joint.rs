@@ -1,0 +1,209 @@
+//! Joint types: configuration layout, joint transform and motion subspace.
+//!
+//! Every joint type here has a constant motion subspace `S` in its own (child) frame and
+//! no bias acceleration (`c = 0`), and its configuration space is a Lie group with
+//! `q ⊕ v` such that `M_J(q ⊕ v) = M_J(q) exp(S v)`.
+
+use crate::spatial::{Mat3, Motion, Se3, Vec3};
+use nalgebra::{Quaternion, UnitQuaternion};
+
+/// Axis of a one-degree-of-freedom joint.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Axis {
+    /// +x.
+    X,
+    /// +y.
+    Y,
+    /// +z.
+    Z,
+    /// Any other unit axis.
+    Unaligned(Vec3),
+}
+
+impl Axis {
+    /// Axis from a direction: aligned only when exactly +x, +y or +z; otherwise the
+    /// normalized direction.
+    pub fn from_vector(v: Vec3) -> Axis {
+        if v == Vec3::x() {
+            Axis::X
+        } else if v == Vec3::y() {
+            Axis::Y
+        } else if v == Vec3::z() {
+            Axis::Z
+        } else {
+            Axis::Unaligned(v.normalize())
+        }
+    }
+
+    /// The unit vector.
+    pub fn vector(&self) -> Vec3 {
+        match self {
+            Axis::X => Vec3::x(),
+            Axis::Y => Vec3::y(),
+            Axis::Z => Vec3::z(),
+            Axis::Unaligned(v) => *v,
+        }
+    }
+}
+
+/// Joint type.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum JointType {
+    /// The universe (joint 0); no degree of freedom.
+    Universe,
+    /// Revolute joint, q = angle (nq = nv = 1).
+    Revolute(Axis),
+    /// Unbounded revolute joint (URDF `continuous`), q = (cos θ, sin θ) (nq = 2, nv = 1).
+    RevoluteUnbounded(Axis),
+    /// Prismatic joint, q = displacement.
+    Prismatic(Axis),
+    /// Free flyer: q = [x, y, z, qx, qy, qz, qw], v = [v_lin, ω] in the child frame.
+    FreeFlyer,
+    /// Spherical joint: q = unit quaternion [qx, qy, qz, qw], v = ω in the child frame.
+    Spherical,
+    /// Planar joint in the xy plane: q = [x, y, cos θ, sin θ], v = [vx, vy, ωz] in the child frame.
+    Planar,
+    /// Translation joint: q = v = translation (3).
+    Translation,
+}
+
+impl JointType {
+    /// Configuration size.
+    pub fn nq(&self) -> usize {
+        match self {
+            JointType::Universe => 0,
+            JointType::Revolute(_) | JointType::Prismatic(_) => 1,
+            JointType::RevoluteUnbounded(_) => 2,
+            JointType::FreeFlyer => 7,
+            JointType::Spherical | JointType::Planar => 4,
+            JointType::Translation => 3,
+        }
+    }
+
+    /// Tangent (velocity) size.
+    pub fn nv(&self) -> usize {
+        match self {
+            JointType::Universe => 0,
+            JointType::Revolute(_) | JointType::Prismatic(_) | JointType::RevoluteUnbounded(_) => 1,
+            JointType::FreeFlyer => 6,
+            JointType::Spherical | JointType::Planar | JointType::Translation => 3,
+        }
+    }
+
+    /// Pinocchio's short name (`JointModelRX`, `JointModelRUBX`, `JointModelFreeFlyer`, ...).
+    pub fn shortname(&self) -> &'static str {
+        match self {
+            JointType::Universe => "universe",
+            JointType::Revolute(Axis::X) => "JointModelRX",
+            JointType::Revolute(Axis::Y) => "JointModelRY",
+            JointType::Revolute(Axis::Z) => "JointModelRZ",
+            JointType::Revolute(Axis::Unaligned(_)) => "JointModelRevoluteUnaligned",
+            JointType::RevoluteUnbounded(Axis::X) => "JointModelRUBX",
+            JointType::RevoluteUnbounded(Axis::Y) => "JointModelRUBY",
+            JointType::RevoluteUnbounded(Axis::Z) => "JointModelRUBZ",
+            JointType::RevoluteUnbounded(Axis::Unaligned(_)) => "JointModelRevoluteUnboundedUnaligned",
+            JointType::Prismatic(Axis::X) => "JointModelPX",
+            JointType::Prismatic(Axis::Y) => "JointModelPY",
+            JointType::Prismatic(Axis::Z) => "JointModelPZ",
+            JointType::Prismatic(Axis::Unaligned(_)) => "JointModelPrismaticUnaligned",
+            JointType::FreeFlyer => "JointModelFreeFlyer",
+            JointType::Spherical => "JointModelSpherical",
+            JointType::Planar => "JointModelPlanar",
+            JointType::Translation => "JointModelTranslation",
+        }
+    }
+
+    /// The axis of a one-degree-of-freedom joint given as unaligned, else `None`.
+    pub fn unaligned_axis(&self) -> Option<Vec3> {
+        match self {
+            JointType::Revolute(Axis::Unaligned(a))
+            | JointType::RevoluteUnbounded(Axis::Unaligned(a))
+            | JointType::Prismatic(Axis::Unaligned(a)) => Some(*a),
+            _ => None,
+        }
+    }
+
+    /// Columns of the motion subspace `S` in the child frame (first `nv` entries used).
+    pub fn subspace(&self) -> [Motion; 6] {
+        let mut s = [Motion::zero(); 6];
+        let e = |k: usize| {
+            let mut a = [0.0; 6];
+            a[k] = 1.0;
+            Motion::from_slice(&a)
+        };
+        match self {
+            JointType::Universe => {}
+            JointType::Revolute(a) | JointType::RevoluteUnbounded(a) => s[0] = Motion::new(Vec3::zeros(), a.vector()),
+            JointType::Prismatic(a) => s[0] = Motion::new(a.vector(), Vec3::zeros()),
+            JointType::FreeFlyer => (0..6).for_each(|k| s[k] = e(k)),
+            JointType::Spherical => (0..3).for_each(|k| s[k] = e(3 + k)),
+            JointType::Translation => (0..3).for_each(|k| s[k] = e(k)),
+            JointType::Planar => {
+                s[0] = e(0);
+                s[1] = e(1);
+                s[2] = e(5);
+            }
+        }
+        s
+    }
+
+    /// Joint transform `M_J(q)` (child frame in the joint's placement frame); `q` is the
+    /// joint's own configuration (length `nq`).
+    #[inline]
+    pub fn transform(&self, q: &[f64]) -> Se3 {
+        match self {
+            JointType::Universe => Se3::identity(),
+            JointType::Revolute(a) => {
+                let (s, c) = q[0].sin_cos();
+                Se3::new(axis_rotation(a, c, s), Vec3::zeros())
+            }
+            JointType::RevoluteUnbounded(a) => Se3::new(axis_rotation(a, q[0], q[1]), Vec3::zeros()),
+            JointType::Prismatic(a) => Se3::new(Mat3::identity(), a.vector() * q[0]),
+            JointType::FreeFlyer => Se3::new(quat_matrix(&q[3..7]), Vec3::new(q[0], q[1], q[2])),
+            JointType::Spherical => Se3::new(quat_matrix(&q[0..4]), Vec3::zeros()),
+            JointType::Planar => Se3::new(axis_rotation(&Axis::Z, q[2], q[3]), Vec3::new(q[0], q[1], 0.0)),
+            JointType::Translation => Se3::new(Mat3::identity(), Vec3::new(q[0], q[1], q[2])),
+        }
+    }
+}
+
+/// Rotation about an axis given cos and sin of the angle.
+#[inline]
+fn axis_rotation(a: &Axis, c: f64, s: f64) -> Mat3 {
+    match a {
+        Axis::X => Mat3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c),
+        Axis::Y => Mat3::new(c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c),
+        Axis::Z => Mat3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0),
+        Axis::Unaligned(u) => {
+            let w = crate::spatial::skew(u);
+            Mat3::identity() + w * s + w * w * (1.0 - c)
+        }
+    }
+}
+
+/// Rotation matrix of a quaternion stored as `[x, y, z, w]` (assumed unit).
+#[inline]
+pub(crate) fn quat_matrix(q: &[f64]) -> Mat3 {
+    quat_from_slice(q).to_rotation_matrix().into_inner()
+}
+
+/// Unit quaternion from `[x, y, z, w]` (not renormalized).
+#[inline]
+pub(crate) fn quat_from_slice(q: &[f64]) -> UnitQuaternion<f64> {
+    UnitQuaternion::new_unchecked(Quaternion::new(q[3], q[0], q[1], q[2]))
+}
+
+/// Model of one joint: type and position of its coordinates in q and v.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointModel {
+    /// Joint type.
+    pub kind: JointType,
+    /// First index in q.
+    pub idx_q: usize,
+    /// First index in v.
+    pub idx_v: usize,
+    /// Configuration size.
+    pub nq: usize,
+    /// Tangent size.
+    pub nv: usize,
+}

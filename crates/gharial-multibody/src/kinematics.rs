@@ -1,0 +1,248 @@
+//! Forward kinematics, frame placements, Jacobians, frame velocities and accelerations.
+//!
+//! Joint quantities are computed in the world frame: `oMi`, the spatial velocity
+//! `ov_i = ov_λ + J_i v_i` and acceleration `oa_i = oa_λ + J_i a_i + ov_λ × J_i v_i`,
+//! with the Jacobian columns `J_k = oMi · S_k`.
+
+use crate::data::{Data, check_data};
+use crate::error::{Error, Result, check_vec};
+use crate::model::{Model, NONE, ReferenceFrame};
+use crate::spatial::{Motion, Se3};
+use faer::MatMut;
+
+impl Model {
+    /// Last degree of freedom of the support of `joint` (its own last dof, or that of its
+    /// nearest ancestor with dofs), or `NONE`.
+    #[inline]
+    pub(crate) fn last_dof(&self, joint: usize) -> usize {
+        let mut j = joint;
+        while j != 0 {
+            let jm = &self.joints[j];
+            if jm.nv > 0 {
+                return jm.idx_v + jm.nv - 1;
+            }
+            j = self.parents[j];
+        }
+        NONE
+    }
+}
+
+/// Computes `liMi` and `oMi` of joint `i`.
+#[inline]
+pub(crate) fn placement_step(model: &Model, data: &mut Data, i: usize, q: &[f64]) {
+    let jm = &model.joints[i];
+    let m = jm.kind.transform(&q[jm.idx_q..jm.idx_q + jm.nq]);
+    let li = model.placements[i].compose(&m);
+    data.li_mi[i] = li;
+    let p = model.parents[i];
+    data.o_mi[i] = if p == 0 { li } else { data.o_mi[p].compose(&li) };
+}
+
+/// Computes the world Jacobian columns of joint `i` from `oMi`.
+#[inline]
+pub(crate) fn jacobian_step(model: &Model, data: &mut Data, i: usize) {
+    let jm = &model.joints[i];
+    let o = &data.o_mi[i];
+    for k in jm.idx_v..jm.idx_v + jm.nv {
+        let s = &model.s[k];
+        data.j[k] = if s.linear == crate::spatial::Vec3::zeros() {
+            let w = o.rotation * s.angular;
+            Motion::new(o.translation.cross(&w), w)
+        } else {
+            o.act_motion(s)
+        };
+    }
+}
+
+/// `Σ_k J_k x_k` over the dofs of joint `i`.
+#[inline]
+pub(crate) fn joint_motion(model: &Model, data: &Data, i: usize, x: &[f64]) -> Motion {
+    let jm = &model.joints[i];
+    let mut m = Motion::zero();
+    for k in jm.idx_v..jm.idx_v + jm.nv {
+        m += data.j[k] * x[k];
+    }
+    m
+}
+
+/// Forward kinematics: placements `oMi`, velocities and accelerations (no gravity) of
+/// every joint, and the world Jacobian columns.
+pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<()> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    check_vec("v", v, model.nv)?;
+    check_vec("a", a, model.nv)?;
+    for i in 1..model.njoints() {
+        placement_step(model, data, i, q);
+        jacobian_step(model, data, i);
+        let p = model.parents[i];
+        let vj = joint_motion(model, data, i, v);
+        let aj = joint_motion(model, data, i, a);
+        let (ovp, oap) = (data.ov[p], data.oa[p]);
+        data.ov[i] = ovp + vj;
+        data.oa[i] = oap + aj + ovp.cross(&vj);
+    }
+    Ok(())
+}
+
+/// Placements `oMi` only.
+pub fn forward_kinematics_placements(model: &Model, data: &mut Data, q: &[f64]) -> Result<()> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    for i in 1..model.njoints() {
+        placement_step(model, data, i, q);
+    }
+    Ok(())
+}
+
+/// Placements `oMf` of every frame from the current `oMi`.
+pub fn update_frame_placements(model: &Model, data: &mut Data) -> Result<()> {
+    check_data(model, data)?;
+    for (f, frame) in model.frames.iter().enumerate() {
+        data.o_mf[f] = data.o_mi[frame.parent_joint].compose(&frame.placement);
+    }
+    Ok(())
+}
+
+/// Placements `oMi` and world Jacobian columns of every joint.
+pub fn compute_joint_jacobians(model: &Model, data: &mut Data, q: &[f64]) -> Result<()> {
+    check_vec("q", q, model.nq)?;
+    check_data(model, data)?;
+    for i in 1..model.njoints() {
+        placement_step(model, data, i, q);
+        jacobian_step(model, data, i);
+    }
+    Ok(())
+}
+
+/// Placement of frame `frame` computed from the current `oMi`.
+#[inline]
+pub(crate) fn frame_placement_of(model: &Model, data: &Data, frame: usize) -> Se3 {
+    let fr = &model.frames[frame];
+    data.o_mi[fr.parent_joint].compose(&fr.placement)
+}
+
+/// Expresses a world motion (reference point at the world origin) in `rf` for a frame
+/// with world placement `o_mf`.
+#[inline]
+pub(crate) fn express_motion(o_mf: &Se3, m: &Motion, rf: ReferenceFrame) -> Motion {
+    match rf {
+        ReferenceFrame::World => *m,
+        ReferenceFrame::Local => o_mf.act_inv_motion(m),
+        ReferenceFrame::LocalWorldAligned => m.shifted_to(&o_mf.translation),
+    }
+}
+
+fn check_out(what: &str, out: &MatMut<'_, f64>, rows: usize, cols: usize) -> Result<()> {
+    if out.nrows() != rows || out.ncols() != cols {
+        return Err(Error::Invalid(format!(
+            "{what}: output is {}x{}, expected {rows}x{cols}",
+            out.nrows(),
+            out.ncols()
+        )));
+    }
+    Ok(())
+}
+
+/// Jacobian (6 × nv) of frame `frame` in `rf`, from the last `compute_joint_jacobians` (or
+/// any pass that computes the Jacobian columns). `J v` is the frame velocity in `rf`.
+pub fn frame_jacobian(
+    model: &Model,
+    data: &Data,
+    frame: usize,
+    rf: ReferenceFrame,
+    mut out: MatMut<'_, f64>,
+) -> Result<()> {
+    model.check_frame(frame)?;
+    check_data(model, data)?;
+    check_out("frame_jacobian", &out, 6, model.nv)?;
+    out.fill(0.0);
+    let o_mf = frame_placement_of(model, data, frame);
+    let mut k = model.last_dof(model.frames[frame].parent_joint);
+    while k != NONE {
+        let col = express_motion(&o_mf, &data.j[k], rf).to_array();
+        for r in 0..6 {
+            out[(r, k)] = col[r];
+        }
+        k = model.dof_parent[k];
+    }
+    Ok(())
+}
+
+/// Jacobian (6 × nv) of joint `joint`'s frame in `rf`.
+pub fn joint_jacobian(
+    model: &Model,
+    data: &Data,
+    joint: usize,
+    rf: ReferenceFrame,
+    mut out: MatMut<'_, f64>,
+) -> Result<()> {
+    if joint >= model.njoints() {
+        return Err(Error::NotFound {
+            what: "joint".into(),
+            name: joint.to_string(),
+        });
+    }
+    check_out("joint_jacobian", &out, 6, model.nv)?;
+    check_data(model, data)?;
+    out.fill(0.0);
+    let o = data.o_mi[joint];
+    let mut k = model.last_dof(joint);
+    while k != NONE {
+        let col = express_motion(&o, &data.j[k], rf).to_array();
+        for r in 0..6 {
+            out[(r, k)] = col[r];
+        }
+        k = model.dof_parent[k];
+    }
+    Ok(())
+}
+
+fn check_joint(data: &Data, joint: usize) -> Result<()> {
+    if joint < data.o_mi.len() {
+        Ok(())
+    } else {
+        Err(Error::NotFound {
+            what: "joint".into(),
+            name: joint.to_string(),
+        })
+    }
+}
+
+/// Spatial velocity of joint `joint` in `rf`, after `forward_kinematics`.
+pub fn joint_velocity(data: &Data, joint: usize, rf: ReferenceFrame) -> Result<Motion> {
+    check_joint(data, joint)?;
+    Ok(express_motion(&data.o_mi[joint], &data.ov[joint], rf))
+}
+
+/// Spatial acceleration (no gravity) of joint `joint` in `rf`, after `forward_kinematics`.
+pub fn joint_acceleration(data: &Data, joint: usize, rf: ReferenceFrame) -> Result<Motion> {
+    check_joint(data, joint)?;
+    Ok(express_motion(&data.o_mi[joint], &data.oa[joint], rf))
+}
+
+/// Spatial velocity of frame `frame` in `rf`, after `forward_kinematics`.
+pub fn frame_velocity(model: &Model, data: &Data, frame: usize, rf: ReferenceFrame) -> Result<Motion> {
+    model.check_frame(frame)?;
+    check_data(model, data)?;
+    let o_mf = frame_placement_of(model, data, frame);
+    Ok(express_motion(&o_mf, &data.ov[model.frames[frame].parent_joint], rf))
+}
+
+/// Spatial acceleration (no gravity) of frame `frame` in `rf`, after `forward_kinematics`.
+pub fn frame_acceleration(model: &Model, data: &Data, frame: usize, rf: ReferenceFrame) -> Result<Motion> {
+    model.check_frame(frame)?;
+    check_data(model, data)?;
+    let o_mf = frame_placement_of(model, data, frame);
+    Ok(express_motion(&o_mf, &data.oa[model.frames[frame].parent_joint], rf))
+}
+
+/// Classical acceleration of frame `frame` in `rf`: the spatial acceleration with
+/// `ω × v_lin` added to its linear part (in LOCAL and LWA, the acceleration of the frame
+/// origin).
+pub fn frame_classical_acceleration(model: &Model, data: &Data, frame: usize, rf: ReferenceFrame) -> Result<Motion> {
+    let v = frame_velocity(model, data, frame, rf)?;
+    let mut a = frame_acceleration(model, data, frame, rf)?;
+    a.linear += v.angular.cross(&v.linear);
+    Ok(a)
+}

@@ -1,0 +1,197 @@
+//! Small dense and tree-sparse kernels on column-major slices.
+//!
+//! The mass matrix of a kinematic tree factors as `M = Lᵀ D L` without fill-in, `L` unit
+//! lower triangular with `L[k][i] ≠ 0` only when dof `i` is an ancestor of dof `k`
+//! (Featherstone, *Rigid Body Dynamics Algorithms*, §6.5). The solves act on "rows
+//! stored as columns": a right-hand side matrix `B` (n × m) is passed transposed,
+//! column-major, so every update is a contiguous AXPY of length m.
+
+use crate::error::{Error, Result};
+use crate::model::NONE;
+
+/// In-place `M = Lᵀ D L` factorization. `h` holds M (n × n, column-major, at least the
+/// lower triangle); on return its strict lower triangle holds L and `d` holds D.
+pub(crate) fn ltdl_factor(n: usize, parent: &[usize], h: &mut [f64], d: &mut [f64]) -> Result<()> {
+    for k in (0..n).rev() {
+        let hkk = h[k * n + k];
+        if !(hkk > 0.0 && hkk.is_finite()) {
+            return Err(Error::NotPositiveDefinite {
+                what: "mass matrix".into(),
+                index: k,
+                value: hkk,
+            });
+        }
+        let mut i = parent[k];
+        while i != NONE {
+            let a = h[i * n + k] / hkk;
+            let mut j = i;
+            while j != NONE {
+                h[j * n + i] -= a * h[j * n + k];
+                j = parent[j];
+            }
+            h[i * n + k] = a;
+            i = parent[i];
+        }
+        d[k] = hkk;
+    }
+    Ok(())
+}
+
+/// Solves `M X = B` in place for `X`, with `xt = Bᵀ` on entry and `Xᵀ` on return
+/// (column-major, n columns of length m).
+pub(crate) fn ltdl_solve_rows(n: usize, m: usize, parent: &[usize], l: &[f64], d: &[f64], xt: &mut [f64]) {
+    // Lᵀ y = b, leaves first.
+    for k in (0..n).rev() {
+        let (left, right) = xt.split_at_mut(k * m);
+        let yk = &right[..m];
+        let mut i = parent[k];
+        while i != NONE {
+            let lki = l[i * n + k];
+            axpy(-lki, yk, &mut left[i * m..(i + 1) * m]);
+            i = parent[i];
+        }
+    }
+    for k in 0..n {
+        let s = 1.0 / d[k];
+        xt[k * m..(k + 1) * m].iter_mut().for_each(|x| *x *= s);
+    }
+    // L x = z, root first.
+    for k in 0..n {
+        let (left, right) = xt.split_at_mut(k * m);
+        let xk = &mut right[..m];
+        let mut i = parent[k];
+        while i != NONE {
+            let lki = l[i * n + k];
+            axpy(-lki, &left[i * m..(i + 1) * m], xk);
+            i = parent[i];
+        }
+    }
+}
+
+/// `y += a x`.
+#[inline]
+pub(crate) fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
+    for (yi, xi) in y.iter_mut().zip(x) {
+        *yi += a * xi;
+    }
+}
+
+/// Dense Cholesky `A = L Lᵀ` in place (column-major n × n, lower triangle used and
+/// overwritten).
+pub(crate) fn cholesky_factor(n: usize, a: &mut [f64], what: &str) -> Result<()> {
+    for j in 0..n {
+        let mut djj = a[j * n + j];
+        for k in 0..j {
+            djj -= a[k * n + j] * a[k * n + j];
+        }
+        if !(djj > 0.0 && djj.is_finite()) {
+            return Err(Error::NotPositiveDefinite {
+                what: what.into(),
+                index: j,
+                value: djj,
+            });
+        }
+        let ljj = djj.sqrt();
+        a[j * n + j] = ljj;
+        for i in j + 1..n {
+            let mut s = a[j * n + i];
+            for k in 0..j {
+                s -= a[k * n + i] * a[k * n + j];
+            }
+            a[j * n + i] = s / ljj;
+        }
+    }
+    Ok(())
+}
+
+/// Solves `L Lᵀ x = b` in place for one vector.
+pub(crate) fn cholesky_solve(n: usize, l: &[f64], x: &mut [f64]) {
+    for i in 0..n {
+        let mut s = x[i];
+        for k in 0..i {
+            s -= l[k * n + i] * x[k];
+        }
+        x[i] = s / l[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut s = x[i];
+        for k in i + 1..n {
+            s -= l[i * n + k] * x[k];
+        }
+        x[i] = s / l[i * n + i];
+    }
+}
+
+/// Solves `X (L Lᵀ) = B` in place, `B` stored column-major with `n` columns of length m
+/// (i.e. the rows of `(L Lᵀ)⁻¹ Bᵀ` are the columns of the result).
+pub(crate) fn cholesky_solve_right(n: usize, m: usize, l: &[f64], x: &mut [f64]) {
+    // W Lᵀ = B: W[:, j] = (B[:, j] − Σ_{k<j} W[:, k] L[j][k]) / L[j][j].
+    for j in 0..n {
+        let (left, right) = x.split_at_mut(j * m);
+        let xj = &mut right[..m];
+        for k in 0..j {
+            axpy(-l[k * n + j], &left[k * m..(k + 1) * m], xj);
+        }
+        let s = 1.0 / l[j * n + j];
+        xj.iter_mut().for_each(|v| *v *= s);
+    }
+    // V L = W: V[:, j] = (W[:, j] − Σ_{k>j} V[:, k] L[k][j]) / L[j][j].
+    for j in (0..n).rev() {
+        let (left, right) = x.split_at_mut((j + 1) * m);
+        let xj = &mut left[j * m..];
+        for k in j + 1..n {
+            axpy(-l[j * n + k], &right[(k - j - 1) * m..(k - j) * m], xj);
+        }
+        let s = 1.0 / l[j * n + j];
+        xj.iter_mut().for_each(|v| *v *= s);
+    }
+}
+
+/// Inverse of a small symmetric positive-definite matrix (n ≤ 6) in place, by Cholesky.
+pub(crate) fn small_spd_inverse(n: usize, a: &mut [[f64; 6]; 6]) -> Result<()> {
+    let mut l = [[0.0; 6]; 6];
+    for j in 0..n {
+        let mut djj = a[j][j];
+        for k in 0..j {
+            djj -= l[j][k] * l[j][k];
+        }
+        if !(djj > 0.0 && djj.is_finite()) {
+            return Err(Error::NotPositiveDefinite {
+                what: "joint-space articulated inertia".into(),
+                index: j,
+                value: djj,
+            });
+        }
+        l[j][j] = djj.sqrt();
+        for i in j + 1..n {
+            let mut s = a[i][j];
+            for k in 0..j {
+                s -= l[i][k] * l[j][k];
+            }
+            l[i][j] = s / l[j][j];
+        }
+    }
+    // Columns of the inverse: solve L Lᵀ x = e_c.
+    for c in 0..n {
+        let mut x = [0.0; 6];
+        x[c] = 1.0;
+        for i in 0..n {
+            let mut s = x[i];
+            for k in 0..i {
+                s -= l[i][k] * x[k];
+            }
+            x[i] = s / l[i][i];
+        }
+        for i in (0..n).rev() {
+            let mut s = x[i];
+            for k in i + 1..n {
+                s -= l[k][i] * x[k];
+            }
+            x[i] = s / l[i][i];
+        }
+        for r in 0..n {
+            a[r][c] = x[r];
+        }
+    }
+    Ok(())
+}
