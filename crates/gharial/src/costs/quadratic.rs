@@ -211,30 +211,14 @@ mod tests {
         for _ in 0..4 {
             let (x, u) = (random_vec(&mut g, nx, 1.0), random_vec(&mut g, nu, 1.0));
             check_cost(&cost, &space, &x, &u, CheckOptions::default()).assert_ok();
-            dual_check_cost(
-                &cost,
-                &x,
-                &u,
-                |z| quad_ref(z, &h, &lin),
-                |z| quad_ref(z, &h, &lin),
-                true,
-                1e-12,
-            );
+            dual_check_cost(&cost, &x, &u, |z| quad_ref(z, &h, &lin), true, 1e-12);
         }
         let t = QuadraticCost::terminal(q_mat.as_ref(), &q).unwrap();
         assert_eq!(t.nu(), 0);
         let hx = q_mat.clone();
         let x = random_vec(&mut g, nx, 1.0);
         check_cost(&t, &space, &x, &[], CheckOptions::default()).assert_ok();
-        dual_check_cost(
-            &t,
-            &x,
-            &[],
-            |z| quad_ref(z, &hx, &q),
-            |z| quad_ref(z, &hx, &q),
-            true,
-            1e-12,
-        );
+        dual_check_cost(&t, &x, &[], |z| quad_ref(z, &hx, &q), true, 1e-12);
 
         let err = QuadraticCost::new(
             q_mat.as_ref(),

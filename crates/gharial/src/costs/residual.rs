@@ -551,34 +551,10 @@ mod tests {
             // Exact Hessians: finite differences of the gradient and hyper-dual numbers.
             check_cost(&exact, &space, &x, &u, CheckOptions::default()).assert_ok();
             check_cost(&diag, &space, &x, &u, CheckOptions::default()).assert_ok();
-            dual_check_cost(
-                &exact,
-                &x,
-                &u,
-                |z| weighted_ref(z, &w),
-                |z| weighted_ref(z, &w),
-                true,
-                1e-12,
-            );
-            dual_check_cost(
-                &diag,
-                &x,
-                &u,
-                |z| weighted_ref(z, &wdm),
-                |z| weighted_ref(z, &wdm),
-                true,
-                1e-12,
-            );
+            dual_check_cost(&exact, &x, &u, |z| weighted_ref(z, &w), true, 1e-12);
+            dual_check_cost(&diag, &x, &u, |z| weighted_ref(z, &wdm), true, 1e-12);
             // Gauss-Newton: exact gradient, Hessian Jᵀ W J.
-            dual_check_cost(
-                &gn,
-                &x,
-                &u,
-                |z| weighted_ref(z, &w),
-                |z| weighted_ref(z, &w),
-                false,
-                1e-12,
-            );
+            dual_check_cost(&gn, &x, &u, |z| weighted_ref(z, &w), false, 1e-12);
             let mut d = gn.create_data();
             gn.evaluate(&x, &u, &mut d);
             gn.derivatives(&x, &u, &mut d);
@@ -622,28 +598,10 @@ mod tests {
             check_cost(&c, space.as_ref(), &x, &u, CheckOptions::default()).assert_ok();
             check_cost(&cu, space.as_ref(), &x, &u, CheckOptions::default()).assert_ok();
             check_cost(&term, space.as_ref(), &x, &[], CheckOptions::default()).assert_ok();
-            dual_check_cost(
-                &c,
-                &x,
-                &u,
-                |z| state_ref(z, &x_ref, &w),
-                |z| state_ref(z, &x_ref, &w),
-                true,
-                1e-12,
-            );
-            dual_check_cost(
-                &term,
-                &x,
-                &[],
-                |z| state_ref(z, &x_ref, &wd),
-                |z| state_ref(z, &x_ref, &wd),
-                true,
-                1e-12,
-            );
-            let uref = |z: &[_]| state_ref(&z[3..], &u_ref, &wu);
-            dual_check_cost(&cu, &x, &u, uref, |z| state_ref(&z[3..], &u_ref, &wu), true, 1e-12);
-            let uref = |z: &[_]| state_ref(&z[3..], &u_ref, &wud);
-            dual_check_cost(&cud, &x, &u, uref, |z| state_ref(&z[3..], &u_ref, &wud), true, 1e-12);
+            dual_check_cost(&c, &x, &u, |z| state_ref(z, &x_ref, &w), true, 1e-12);
+            dual_check_cost(&term, &x, &[], |z| state_ref(z, &x_ref, &wd), true, 1e-12);
+            dual_check_cost(&cu, &x, &u, |z| state_ref(&z[3..], &u_ref, &wu), true, 1e-12);
+            dual_check_cost(&cud, &x, &u, |z| state_ref(&z[3..], &u_ref, &wud), true, 1e-12);
         }
         // Moving the targets through shared costs.
         let new_ref = random_vec(&mut g, 3, 1.0);
@@ -712,9 +670,8 @@ mod tests {
                 if -r >= delta { inside += 1 } else { relaxed += 1 }
             }
             check_cost(&exact, &space, &x, &u, CheckOptions::default()).assert_ok();
-            let s = |z: &[_]| barrier_ref(z, shift, w, delta);
-            dual_check_cost(&exact, &x, &u, s, |z| barrier_ref(z, shift, w, delta), true, 1e-12);
-            dual_check_cost(&gn, &x, &u, s, |z| barrier_ref(z, shift, w, delta), false, 1e-12);
+            dual_check_cost(&exact, &x, &u, |z| barrier_ref(z, shift, w, delta), true, 1e-12);
+            dual_check_cost(&gn, &x, &u, |z| barrier_ref(z, shift, w, delta), false, 1e-12);
         }
         assert!(inside > 3 && relaxed > 3, "both branches exercised: {inside} {relaxed}");
         // Far outside the domain the value stays finite.
@@ -730,5 +687,70 @@ mod tests {
         assert!(gn.set_weight(-1.0).is_err());
         assert!(LogBarrierCost::new(shifted.clone(), 1.0, 0.0).is_err());
         assert!(LogBarrierCost::new(shifted, f64::NAN, 0.1).is_err());
+    }
+
+    #[test]
+    fn state_cost_on_lie_groups_has_exact_gradient_and_gauss_newton_hessian() {
+        use crate::functions::check::{
+            DualCheckOptions, check_cost_dual, dual_stage_jacobians, hyper_cost_derivatives,
+        };
+        use num_dual::{Dual64, HyperDual64};
+        let mut g = rng(45);
+        for space in crate::functions::testing::lie_spaces() {
+            let (nx, ndx) = (space.nx(), space.ndx());
+            let mut x_ref = vec![0.0; nx];
+            space.random(&mut g, &mut x_ref);
+            let a = random_mat(&mut g, ndx, ndx, 1.0);
+            let w = &a * a.transpose();
+            let cost = QuadraticStateCost::new(space.clone(), &x_ref, w.as_ref(), 1).unwrap();
+            let xr_h: Vec<HyperDual64> = x_ref.iter().map(|&v| HyperDual64::from(v)).collect();
+            let xr_d: Vec<Dual64> = x_ref.iter().map(|&v| Dual64::from(v)).collect();
+            let reference = |x: &[HyperDual64], _u: &[HyperDual64]| {
+                let mut r = vec![HyperDual64::from(0.0); ndx];
+                space.difference_hyper(&xr_h, x, &mut r);
+                let mut v = HyperDual64::from(0.0);
+                for i in 0..ndx {
+                    for j in 0..ndx {
+                        v += r[i] * r[j] * (0.5 * w[(i, j)]);
+                    }
+                }
+                v
+            };
+            // At the target the Gauss-Newton Hessian is exact.
+            let rep = check_cost_dual(
+                &cost,
+                space.as_ref(),
+                &x_ref,
+                &[0.3],
+                reference,
+                DualCheckOptions::default(),
+            );
+            assert!(rep.passed(), "{space:?}: {rep:?}");
+            check_cost(&cost, space.as_ref(), &x_ref, &[0.3], CheckOptions::default()).assert_ok();
+            // Elsewhere: exact gradient, Hessian Jᵀ W J with J = d(x ⊖ x_ref)/dx.
+            for _ in 0..4 {
+                let mut x = vec![0.0; nx];
+                space.random(&mut g, &mut x);
+                let mut d = cost.create_data();
+                cost.evaluate(&x, &[0.3], &mut d);
+                cost.derivatives(&x, &[0.3], &mut d);
+                let r = hyper_cost_derivatives(space.as_ref(), &x, &[0.3], reference);
+                assert!((d.value - r.value).abs() <= 1e-12 * r.value.max(1.0));
+                let lx = Mat::from_fn(ndx, 1, |i, _| r.lx[i]);
+                assert_close("lx", &d.lx.as_mat().to_owned(), &lx, 1e-12);
+                let j = dual_stage_jacobians(space.as_ref(), &x, &[0.3], ndx, |x, _u, out| {
+                    space.difference_dual(&xr_d, x, out)
+                })
+                .jx;
+                let gn = j.transpose() * (&w * &j);
+                assert_close("lxx", &d.lxx, &gn, 1e-12);
+                let rep = check_cost(&cost, space.as_ref(), &x, &[0.3], CheckOptions::default());
+                for (name, e) in &rep.errors {
+                    if name != "lxx" {
+                        assert!(*e <= 1e-6, "{space:?} {name}: {e}");
+                    }
+                }
+            }
+        }
     }
 }

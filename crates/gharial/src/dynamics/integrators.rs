@@ -394,8 +394,10 @@ impl ExplicitDynamics for SemiImplicitEuler {
 mod tests {
     use super::*;
     use crate::dynamics::LinearOde;
-    use crate::functions::check::{CheckOptions, check_explicit_dynamics, check_ode};
-    use crate::functions::testing::{RotationOde, TestOde, assert_close, dual_jacobian, random_vec, rng, test_ode};
+    use crate::functions::check::{
+        CheckOptions, DualCheckOptions, check_explicit_dynamics, check_explicit_dynamics_dual, check_ode,
+    };
+    use crate::functions::testing::{RotationOde, TestOde, concat, random_vec, rng, test_ode};
     use crate::spaces::VectorSpace;
     use num_dual::{Dual64, DualNum};
 
@@ -432,22 +434,15 @@ mod tests {
         for method in [RkMethod::Euler, RkMethod::Rk2, RkMethod::Rk4] {
             let dt = 0.1;
             let d = ExplicitRungeKutta::new(ode.clone(), dt, method).unwrap();
-            let mut data = d.create_data();
             for _ in 0..4 {
                 let (x, u) = (random_vec(&mut g, 3, 1.0), random_vec(&mut g, 2, 1.0));
                 check_ode(ode.as_ref(), &x, &u, CheckOptions::default()).assert_ok();
                 check_explicit_dynamics(&d, &x, &u, CheckOptions::default()).assert_ok();
-                d.forward(&x, &u, &mut data);
-                d.jacobians(&x, &u, &mut data);
-                let z: Vec<f64> = x.iter().chain(&u).copied().collect();
-                let zd: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
-                let y: Vec<f64> = rk_ref(&zd, dt, method).iter().map(|v| v.re).collect();
-                for i in 0..3 {
-                    assert!((data.xnext()[i] - y[i]).abs() < 1e-14, "{method:?}");
-                }
-                let j = dual_jacobian(&z, |zz| rk_ref(zz, dt, method));
-                assert_close("jx", &data.jx, &j.as_ref().submatrix(0, 0, 3, 3).to_owned(), 1e-12);
-                assert_close("ju", &data.ju, &j.as_ref().submatrix(0, 3, 3, 2).to_owned(), 1e-12);
+                let reference = |x: &[Dual64], u: &[Dual64], y: &mut [Dual64]| {
+                    y.copy_from_slice(&rk_ref(&concat(x, u), dt, method));
+                };
+                let rep = check_explicit_dynamics_dual(&d, &x, &u, reference, DualCheckOptions::default());
+                assert!(rep.passed(), "{method:?}: {rep:?}");
             }
         }
         assert!(ExplicitRungeKutta::rk4(ode.clone(), 0.0).is_err());
@@ -530,6 +525,24 @@ mod tests {
         }
     }
 
+    /// An ODE moved onto another space of the same tangent size (for validation tests).
+    struct OnSpace(Arc<dyn Ode>, Arc<dyn Manifold>);
+
+    impl Ode for OnSpace {
+        fn space(&self) -> &Arc<dyn Manifold> {
+            &self.1
+        }
+        fn nu(&self) -> usize {
+            self.0.nu()
+        }
+        fn evaluate(&self, _x: &[f64], u: &[f64], data: &mut OdeData) {
+            self.0.evaluate(&[0.0; 6], u, data)
+        }
+        fn jacobians(&self, _x: &[f64], u: &[f64], data: &mut OdeData) {
+            self.0.jacobians(&[0.0; 6], u, data)
+        }
+    }
+
     fn sie_ref<D: DualNum<Primitive = f64> + Copy>(z: &[D], dt: f64) -> Vec<D> {
         let (x, u) = (&z[..4], &z[4..]);
         let f = pendulum(x, u);
@@ -544,22 +557,15 @@ mod tests {
         let ode: Arc<dyn Ode> = Arc::new(Pendulum(space.clone()));
         let dt = 0.05;
         let d = SemiImplicitEuler::new(ode.clone(), config.clone(), dt).unwrap();
-        let mut data = d.create_data();
         let mut g = rng(71);
         for _ in 0..4 {
             let (x, u) = (random_vec(&mut g, 4, 1.0), random_vec(&mut g, 1, 1.0));
             check_ode(ode.as_ref(), &x, &u, CheckOptions::default()).assert_ok();
             check_explicit_dynamics(&d, &x, &u, CheckOptions::default()).assert_ok();
-            d.forward(&x, &u, &mut data);
-            d.jacobians(&x, &u, &mut data);
-            let z: Vec<f64> = x.iter().chain(&u).copied().collect();
-            let j = dual_jacobian(&z, |zz| sie_ref(zz, dt));
-            let zd: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
-            for (i, y) in sie_ref(&zd, dt).iter().enumerate() {
-                assert!((data.xnext()[i] - y.re).abs() < 1e-14);
-            }
-            assert_close("jx", &data.jx, &j.as_ref().submatrix(0, 0, 4, 4).to_owned(), 1e-12);
-            assert_close("ju", &data.ju, &j.as_ref().submatrix(0, 4, 4, 1).to_owned(), 1e-12);
+            let reference =
+                |x: &[Dual64], u: &[Dual64], y: &mut [Dual64]| y.copy_from_slice(&sie_ref(&concat(x, u), dt));
+            let rep = check_explicit_dynamics_dual(&d, &x, &u, reference, DualCheckOptions::default());
+            assert!(rep.passed(), "{rep:?}");
         }
     }
 
@@ -604,52 +610,15 @@ mod tests {
             assert!((w[0] / w[1] / 2.0 - 1.0).abs() < 0.12, "errors {errs:?}");
         }
 
-        // Wrong sizes, and a space of the right sizes that is not Q x R^nv.
+        // Wrong sizes, and a space of the right sizes that is not Q x R^nv: SE(3)
+        // (translation, quaternion) has nx = 7, ndx = 6 like (SO(3), R³).
         let err = SemiImplicitEuler::new(ode.clone(), Arc::new(VectorSpace::new(3)), 0.1).unwrap_err();
         assert!(err.to_string().contains("SemiImplicitEuler: state space"), "{err}");
-        #[derive(Debug)]
-        struct Scaled(VectorSpace);
-        impl Manifold for Scaled {
-            fn nx(&self) -> usize {
-                self.0.nx()
-            }
-            fn ndx(&self) -> usize {
-                self.0.ndx()
-            }
-            fn neutral(&self, out: &mut [f64]) {
-                self.0.neutral(out)
-            }
-            fn random(&self, rng: &mut dyn rand::RngCore, out: &mut [f64]) {
-                self.0.random(rng, out)
-            }
-            fn integrate(&self, x: &[f64], v: &[f64], out: &mut [f64]) {
-                for i in 0..x.len() {
-                    out[i] = x[i] + 2.0 * v[i];
-                }
-            }
-            fn difference(&self, x0: &[f64], x1: &[f64], out: &mut [f64]) {
-                for i in 0..x0.len() {
-                    out[i] = 0.5 * (x1[i] - x0[i]);
-                }
-            }
-            fn interpolate(&self, x0: &[f64], x1: &[f64], t: f64, out: &mut [f64]) {
-                self.0.interpolate(x0, x1, t, out)
-            }
-            fn jintegrate(&self, x: &[f64], v: &[f64], arg: Arg, j: faer::MatMut<'_, f64>) {
-                self.0.jintegrate(x, v, arg, j)
-            }
-            fn jdifference(&self, x0: &[f64], x1: &[f64], arg: Arg, j: faer::MatMut<'_, f64>) {
-                self.0.jdifference(x0, x1, arg, j)
-            }
-            fn jintegrate_transport(&self, x: &[f64], v: &[f64], arg: Arg, m: faer::MatMut<'_, f64>) {
-                self.0.jintegrate_transport(x, v, arg, m)
-            }
-            fn tangent_map(&self, x: &[f64], j: faer::MatMut<'_, f64>) {
-                self.0.tangent_map(x, j)
-            }
-        }
-        let bad: Arc<dyn Ode> = Arc::new(Pendulum(Arc::new(Scaled(VectorSpace::new(4)))));
-        let err = SemiImplicitEuler::new(bad, config.clone(), 0.1).unwrap_err();
+        let se3: Arc<dyn Manifold> = Arc::new(crate::spaces::SE3);
+        let bad: Arc<dyn Ode> =
+            Arc::new(LinearOde::new(Mat::zeros(6, 6).as_ref(), Mat::zeros(6, 0).as_ref(), &[0.0; 6]).unwrap());
+        let bad = Arc::new(OnSpace(bad, se3));
+        let err = SemiImplicitEuler::new(bad, Arc::new(crate::spaces::SO3), 0.1).unwrap_err();
         assert!(err.to_string().contains("does not act as (q ⊕ dq, v + dv)"), "{err}");
         assert!(SemiImplicitEuler::new(ode, config, -1.0).is_err());
     }

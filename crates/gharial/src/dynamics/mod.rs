@@ -17,6 +17,8 @@ use crate::spaces::Manifold;
 pub mod implicit;
 pub mod integrators;
 mod linear;
+#[cfg(test)]
+mod manifold_tests;
 
 pub use implicit::{ExplicitAsImplicit, ImplicitEuler, ImplicitMidpoint};
 pub use integrators::{ExplicitRungeKutta, RkMethod, SemiImplicitEuler};

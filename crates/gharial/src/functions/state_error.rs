@@ -14,8 +14,15 @@ use crate::spaces::{Arg, Manifold};
 use crate::{Error, Result};
 
 /// Checks that `x` is a valid point of `space` (size, finiteness, manifold constraints).
+/// Does not allocate unless it fails (targets are moved in MPC loops).
 pub(crate) fn check_point(space: &dyn Manifold, what: &str, x: &[f64]) -> Result<()> {
-    check_dim(format!("{what} (size nx of the state space)"), space.nx(), x.len())?;
+    if x.len() != space.nx() {
+        return Err(Error::dim(
+            format!("{what} (size nx of the state space)"),
+            space.nx(),
+            x.len(),
+        ));
+    }
     check_finite(what, x)?;
     if !space.is_valid(x) {
         return Err(Error::InvalidModel(format!("{what} is not a valid point of {space:?}")));
@@ -221,5 +228,56 @@ mod tests {
         assert_eq!(d.value(), &u);
         assert!(e.set_target(&[0.0]).is_err());
         assert!(ControlError::new(&space, &[f64::INFINITY]).is_err());
+    }
+
+    #[test]
+    fn state_error_on_lie_groups_matches_finite_differences_and_dual_numbers() {
+        use crate::functions::LinearComposition;
+        use crate::functions::check::{DualCheckOptions, check_stage_function_dual};
+        use crate::functions::testing::random_mat;
+        use num_dual::Dual64;
+        let mut g = rng(11);
+        for space in crate::functions::testing::lie_spaces() {
+            let (nx, ndx) = (space.nx(), space.ndx());
+            let mut x_ref = vec![0.0; nx];
+            space.random(&mut g, &mut x_ref);
+            let e: Arc<dyn UnaryFunction> = Arc::new(StateError::new(space.clone(), &x_ref).unwrap());
+            let f: Arc<dyn StageFunction> = Arc::new(Unary::new(e, 2));
+            let m = random_mat(&mut g, 2, ndx, 1.0);
+            let b = random_vec(&mut g, 2, 1.0);
+            let comp = LinearComposition::new(f.clone(), m.as_ref(), &b).unwrap();
+            let x_ref_d: Vec<Dual64> = x_ref.iter().map(|&v| Dual64::from(v)).collect();
+            for _ in 0..4 {
+                let mut x = vec![0.0; nx];
+                space.random(&mut g, &mut x);
+                let u = random_vec(&mut g, 2, 1.0);
+                check_stage_function(f.as_ref(), space.as_ref(), &x, &u, None, CheckOptions::default()).assert_ok();
+                check_stage_function(&comp, space.as_ref(), &x, &u, None, CheckOptions::default()).assert_ok();
+                let rep = check_stage_function_dual(
+                    f.as_ref(),
+                    space.as_ref(),
+                    &x,
+                    &u,
+                    |x, _u, out| space.difference_dual(&x_ref_d, x, out),
+                    DualCheckOptions::default(),
+                );
+                assert!(rep.passed(), "{space:?}: {rep:?}");
+                let rep = check_stage_function_dual(
+                    &comp,
+                    space.as_ref(),
+                    &x,
+                    &u,
+                    |x, _u, out| {
+                        let mut d = vec![Dual64::from(0.0); ndx];
+                        space.difference_dual(&x_ref_d, x, &mut d);
+                        for i in 0..2 {
+                            out[i] = (0..ndx).fold(Dual64::from(b[i]), |acc, k| acc + d[k] * m[(i, k)]);
+                        }
+                    },
+                    DualCheckOptions::default(),
+                );
+                assert!(rep.passed(), "{space:?}: {rep:?}");
+            }
+        }
     }
 }

@@ -10,8 +10,22 @@ use rand::{Rng, SeedableRng};
 
 use super::{StageFunction, StageFunctionData};
 use crate::dynamics::{Ode, OdeData};
-use crate::functions::check::rel_error;
+use crate::functions::check::{
+    DualCheckOptions, check_stage_function_dual, check_stage_function_vhp_dual, dual_stage_jacobians,
+    hyper_cost_derivatives, rel_error,
+};
 use crate::spaces::{Manifold, VectorSpace};
+
+/// Spaces of the manifold tests: SO(2) x R, SE(2), SE(3), the tangent bundle of SO(3).
+pub(crate) fn lie_spaces() -> Vec<Arc<dyn Manifold>> {
+    use crate::spaces::{CartesianProduct, SE2, SE3, SO2, SO3, TangentBundle};
+    vec![
+        Arc::new(CartesianProduct::pair(Arc::new(SO2), Arc::new(VectorSpace::new(1)))),
+        Arc::new(SE2),
+        Arc::new(SE3),
+        Arc::new(TangentBundle::new(Arc::new(SO3))),
+    ]
+}
 
 /// A seeded generator.
 pub(crate) fn rng(seed: u64) -> SmallRng {
@@ -28,33 +42,16 @@ pub(crate) fn random_mat(rng: &mut SmallRng, r: usize, c: usize, scale: f64) -> 
     Mat::from_fn(r, c, |_, _| rng.random_range(-scale..=scale))
 }
 
-/// Jacobian of `g` at `z` by forward-mode dual numbers, one pass per column.
-pub(crate) fn dual_jacobian(z: &[f64], g: impl Fn(&[Dual64]) -> Vec<Dual64>) -> Mat<f64> {
-    let n = z.len();
-    let mut cols = Vec::with_capacity(n);
-    for j in 0..n {
-        let zd: Vec<Dual64> = (0..n)
-            .map(|i| Dual64::new(z[i], if i == j { 1.0 } else { 0.0 }))
-            .collect();
-        cols.push(g(&zd).iter().map(|v| v.eps).collect::<Vec<f64>>());
-    }
-    let m = cols.first().map_or(0, |c| c.len());
-    Mat::from_fn(m, n, |i, j| cols[j][i])
+/// `[x; u]`.
+pub(crate) fn concat<T: Copy>(x: &[T], u: &[T]) -> Vec<T> {
+    x.iter().chain(u).copied().collect()
 }
 
-/// Hessian of the scalar `s` at `z` by hyper-dual numbers.
-pub(crate) fn dual_hessian(z: &[f64], s: impl Fn(&[HyperDual64]) -> HyperDual64) -> Mat<f64> {
-    let n = z.len();
-    Mat::from_fn(n, n, |a, b| {
-        let zd: Vec<HyperDual64> = (0..n)
-            .map(|i| {
-                let e1 = if i == a { 1.0 } else { 0.0 };
-                let e2 = if i == b { 1.0 } else { 0.0 };
-                HyperDual64::new(z[i], e1, e2, 0.0)
-            })
-            .collect();
-        s(&zd).eps1eps2
-    })
+/// Jacobian of `g` at `z` (a plain vector) by the dual-number passes of the checker.
+pub(crate) fn dual_jacobian(z: &[f64], g: impl Fn(&[Dual64]) -> Vec<Dual64>) -> Mat<f64> {
+    let space = VectorSpace::new(z.len());
+    let nr = g(&z.iter().map(|&v| Dual64::from(v)).collect::<Vec<_>>()).len();
+    dual_stage_jacobians(&space, z, &[], nr, |z, _, out| out.copy_from_slice(&g(z))).jx
 }
 
 /// Panics unless `rel_error(a, b) <= tol`.
@@ -196,9 +193,9 @@ impl Ode for TestOde {
     }
 }
 
-/// Compares the value, Jacobians and (if provided) vector-Hessian products of a stage
-/// function on a vector space with dual-number derivatives of the same map written
-/// generically: `g1`, `g2` take `z = [x; u]`.
+/// Checks the value, Jacobians and vector-Hessian products of a stage function on a
+/// vector space with the dual-number checker, against the same map written
+/// generically (`g1`, `g2` take `z = [x; u]`).
 #[track_caller]
 pub(crate) fn dual_check_stage(
     f: &dyn StageFunction,
@@ -209,91 +206,55 @@ pub(crate) fn dual_check_stage(
     g2: impl Fn(&[HyperDual64]) -> Vec<HyperDual64>,
     tol: f64,
 ) {
-    let (nx, nu) = (x.len(), u.len());
-    let z: Vec<f64> = x.iter().chain(u).copied().collect();
-    let mut d = f.create_data();
-    f.evaluate(x, u, &mut d);
-    f.jacobians(x, u, &mut d);
-    let zd: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
-    let value: Vec<f64> = g1(&zd).iter().map(|v| v.re).collect();
-    assert_close(
-        "value",
-        &Mat::from_fn(value.len(), 1, |i, _| d.value()[i]),
-        &Mat::from_fn(value.len(), 1, |i, _| value[i]),
-        tol,
+    let space = VectorSpace::new(x.len());
+    let opts = DualCheckOptions { tol };
+    let rep = check_stage_function_dual(
+        f,
+        &space,
+        x,
+        u,
+        |x, u, out| out.copy_from_slice(&g1(&concat(x, u))),
+        opts,
     );
-    let j = dual_jacobian(&z, &g1);
-    assert_close("jx", &d.jx, &j.as_ref().submatrix(0, 0, j.nrows(), nx).to_owned(), tol);
-    assert_close("ju", &d.ju, &j.as_ref().submatrix(0, nx, j.nrows(), nu).to_owned(), tol);
-    if f.has_vhp() {
-        f.vhp(x, u, lambda, &mut d);
-        let h = dual_hessian(&z, |zz| {
-            g2(zz)
-                .iter()
-                .zip(lambda)
-                .fold(HyperDual64::from_re(0.0), |acc, (r, &l)| acc + *r * l)
-        });
-        assert_close("vhp_xx", &d.vhp_xx, &h.as_ref().submatrix(0, 0, nx, nx).to_owned(), tol);
-        assert_close(
-            "vhp_xu",
-            &d.vhp_xu,
-            &h.as_ref().submatrix(0, nx, nx, nu).to_owned(),
-            tol,
-        );
-        assert_close(
-            "vhp_uu",
-            &d.vhp_uu,
-            &h.as_ref().submatrix(nx, nx, nu, nu).to_owned(),
-            tol,
-        );
-    }
+    assert!(rep.passed(), "{rep:?}");
+    let rep = check_stage_function_vhp_dual(
+        f,
+        &space,
+        x,
+        u,
+        lambda,
+        |x, u, out| out.copy_from_slice(&g2(&concat(x, u))),
+        opts,
+    );
+    assert!(rep.passed(), "{rep:?}");
 }
 
-/// Compares the value, gradient and (if `check_hessian`) Hessian of a cost on a vector
-/// space with dual-number derivatives of the same map written generically (`s1`, `s2`
-/// take `z = [x; u]`). Returns the dual-number Hessian.
+/// Checks the value, gradient and (if `check_hessian`) Hessian of a cost on a vector
+/// space against hyper-dual derivatives of the same map written generically (`s` takes
+/// `z = [x; u]`).
 #[track_caller]
 pub(crate) fn dual_check_cost(
     c: &dyn crate::costs::Cost,
     x: &[f64],
     u: &[f64],
-    s1: impl Fn(&[Dual64]) -> Dual64,
-    s2: impl Fn(&[HyperDual64]) -> HyperDual64,
+    s: impl Fn(&[HyperDual64]) -> HyperDual64,
     check_hessian: bool,
     tol: f64,
-) -> Mat<f64> {
-    let (nx, nu) = (x.len(), u.len());
-    let z: Vec<f64> = x.iter().chain(u).copied().collect();
+) {
+    let space = VectorSpace::new(x.len());
+    let r = hyper_cost_derivatives(&space, x, u, |x, u| s(&concat(x, u)));
     let mut d = c.create_data();
     c.evaluate(x, u, &mut d);
     c.derivatives(x, u, &mut d);
-    let zd: Vec<Dual64> = z.iter().map(|&v| Dual64::from_re(v)).collect();
-    let v = s1(&zd).re;
-    assert!(
-        (d.value - v).abs() <= tol * v.abs().max(1.0),
-        "value {} vs reference {v}",
-        d.value
-    );
-    let g = dual_jacobian(&z, |zz| vec![s1(zz)]);
-    assert_close(
-        "lx",
-        &d.lx.as_mat().transpose().to_owned(),
-        &g.as_ref().submatrix(0, 0, 1, nx).to_owned(),
-        tol,
-    );
-    assert_close(
-        "lu",
-        &d.lu.as_mat().transpose().to_owned(),
-        &g.as_ref().submatrix(0, nx, 1, nu).to_owned(),
-        tol,
-    );
-    let h = dual_hessian(&z, s2);
+    let col = |v: &[f64]| Mat::from_fn(v.len(), 1, |i, _| v[i]);
+    assert_close("value", &col(&[d.value]), &col(&[r.value]), tol);
+    assert_close("lx", &col(d.lx()), &col(&r.lx), tol);
+    assert_close("lu", &col(d.lu()), &col(&r.lu), tol);
     if check_hessian {
-        assert_close("lxx", &d.lxx, &h.as_ref().submatrix(0, 0, nx, nx).to_owned(), tol);
-        assert_close("lxu", &d.lxu, &h.as_ref().submatrix(0, nx, nx, nu).to_owned(), tol);
-        assert_close("luu", &d.luu, &h.as_ref().submatrix(nx, nx, nu, nu).to_owned(), tol);
+        assert_close("lxx", &d.lxx, &r.lxx, tol);
+        assert_close("lxu", &d.lxu, &r.lxu, tol);
+        assert_close("luu", &d.luu, &r.luu, tol);
     }
-    h
 }
 
 /// A linear ODE on `R⁴` with a closed-form flow: two damped rotations
