@@ -178,6 +178,11 @@ fn functions_and_costs_do_not_allocate() {
             assert_eq!(n, 0, "cost (nx = {nx})");
         }
         assert_eq!(allocations(|| stack.set_weight("c3", 2.0).unwrap()), 0);
+        let control = QuadraticControlCost::diagonal(space.as_ref(), &vals(nu, 0.3), &vals(nu, 1.0)).unwrap();
+        let u_ref = vals(nu, 0.2);
+        assert_eq!(allocations(|| control.set_target(&u_ref).unwrap()), 0);
+        let barrier = LogBarrierCost::new(bil.clone(), 0.5, 1e-2).unwrap();
+        assert_eq!(allocations(|| barrier.set_weight(0.25).unwrap()), 0);
     }
 }
 
@@ -237,6 +242,16 @@ fn constraint_sets_do_not_allocate() {
         .map(|(s, n)| (s.as_ref(), *n))
         .chain([(&product as &dyn ConstraintSet, 20)])
         .collect();
+    // Moving bounds and weights between solves.
+    let boxed = BoxConstraint::new(&[-0.5; 4], &[0.5; 4]).unwrap();
+    let l1 = L1Penalty::new(0.5).unwrap();
+    assert_eq!(
+        allocations(|| {
+            boxed.set_bounds(&[-1.0; 4], &[1.0; 4]).unwrap();
+            l1.set_weight(0.7).unwrap();
+        }),
+        0
+    );
     for (set, n) in all {
         for scale in [0.3, 3.0] {
             let z = vals(n, scale);
@@ -252,4 +267,83 @@ fn constraint_sets_do_not_allocate() {
             assert_eq!(count, 0, "{set:?}");
         }
     }
+}
+
+/// A rigid body on the tangent bundle of SO(3), written once for every scalar.
+struct Gyro;
+
+impl gharial::functions::autodiff::AutoOdeFn for Gyro {
+    fn nx(&self) -> usize {
+        7
+    }
+    fn nu(&self) -> usize {
+        3
+    }
+    fn eval<D: gharial::functions::autodiff::ManifoldScalar>(&self, x: &[D], u: &[D], xdot: &mut [D]) {
+        let i = [1.0, 2.0, 3.0];
+        let w = [x[4], x[5], x[6]];
+        let iw = [w[0] * i[0], w[1] * i[1], w[2] * i[2]];
+        let gyro = [
+            w[1] * iw[2] - w[2] * iw[1],
+            w[2] * iw[0] - w[0] * iw[2],
+            w[0] * iw[1] - w[1] * iw[0],
+        ];
+        for k in 0..3 {
+            xdot[k] = w[k];
+            xdot[3 + k] = (u[k] - gyro[k] + x[k] * 0.1) * (1.0 / i[k]);
+        }
+    }
+}
+
+#[test]
+fn models_on_lie_groups_do_not_allocate() {
+    use gharial::functions::autodiff::AutoDiff;
+    use gharial::spaces::{SE3, SO3, TangentBundle};
+    use rand::SeedableRng;
+    let mut rng = rand::rngs::SmallRng::seed_from_u64(5);
+    let tso3: Arc<dyn Manifold> = Arc::new(TangentBundle::new(Arc::new(SO3)));
+    let se3: Arc<dyn Manifold> = Arc::new(SE3);
+    let ode: Arc<dyn Ode> = Arc::new(AutoDiff::ode(tso3.clone(), Gyro).unwrap());
+    let (mut x, mut y) = (vec![0.0; 7], vec![0.0; 7]);
+    tso3.random(&mut rng, &mut x);
+    tso3.random(&mut rng, &mut y);
+    let u = vals(3, 0.5);
+    let explicit: Vec<Arc<dyn ExplicitDynamics>> = vec![
+        Arc::new(ExplicitRungeKutta::rk4(ode.clone(), 0.05).unwrap()),
+        Arc::new(SemiImplicitEuler::new(ode.clone(), Arc::new(SO3), 0.05).unwrap()),
+    ];
+    for d in &explicit {
+        let mut data = d.create_data();
+        let n = allocations(|| {
+            d.forward(&x, &u, &mut data);
+            d.jacobians(&x, &u, &mut data);
+        });
+        assert_eq!(n, 0, "explicit dynamics on T SO(3)");
+    }
+    let implicit: Vec<Arc<dyn ImplicitDynamics>> = vec![
+        Arc::new(ImplicitEuler::new(ode.clone(), 0.05).unwrap()),
+        Arc::new(ImplicitMidpoint::new(ode.clone(), 0.05).unwrap()),
+        Arc::new(ExplicitAsImplicit::new(explicit[0].clone())),
+    ];
+    for d in &implicit {
+        let mut data = d.create_data();
+        let n = allocations(|| {
+            d.evaluate(&x, &u, &y, &mut data);
+            d.jacobians(&x, &u, &y, &mut data);
+        });
+        assert_eq!(n, 0, "implicit dynamics on T SO(3)");
+    }
+    let (mut p, mut p_ref) = (vec![0.0; 7], vec![0.0; 7]);
+    se3.random(&mut rng, &mut p);
+    se3.random(&mut rng, &mut p_ref);
+    let cost = QuadraticStateCost::diagonal(se3.clone(), &p_ref, &vals(6, 1.0), 2).unwrap();
+    let mut d = cost.create_data();
+    let n = allocations(|| {
+        cost.evaluate(&p, &[0.1, 0.2], &mut d);
+        cost.derivatives(&p, &[0.1, 0.2], &mut d);
+    });
+    assert_eq!(n, 0, "state cost on SE(3)");
+    let mut target = p_ref.clone();
+    se3.integrate(&p_ref, &vals(6, 0.1), &mut target);
+    assert_eq!(allocations(|| cost.set_target(&target).unwrap()), 0);
 }
