@@ -13,6 +13,18 @@ use std::fmt::Debug;
 
 use faer::MatMut;
 
+mod cone;
+mod l1;
+mod product;
+mod sets;
+#[cfg(test)]
+mod tests;
+
+pub use cone::SecondOrderCone;
+pub use l1::L1Penalty;
+pub use product::ConstraintSetProduct;
+pub use sets::{BoxConstraint, EqualityConstraintSet, NegativeOrthant};
+
 /// A closed convex set (or a convex nonsmooth penalty) constraining a residual.
 pub trait ConstraintSet: Send + Sync + Debug {
     /// The dimension the set requires, or `None` if it applies to any dimension.

@@ -7,6 +7,14 @@ use faer::{Col, Mat};
 
 use crate::functions::{Workspace, no_workspace};
 
+mod quadratic;
+mod residual;
+mod stack;
+
+pub use quadratic::{ConstantCost, QuadraticCost};
+pub use residual::{LogBarrierCost, QuadraticControlCost, QuadraticResidualCost, QuadraticStateCost};
+pub use stack::CostStack;
+
 /// What a [`Cost`] writes: value, gradient and Hessian.
 #[derive(Debug)]
 pub struct CostData {

@@ -14,6 +14,16 @@ use faer::{Col, Mat};
 use crate::functions::{Workspace, no_workspace};
 use crate::spaces::Manifold;
 
+pub mod implicit;
+pub mod integrators;
+mod linear;
+#[cfg(test)]
+mod manifold_tests;
+
+pub use implicit::{ExplicitAsImplicit, ImplicitEuler, ImplicitMidpoint};
+pub use integrators::{ExplicitRungeKutta, RkMethod, SemiImplicitEuler};
+pub use linear::{LinearDiscreteDynamics, LinearOde};
+
 /// What [`ExplicitDynamics`] writes: next state and Jacobians.
 #[derive(Debug)]
 pub struct ExplicitDynamicsData {

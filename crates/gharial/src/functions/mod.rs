@@ -14,6 +14,16 @@ use faer::{Col, Mat};
 
 pub mod autodiff;
 pub mod check;
+mod compose;
+mod linear;
+mod state_error;
+#[cfg(test)]
+pub(crate) mod testing;
+pub(crate) mod util;
+
+pub use compose::{FunctionStack, LinearComposition, Slice};
+pub use linear::{LinearFunction, LinearUnaryFunction};
+pub use state_error::{ControlError, StateError};
 
 /// Scratch memory owned by a data object and private to the model that created it.
 pub type Workspace = Box<dyn Any + Send + Sync>;

@@ -1,0 +1,182 @@
+//! Polyhedral sets with diagonal projection Jacobians: `{0}`, the negative orthant and
+//! boxes.
+//!
+//! For these sets the projection acts entry by entry and an element of its generalised
+//! Jacobian is a diagonal 0/1 matrix `P(z)`: `P_ii = 1` where the entry is strictly
+//! inside its interval, 0 where it is on or beyond a bound (the active set of the
+//! paper's eq. (12) includes the boundary).
+
+use faer::MatMut;
+
+use super::ConstraintSet;
+use crate::param::ParamVec;
+use crate::{Error, Result};
+
+/// Zeroes the rows `i` of `m` where `keep(i)` is false.
+fn zero_rows(mut m: MatMut<'_, f64>, keep: impl Fn(usize) -> bool) {
+    for i in 0..m.nrows() {
+        if !keep(i) {
+            m.as_mut().row_mut(i).fill(0.0);
+        }
+    }
+}
+
+/// The equality set `{0}`: `h(x, u) = 0`.
+///
+/// `proj(z) = 0`, normal-cone projection `z` (so `ν⁺ = ν_e + h / mu`, eq. (39)),
+/// `P = 0`, violation `|z|_∞`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct EqualityConstraintSet;
+
+impl ConstraintSet for EqualityConstraintSet {
+    fn is_equality(&self) -> bool {
+        true
+    }
+    fn penalty(&self, z: &[f64]) -> f64 {
+        if z.iter().all(|&v| v == 0.0) {
+            0.0
+        } else {
+            f64::INFINITY
+        }
+    }
+    fn project(&self, _z: &[f64], _mu: f64, out: &mut [f64]) {
+        out.fill(0.0);
+    }
+    fn normal_cone_project(&self, z: &[f64], _mu: f64, out: &mut [f64]) {
+        out.copy_from_slice(z);
+    }
+    fn apply_projection_jacobian(&self, _z: &[f64], _mu: f64, mut m: MatMut<'_, f64>) {
+        m.fill(0.0);
+    }
+    fn apply_normal_cone_jacobian(&self, _z: &[f64], _mu: f64, _m: MatMut<'_, f64>) {}
+    fn violation(&self, z: &[f64]) -> f64 {
+        crate::linalg::norm_inf(z)
+    }
+}
+
+/// The negative orthant `{z : z ≤ 0}`: `h(x, u) ≤ 0`.
+///
+/// `proj(z) = min(z, 0)`, normal-cone projection `max(z, 0)`, `P_ii = [z_i < 0]`,
+/// violation `max(0, max_i z_i)`.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NegativeOrthant;
+
+impl ConstraintSet for NegativeOrthant {
+    fn penalty(&self, z: &[f64]) -> f64 {
+        if z.iter().all(|&v| v <= 0.0) {
+            0.0
+        } else {
+            f64::INFINITY
+        }
+    }
+    fn project(&self, z: &[f64], _mu: f64, out: &mut [f64]) {
+        for (o, &v) in out.iter_mut().zip(z) {
+            *o = v.min(0.0);
+        }
+    }
+    fn normal_cone_project(&self, z: &[f64], _mu: f64, out: &mut [f64]) {
+        for (o, &v) in out.iter_mut().zip(z) {
+            *o = v.max(0.0);
+        }
+    }
+    fn apply_projection_jacobian(&self, z: &[f64], _mu: f64, m: MatMut<'_, f64>) {
+        zero_rows(m, |i| z[i] < 0.0);
+    }
+    fn apply_normal_cone_jacobian(&self, z: &[f64], _mu: f64, m: MatMut<'_, f64>) {
+        zero_rows(m, |i| z[i] >= 0.0);
+    }
+    fn violation(&self, z: &[f64]) -> f64 {
+        z.iter().fold(0.0_f64, |a, &v| a.max(v))
+    }
+}
+
+/// The box `{z : lower ≤ z ≤ upper}` (infinite bounds allowed), with bounds that can
+/// move through `&self`.
+///
+/// `proj(z) = clamp(z, lower, upper)`, `P_ii = [lower_i < z_i < upper_i]`, violation
+/// `max_i max(z_i - upper_i, lower_i - z_i, 0)`.
+#[derive(Debug, Clone)]
+pub struct BoxConstraint {
+    lower: ParamVec,
+    upper: ParamVec,
+}
+
+fn check_bounds(lower: &[f64], upper: &[f64]) -> Result<()> {
+    crate::error::check_dim("BoxConstraint upper (size of lower)", lower.len(), upper.len())?;
+    for (i, (&l, &u)) in lower.iter().zip(upper).enumerate() {
+        if l.is_nan() || u.is_nan() {
+            return Err(Error::non_finite(format!("BoxConstraint bounds, entry {i}")));
+        }
+        if !(l <= u && l < f64::INFINITY && u > f64::NEG_INFINITY) {
+            return Err(Error::InvalidModel(format!(
+                "BoxConstraint: entry {i} needs lower <= upper with lower < +inf and upper > -inf, got [{l}, {u}]"
+            )));
+        }
+    }
+    Ok(())
+}
+
+impl BoxConstraint {
+    /// The box `[lower, upper]`.
+    ///
+    /// # Errors
+    /// If the lengths differ, a bound is NaN, `lower_i > upper_i`, `lower_i = +∞` or
+    /// `upper_i = -∞`.
+    pub fn new(lower: &[f64], upper: &[f64]) -> Result<Self> {
+        check_bounds(lower, upper)?;
+        Ok(Self {
+            lower: ParamVec::new(lower),
+            upper: ParamVec::new(upper),
+        })
+    }
+
+    /// Moves both bounds (through `&self`, e.g. between MPC solves).
+    ///
+    /// # Errors
+    /// As [`BoxConstraint::new`], or if the size changes; the bounds are then unchanged.
+    pub fn set_bounds(&self, lower: &[f64], upper: &[f64]) -> Result<()> {
+        crate::error::check_dim("BoxConstraint lower", self.lower.len(), lower.len())?;
+        check_bounds(lower, upper)?;
+        self.lower.write(lower)?;
+        self.upper.write(upper)
+    }
+
+    /// The lower bounds.
+    pub fn lower(&self) -> Vec<f64> {
+        self.lower.to_vec()
+    }
+
+    /// The upper bounds.
+    pub fn upper(&self) -> Vec<f64> {
+        self.upper.to_vec()
+    }
+}
+
+impl ConstraintSet for BoxConstraint {
+    fn dim(&self) -> Option<usize> {
+        Some(self.lower.len())
+    }
+    fn penalty(&self, z: &[f64]) -> f64 {
+        let inside = z
+            .iter()
+            .enumerate()
+            .all(|(i, &v)| self.lower.get(i) <= v && v <= self.upper.get(i));
+        if inside { 0.0 } else { f64::INFINITY }
+    }
+    fn project(&self, z: &[f64], _mu: f64, out: &mut [f64]) {
+        for (i, (o, &v)) in out.iter_mut().zip(z).enumerate() {
+            *o = v.max(self.lower.get(i)).min(self.upper.get(i));
+        }
+    }
+    fn apply_projection_jacobian(&self, z: &[f64], _mu: f64, m: MatMut<'_, f64>) {
+        zero_rows(m, |i| self.lower.get(i) < z[i] && z[i] < self.upper.get(i));
+    }
+    fn apply_normal_cone_jacobian(&self, z: &[f64], _mu: f64, m: MatMut<'_, f64>) {
+        zero_rows(m, |i| !(self.lower.get(i) < z[i] && z[i] < self.upper.get(i)));
+    }
+    fn violation(&self, z: &[f64]) -> f64 {
+        z.iter().enumerate().fold(0.0_f64, |a, (i, &v)| {
+            a.max(v - self.upper.get(i)).max(self.lower.get(i) - v)
+        })
+    }
+}
