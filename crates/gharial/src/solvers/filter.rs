@@ -74,24 +74,19 @@ impl Filter {
         self.entries.push((phi, theta));
     }
 
-    /// Backtracking search for a step acceptable to the filter and to the current point
-    /// `(phi0, theta0)`; `trial(α)` returns `(φ(α), θ(α))`. On acceptance the current
-    /// point is added to the filter.
-    pub fn search(
-        &mut self,
-        mut trial: impl FnMut(f64) -> (f64, f64),
-        phi0: f64,
-        theta0: f64,
-        opts: &LinesearchOptions,
-    ) -> LinesearchResult {
+    /// Backtracking search for a step acceptable to the filter; `trial(α)` returns
+    /// `(φ(α), θ(α))`. The accepted trial is added to the filter, which therefore holds
+    /// the iterates it accepted: the starting point of a search sequence (an empty
+    /// filter) is not an entry, so the first step is taken whole when it is finite,
+    /// and every later step must not be dominated by an earlier iterate.
+    pub fn search(&mut self, mut trial: impl FnMut(f64) -> (f64, f64), opts: &LinesearchOptions) -> LinesearchResult {
         let mut alpha = 1.0;
         let mut trials = 0;
         loop {
             let (phi, theta) = trial(alpha);
             trials += 1;
-            let ok = self.is_acceptable(phi, theta) && self.acceptable_to(phi, theta, phi0, theta0);
-            if ok {
-                self.add(phi0, theta0);
+            if self.is_acceptable(phi, theta) {
+                self.add(phi, theta);
                 return LinesearchResult {
                     alpha,
                     phi,
@@ -151,22 +146,24 @@ mod tests {
     #[test]
     fn search_backtracks_until_acceptable() {
         let mut f = Filter::new(8, 1e-5, 1e-5);
-        // Current point (1, 1); trials get better only for α ≤ 0.25.
+        // Empty filter: the full step is taken.
+        let r = f.search(|_| (5.0, 5.0), &LinesearchOptions::default());
+        assert!(r.accepted && r.alpha == 1.0);
+        assert_eq!(f.entries(), &[(5.0, 5.0)]);
+        // Trials are better than (5, 5) only for α ≤ 0.25.
         let r = f.search(
-            |a| if a > 0.25 { (2.0, 2.0) } else { (0.5, 0.5) },
-            1.0,
-            1.0,
+            |a| if a > 0.25 { (6.0, 6.0) } else { (0.5, 0.5) },
             &LinesearchOptions::default(),
         );
         assert!(r.accepted);
         assert_eq!(r.alpha, 0.25);
-        assert_eq!(f.entries(), &[(1.0, 1.0)]);
-        // Now a trial equal to the stored point is rejected until max trials.
+        assert_eq!(f.entries(), &[(0.5, 0.5)]);
+        // A trial equal to a stored pair is rejected until the trial limit.
         let opts = LinesearchOptions {
             max_trials: 3,
             ..Default::default()
         };
-        let r = f.search(|_| (1.0, 1.0), 1.0, 1.0, &opts);
+        let r = f.search(|_| (0.5, 0.5), &opts);
         assert!(!r.accepted);
         assert_eq!(r.trials, 3);
     }

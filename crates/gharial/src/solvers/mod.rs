@@ -8,6 +8,7 @@
 
 pub mod filter;
 pub mod linesearch;
+pub mod proxddp;
 
 use std::fmt;
 use std::time::Duration;

@@ -1,0 +1,434 @@
+//! ProxDDP: the primal-dual augmented-Lagrangian DDP of Jallet et al. (2023),
+//! `../shared/papers/proxddp-jallet-2023.md`.
+//!
+//! The outer loop is the bound-constrained-Lagrangian (BCL) schedule of Algorithm 2: an
+//! inner loop of semi-smooth Newton steps on the proximal KKT operator (38) runs until
+//! the inner criterion (19) is below `omega`; then either the multipliers are accepted
+//! (primal residual below `eta`) or the penalty `mu` shrinks, and the tolerances follow.
+//! Each Newton step is the LQ subproblem (42)-(46), (65) solved by the proximal Riccati
+//! recursion of [`crate::lq`], followed by a linear (50) or nonlinear (51) rollout and
+//! a line search (or filter) on the primal-dual merit function (17).
+//!
+//! Beyond the paper: per-constraint AL scaling and a separate dynamics scaling
+//! (appendix C), a general initial constraint (65), implicit dynamics in the nonlinear
+//! rollout (Newton-Raphson), warm starts from any primal-dual point, an exact-Hessian
+//! option, a filter with a correct dominance test, and a wall-time budget.
+
+mod options;
+mod workspace;
+
+pub use options::{HessianApprox, Merit, ProxDdpOptions, Rollout, StepAcceptance};
+
+use std::time::Instant;
+
+use workspace::{Residuals, Workspace};
+
+use crate::error::{Error, Result};
+use crate::lq::LqError;
+use crate::problem::Problem;
+use crate::solvers::filter::Filter;
+use crate::solvers::linesearch::{LinesearchResult, Nonmonotone, armijo};
+use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
+
+/// The ProxDDP solver.
+///
+/// ```text
+/// let mut solver = ProxDdp::new(ProxDdpOptions::default());
+/// solver.setup(&problem)?;                                   // allocates
+/// let sol = solver.solve(&problem, InitialGuess::primal(&xs, &us))?;  // does not
+/// ```
+pub struct ProxDdp {
+    /// Options; changes take effect at the next `setup`.
+    pub options: ProxDdpOptions,
+    ws: Option<Box<Workspace>>,
+    solution: Solution,
+    signature: Vec<(usize, usize, usize, usize)>,
+    filter: Filter,
+}
+
+impl std::fmt::Debug for ProxDdp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ProxDdp")
+            .field("options", &self.options)
+            .finish_non_exhaustive()
+    }
+}
+
+/// Dimensions `(nx, ndx, nu, nc)` of every knot, to check that `solve` gets the problem
+/// `setup` was made for.
+fn signature(problem: &Problem) -> Vec<(usize, usize, usize, usize)> {
+    let n = problem.horizon();
+    let mut s: Vec<_> = (0..n)
+        .map(|t| {
+            let st = &problem.stages()[t];
+            (st.space().nx(), st.space().ndx(), st.nu(), st.nc())
+        })
+        .collect();
+    let sp = problem.space(n);
+    let ncn = problem.terminal_constraints().iter().map(|c| c.nr()).sum();
+    s.push((sp.nx(), sp.ndx(), 0, ncn));
+    s.push((problem.nc0(), 0, 0, 0));
+    s
+}
+
+impl ProxDdp {
+    /// A solver with the given options (nothing allocated until `setup`).
+    pub fn new(options: ProxDdpOptions) -> Self {
+        Self {
+            options,
+            ws: None,
+            solution: Solution::default(),
+            signature: Vec::new(),
+            filter: Filter::new(1, 1e-5, 1e-5),
+        }
+    }
+
+    /// Validates the options and allocates every buffer for `problem`'s dimensions.
+    ///
+    /// # Errors
+    /// If an option is out of range.
+    pub fn setup(&mut self, problem: &Problem) -> Result<()> {
+        self.options.validate()?;
+        self.ws = Some(Box::new(Workspace::new(problem, &self.options)?));
+        self.solution = Solution::new(problem, self.options.max_iters + 1);
+        self.signature = signature(problem);
+        self.filter = Filter::new(self.options.max_iters + 1, 1e-5, 1e-5);
+        Ok(())
+    }
+
+    /// The solution of the last solve.
+    pub fn solution(&self) -> &Solution {
+        &self.solution
+    }
+
+    /// Solves `problem` from `guess`.
+    ///
+    /// # Errors
+    /// If `setup` was not called for a problem of these dimensions, or the guess has a
+    /// wrong size or a non-finite value. Algorithmic outcomes (convergence, iteration
+    /// limit, line-search failure, ...) are reported in [`Solution::status`].
+    pub fn solve(&mut self, problem: &Problem, guess: InitialGuess<'_>) -> Result<&Solution> {
+        self.run(problem, guess, None)
+    }
+
+    /// As [`ProxDdp::solve`], calling `callback` after every iteration.
+    ///
+    /// # Errors
+    /// As [`ProxDdp::solve`].
+    pub fn solve_with_callback(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        callback: &mut dyn Callback,
+    ) -> Result<&Solution> {
+        self.run(problem, guess, Some(callback))
+    }
+
+    fn run(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        mut callback: Option<&mut dyn Callback>,
+    ) -> Result<&Solution> {
+        if self.ws.is_none() {
+            return Err(Error::InvalidModel("ProxDdp::solve called before setup".into()));
+        }
+        if signature(problem) != self.signature {
+            return Err(Error::InvalidModel(
+                "ProxDdp::solve: the problem's dimensions differ from those given to setup".into(),
+            ));
+        }
+        guess.check(problem)?;
+        let opts = &self.options;
+        let ws = self.ws.as_mut().expect("checked above");
+        let filter = &mut self.filter;
+        let sol = &mut self.solution;
+        let start = Instant::now();
+
+        ws.load_guess(&guess);
+        filter.clear();
+        let mut nonmonotone = Nonmonotone::new(match opts.step_acceptance {
+            options::StepAcceptance::NonmonotoneLinesearch => opts.nonmonotone_eta,
+            _ => 0.0,
+        });
+        let mut mu = opts.mu_init;
+        let mut mu_d = opts.dyn_al_scale * mu;
+        // Initial tolerances: the failure update of Algorithm 2 from omega_0 = eta_0 = 1.
+        let mut eta = mu.powf(opts.bcl_beta_eta).max(opts.tol);
+        let mut omega = mu.powf(opts.bcl_beta_omega).max(opts.tol);
+        let mut preg = 0.0;
+        let mut iter = 0;
+        let mut al_iter = 0;
+        let mut status = Status::MaxIterations;
+        let mut res = Residuals::default();
+        // Round-off handling: when the merit slope along the Newton direction is at
+        // round-off level, merit values cannot rank step lengths and the full step is
+        // taken; when such steps stop reducing the inner criterion, the subproblem is
+        // solved as accurately as the arithmetic allows and the outer loop takes over.
+        let mut stalled = false;
+        let mut roundoff_inner = f64::INFINITY;
+        sol.history.clear();
+        if opts.verbose {
+            print_header();
+        }
+
+        let mut cost = match ws.evaluate_current(problem) {
+            Some(c) => c,
+            None => {
+                status = Status::NonFinite;
+                f64::NAN
+            }
+        };
+        'outer: while status != Status::NonFinite {
+            res = ws.estimates_and_residuals(problem, mu, mu_d);
+            if !(res.prim.is_finite() && res.dual.is_finite()) {
+                status = Status::NonFinite;
+                break;
+            }
+            ws.record_best(res.prim.max(res.dual));
+            if res.prim <= opts.tol && res.dual <= opts.tol {
+                status = Status::Converged;
+                break;
+            }
+            if opts.max_time.is_some_and(|b| start.elapsed() >= b) {
+                status = Status::TimeBudget;
+                break;
+            }
+            if res.inner <= omega || stalled {
+                stalled = false;
+                // Outer update of Algorithm 2 (lines 9-24).
+                al_iter += 1;
+                if res.prim <= eta {
+                    ws.accept_multipliers();
+                    omega *= mu.powf(opts.bcl_alpha_omega);
+                    eta *= mu.powf(opts.bcl_alpha_eta);
+                } else {
+                    mu = (mu * opts.mu_update_factor).max(opts.mu_lower_bound);
+                    mu_d = opts.dyn_al_scale * mu;
+                    omega *= mu.powf(opts.bcl_beta_omega);
+                    eta *= mu.powf(opts.bcl_beta_eta);
+                }
+                omega = omega.max(opts.tol);
+                eta = eta.max(opts.tol);
+                // The merit function changed: past values and filter entries no longer apply.
+                filter.clear();
+                nonmonotone = Nonmonotone::new(match opts.step_acceptance {
+                    options::StepAcceptance::NonmonotoneLinesearch => opts.nonmonotone_eta,
+                    _ => 0.0,
+                });
+                if al_iter >= opts.max_al_iters {
+                    status = Status::MaxIterations;
+                    break;
+                }
+                continue;
+            }
+            if iter >= opts.max_iters {
+                status = Status::MaxIterations;
+                break;
+            }
+
+            // Newton step: LQ subproblem (42)-(46), with inertia correction.
+            ws.build_lq(problem, opts, mu, mu_d);
+            let dphi0 = loop {
+                match ws.riccati.backward(&ws.lq, preg) {
+                    Ok(()) => {}
+                    Err(LqError::NonFinite { .. }) => {
+                        status = Status::NonFinite;
+                        break 'outer;
+                    }
+                    Err(_) => {
+                        preg = (preg * opts.preg_increase).max(opts.preg_min);
+                        if preg > opts.preg_max {
+                            status = Status::RegularizationFailure;
+                            break 'outer;
+                        }
+                        continue;
+                    }
+                }
+                if ws.riccati.forward(&ws.lq, &mut ws.step).is_err() {
+                    status = Status::NonFinite;
+                    break 'outer;
+                }
+                let d = ws.merit_slope(problem, opts.merit, mu, mu_d);
+                if !d.is_finite() {
+                    status = Status::NonFinite;
+                    break 'outer;
+                }
+                // Not a descent direction: regularise the primal block and retry.
+                if d > 0.0 && preg < opts.preg_max {
+                    preg = (preg * opts.preg_increase).max(opts.preg_min);
+                    continue;
+                }
+                break d;
+            };
+
+            // Merit at the current point.
+            ws.trial.copy_from(&ws.cur);
+            let (phi0, _) = ws.trial_merit(problem, opts.merit, mu, mu_d);
+            let roundoff = dphi0.abs() <= opts.dphi_thresh * phi0.abs().max(1.0);
+            if roundoff {
+                if res.inner > 0.5 * roundoff_inner {
+                    stalled = true;
+                    roundoff_inner = f64::INFINITY;
+                    continue;
+                }
+                roundoff_inner = res.inner;
+            } else {
+                roundoff_inner = f64::INFINITY;
+            }
+            let mut trial = |alpha: f64| -> (f64, f64) {
+                let ok = match opts.rollout {
+                    Rollout::Linear => {
+                        ws.linear_trial(problem, alpha);
+                        true
+                    }
+                    Rollout::Nonlinear => ws.nonlinear_trial(problem, opts, alpha, mu_d),
+                };
+                if !ok {
+                    return (f64::NAN, f64::NAN);
+                }
+                let c = ws.data.evaluate(problem, &ws.trial.xs, &ws.trial.us);
+                if !c.is_finite() {
+                    return (f64::NAN, f64::NAN);
+                }
+                ws.trial_merit(problem, opts.merit, mu, mu_d)
+            };
+            let ls = match opts.step_acceptance {
+                _ if roundoff => {
+                    let (phi, _) = trial(1.0);
+                    LinesearchResult {
+                        alpha: 1.0,
+                        phi,
+                        accepted: phi.is_finite(),
+                        trials: 1,
+                    }
+                }
+                StepAcceptance::Filter => filter.search(&mut trial, &opts.linesearch),
+                StepAcceptance::Linesearch | StepAcceptance::NonmonotoneLinesearch => {
+                    let reference = nonmonotone.reference(phi0);
+                    armijo(|a| trial(a).0, phi0, dphi0, reference, &opts.linesearch)
+                }
+            };
+            let record = IterationRecord {
+                iter,
+                alpha: ls.alpha,
+                inner_crit: res.inner,
+                prim_err: res.prim,
+                dual_err: res.dual,
+                preg,
+                cost,
+                dphi0,
+                merit: ls.phi,
+                dmerit: ls.phi - phi0,
+                al_iter,
+                mu,
+            };
+            if !ls.accepted {
+                // Restore the data of the current point, then retry with a larger primal
+                // regularisation (a step closer to steepest descent), up to its bound.
+                ws.evaluate_current(problem);
+                push_record(sol, record, opts.verbose);
+                preg = (preg * opts.preg_increase).max(opts.preg_min);
+                if preg > opts.preg_max {
+                    status = Status::LinesearchFailure;
+                    break;
+                }
+                iter += 1;
+                continue;
+            }
+            // The last trial evaluated is the accepted one.
+            ws.accept_trial();
+            iter += 1;
+            nonmonotone.update(ls.phi);
+            preg *= opts.preg_decrease;
+            if preg < opts.preg_min {
+                preg = 0.0;
+            }
+            push_record(sol, record, opts.verbose);
+            if let Some(cb) = callback.as_mut()
+                && !cb.on_iteration(&record)
+            {
+                cost = ws.evaluate_current(problem).unwrap_or(f64::NAN);
+                res = ws.estimates_and_residuals(problem, mu, mu_d);
+                status = Status::MaxIterations;
+                break;
+            }
+            match ws.evaluate_current(problem) {
+                Some(c) => cost = c,
+                None => {
+                    status = Status::NonFinite;
+                    break;
+                }
+            }
+        }
+
+        if status == Status::TimeBudget && ws.best_err < res.prim.max(res.dual) {
+            std::mem::swap(&mut ws.cur, &mut ws.best);
+            cost = ws.evaluate_current(problem).unwrap_or(f64::NAN);
+            res = ws.estimates_and_residuals(problem, mu, mu_d);
+        }
+        // Write the solution.
+        for (a, b) in sol.xs.iter_mut().zip(&ws.cur.xs) {
+            a.copy_from_slice(b);
+        }
+        for (a, b) in sol.us.iter_mut().zip(&ws.cur.us) {
+            a.copy_from_slice(b);
+        }
+        for (a, b) in sol.lambdas.iter_mut().zip(&ws.cur.lams) {
+            a.copy_from_slice(b);
+        }
+        for (a, b) in sol.nus.iter_mut().zip(&ws.cur.nus) {
+            a.copy_from_slice(b);
+        }
+        for t in 0..problem.horizon() {
+            let st = ws.riccati.stage(t);
+            crate::linalg::slice_mut(&mut sol.feedforward[t]).copy_from_slice(st.k());
+            sol.feedback[t].copy_from(st.K());
+        }
+        sol.status = status;
+        sol.iterations = iter;
+        sol.al_iterations = al_iter;
+        sol.prim_err = res.prim;
+        sol.dual_err = res.dual;
+        sol.cost = cost;
+        sol.mu = mu;
+        sol.solve_time = start.elapsed();
+        Ok(&self.solution)
+    }
+}
+
+fn push_record(sol: &mut Solution, record: IterationRecord, verbose: bool) {
+    if sol.history.len() < sol.history.capacity() {
+        sol.history.push(record);
+    }
+    if verbose {
+        print_row(&record);
+    }
+}
+
+/// Writes the header of the iteration table to standard error.
+fn print_header() {
+    eprintln!(
+        "{:>5} {:>9} {:>10} {:>10} {:>10} {:>9} {:>13} {:>10} {:>13} {:>10} {:>4} {:>9}",
+        "iter", "alpha", "inner_crit", "prim_err", "dual_err", "preg", "cost", "dphi0", "merit", "dM", "al", "mu"
+    );
+}
+
+/// Writes one row of the iteration table to standard error.
+fn print_row(r: &IterationRecord) {
+    eprintln!(
+        "{:>5} {:>9.3e} {:>10.3e} {:>10.3e} {:>10.3e} {:>9.2e} {:>13.6e} {:>10.3e} {:>13.6e} {:>10.3e} {:>4} {:>9.2e}",
+        r.iter,
+        r.alpha,
+        r.inner_crit,
+        r.prim_err,
+        r.dual_err,
+        r.preg,
+        r.cost,
+        r.dphi0,
+        r.merit,
+        r.dmerit,
+        r.al_iter,
+        r.mu
+    );
+}

@@ -1,0 +1,215 @@
+//! Options of the ProxDDP solver, with documented defaults.
+
+use std::time::Duration;
+
+use crate::error::{Error, Result};
+use crate::solvers::linesearch::LinesearchOptions;
+
+/// How the trial point of a step is built (paper section IV-C).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Rollout {
+    /// The SQP step itself: `x ⊕ α δx`, `u + α δu`, multipliers `+ α δ` (eq. (50)).
+    #[default]
+    Linear,
+    /// A closed-loop rollout of the nonlinear dynamics with the Riccati gains (eq. (51));
+    /// implicit dynamics are solved for the next state with Newton-Raphson.
+    Nonlinear,
+}
+
+/// How a step is accepted (globalisation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum StepAcceptance {
+    /// Armijo backtracking on the merit function.
+    #[default]
+    Linesearch,
+    /// Armijo backtracking against the Zhang-Hager average of past merit values.
+    NonmonotoneLinesearch,
+    /// Filter on (merit, primal infeasibility).
+    Filter,
+}
+
+/// Which merit function the step acceptance uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Merit {
+    /// The primal-dual augmented Lagrangian (17), searched over `(x, u, λ, ν)`.
+    #[default]
+    PrimalDual,
+    /// The primal augmented Lagrangian (35), searched over `(x, u)`; multipliers follow
+    /// the step.
+    Primal,
+}
+
+/// Which Hessian of the Lagrangian builds the Newton system.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum HessianApprox {
+    /// Cost Hessians only (Gauss-Newton).
+    #[default]
+    GaussNewton,
+    /// Cost Hessians plus the multiplier-weighted second derivatives (37d-37i) of the
+    /// dynamics and constraints that provide vector-Hessian products.
+    Exact,
+}
+
+/// Options of [`super::ProxDdp`].
+#[derive(Debug, Clone)]
+pub struct ProxDdpOptions {
+    /// Target tolerance on the primal (53) and dual (52) residuals (default `1e-6`).
+    pub tol: f64,
+    /// Initial augmented-Lagrangian penalty `mu_0` (default `1e-2`).
+    pub mu_init: f64,
+    /// Factor applied to `mu` when the primal residual misses its BCL tolerance
+    /// (default `0.01`).
+    pub mu_update_factor: f64,
+    /// Lower bound on `mu` (default `1e-8`).
+    pub mu_lower_bound: f64,
+    /// Scale of the dynamics and initial-condition penalty relative to `mu`
+    /// (appendix C; default 1).
+    pub dyn_al_scale: f64,
+    /// BCL exponent of the inner tolerance `omega` after a successful outer step
+    /// (`α_ω` of Algorithm 2, default 1).
+    pub bcl_alpha_omega: f64,
+    /// BCL exponent of the primal tolerance `eta` after a successful outer step
+    /// (`α_η`, default 0.5: with the small penalties ProxDDP uses, `mu^0.9` would ask
+    /// one multiplier update to reduce the infeasibility by six orders of magnitude at
+    /// `mu = 1e-6`, turning normal progress into a penalty decrease).
+    pub bcl_alpha_eta: f64,
+    /// BCL exponent of `omega` after a failed outer step (`β_ω`, default 1).
+    pub bcl_beta_omega: f64,
+    /// BCL exponent of `eta` after a failed outer step (`β_η`, default 0.1).
+    pub bcl_beta_eta: f64,
+    /// Maximum number of Newton iterations (default 300).
+    pub max_iters: usize,
+    /// Maximum number of augmented-Lagrangian (outer) iterations (default 100).
+    pub max_al_iters: usize,
+    /// Forward pass (default linear).
+    pub rollout: Rollout,
+    /// Step acceptance (default Armijo line search).
+    pub step_acceptance: StepAcceptance,
+    /// Merit function (default primal-dual).
+    pub merit: Merit,
+    /// Hessian approximation (default Gauss-Newton).
+    pub hessian: HessianApprox,
+    /// Line-search options.
+    pub linesearch: LinesearchOptions,
+    /// Averaging weight of the nonmonotone line search (default 0.85).
+    pub nonmonotone_eta: f64,
+    /// First nonzero primal regularisation tried when the Newton system has the wrong
+    /// inertia or the step is not a descent direction (default `1e-9`).
+    pub preg_min: f64,
+    /// Largest primal regularisation before giving up (default `1e9`).
+    pub preg_max: f64,
+    /// Growth factor of the primal regularisation (default 10).
+    pub preg_increase: f64,
+    /// Shrink factor of the primal regularisation after a successful step (default 1/3).
+    pub preg_decrease: f64,
+    /// Newton iterations of the implicit-dynamics solve in the nonlinear rollout
+    /// (default 20) and its tolerance (default `1e-12`).
+    pub implicit_newton_iters: usize,
+    /// Tolerance of the implicit-dynamics Newton solve (default `1e-12`).
+    pub implicit_newton_tol: f64,
+    /// The subproblem counts as solved when the merit slope along the Newton direction
+    /// is below `dphi_thresh · max(1, |merit|)` (round-off level; default `1e-13`).
+    pub dphi_thresh: f64,
+    /// Wall-time budget; the best iterate so far is returned when it runs out.
+    pub max_time: Option<Duration>,
+    /// Threads for stage-wise evaluation (default 1).
+    pub num_threads: usize,
+    /// Print the iteration table to standard error (default false).
+    pub verbose: bool,
+}
+
+impl Default for ProxDdpOptions {
+    fn default() -> Self {
+        Self {
+            tol: 1e-6,
+            mu_init: 1e-2,
+            mu_update_factor: 0.01,
+            mu_lower_bound: 1e-8,
+            dyn_al_scale: 1.0,
+            bcl_alpha_omega: 1.0,
+            bcl_alpha_eta: 0.5,
+            bcl_beta_omega: 1.0,
+            bcl_beta_eta: 0.1,
+            max_iters: 300,
+            max_al_iters: 100,
+            rollout: Rollout::Linear,
+            step_acceptance: StepAcceptance::Linesearch,
+            merit: Merit::PrimalDual,
+            hessian: HessianApprox::GaussNewton,
+            linesearch: LinesearchOptions::default(),
+            nonmonotone_eta: 0.85,
+            preg_min: 1e-9,
+            preg_max: 1e9,
+            preg_increase: 10.0,
+            preg_decrease: 1.0 / 3.0,
+            implicit_newton_iters: 20,
+            implicit_newton_tol: 1e-12,
+            dphi_thresh: 1e-13,
+            max_time: None,
+            num_threads: 1,
+            verbose: false,
+        }
+    }
+}
+
+impl ProxDdpOptions {
+    /// Checks every option's range.
+    ///
+    /// # Errors
+    /// Names the offending option and its valid range.
+    pub fn validate(&self) -> Result<()> {
+        let pos = |name: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(Error::option(name, format!("must be positive and finite, got {v}")))
+            }
+        };
+        pos("tol", self.tol)?;
+        pos("mu_init", self.mu_init)?;
+        pos("mu_lower_bound", self.mu_lower_bound)?;
+        pos("dyn_al_scale", self.dyn_al_scale)?;
+        pos("preg_min", self.preg_min)?;
+        pos("preg_max", self.preg_max)?;
+        pos("implicit_newton_tol", self.implicit_newton_tol)?;
+        pos("dphi_thresh", self.dphi_thresh)?;
+        if !(self.mu_update_factor > 0.0 && self.mu_update_factor < 1.0) {
+            return Err(Error::option("mu_update_factor", "must be in (0, 1)"));
+        }
+        if self.mu_lower_bound > self.mu_init {
+            return Err(Error::option("mu_lower_bound", "must not exceed mu_init"));
+        }
+        for (name, v) in [
+            ("bcl_alpha_omega", self.bcl_alpha_omega),
+            ("bcl_alpha_eta", self.bcl_alpha_eta),
+            ("bcl_beta_omega", self.bcl_beta_omega),
+            ("bcl_beta_eta", self.bcl_beta_eta),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::option(name, "must be finite and non-negative"));
+            }
+        }
+        if self.max_iters == 0 {
+            return Err(Error::option("max_iters", "must be at least 1"));
+        }
+        if self.max_al_iters == 0 {
+            return Err(Error::option("max_al_iters", "must be at least 1"));
+        }
+        if self.preg_increase.is_nan() || self.preg_increase <= 1.0 {
+            return Err(Error::option("preg_increase", "must be greater than 1"));
+        }
+        if !(self.preg_decrease > 0.0 && self.preg_decrease < 1.0) {
+            return Err(Error::option("preg_decrease", "must be in (0, 1)"));
+        }
+        if self.preg_min > self.preg_max {
+            return Err(Error::option("preg_min", "must not exceed preg_max"));
+        }
+        if !(0.0..=1.0).contains(&self.nonmonotone_eta) {
+            return Err(Error::option("nonmonotone_eta", "must be in [0, 1]"));
+        }
+        if self.num_threads == 0 {
+            return Err(Error::option("num_threads", "must be at least 1"));
+        }
+        self.linesearch.validate()
+    }
+}

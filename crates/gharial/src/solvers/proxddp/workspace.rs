@@ -1,0 +1,765 @@
+//! ProxDDP's workspace: iterates, multipliers, estimates, the LQ subproblem, and the
+//! per-iteration computations (residuals, Newton system, merit, rollouts). Everything is
+//! allocated in [`Workspace::new`]; no method allocates.
+
+use faer::{Accum, Mat};
+
+use super::options::{HessianApprox, Merit, ProxDdpOptions};
+use crate::dynamics::Dynamics;
+use crate::error::Result;
+use crate::linalg::{Lu, matvec, norm_inf, slice, slice_mut};
+use crate::lq::{LqKnot, LqProblem, LqSolution, RiccatiOptions, RiccatiSolver};
+use crate::problem::{DynamicsData, Problem, ProblemData, StageConstraint};
+use crate::solvers::InitialGuess;
+
+/// A primal-dual point `(xs, us, λs, νs)`.
+#[derive(Debug, Clone)]
+pub(super) struct Point {
+    pub xs: Vec<Vec<f64>>,
+    pub us: Vec<Vec<f64>>,
+    pub lams: Vec<Vec<f64>>,
+    pub nus: Vec<Vec<f64>>,
+}
+
+impl Point {
+    fn new(problem: &Problem) -> Self {
+        let s = crate::solvers::Solution::new(problem, 0);
+        Self {
+            xs: s.xs,
+            us: s.us,
+            lams: s.lambdas,
+            nus: s.nus,
+        }
+    }
+
+    pub fn copy_from(&mut self, o: &Point) {
+        for (a, b) in self.xs.iter_mut().zip(&o.xs) {
+            a.copy_from_slice(b);
+        }
+        for (a, b) in self.us.iter_mut().zip(&o.us) {
+            a.copy_from_slice(b);
+        }
+        for (a, b) in self.lams.iter_mut().zip(&o.lams) {
+            a.copy_from_slice(b);
+        }
+        for (a, b) in self.nus.iter_mut().zip(&o.nus) {
+            a.copy_from_slice(b);
+        }
+    }
+}
+
+/// The constraints of knot `t` (`t < N`: path constraints; `t = N`: terminal ones).
+fn knot_constraints(problem: &Problem, t: usize) -> &[StageConstraint] {
+    if t < problem.horizon() {
+        problem.stages()[t].constraints()
+    } else {
+        problem.terminal_constraints()
+    }
+}
+
+/// Residuals at the current point, ProxDDP (19), (52), (53).
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Residuals {
+    /// Primal residual (53).
+    pub prim: f64,
+    /// Dual residual (52).
+    pub dual: f64,
+    /// Inner criterion (19).
+    pub inner: f64,
+}
+
+pub(super) struct Workspace {
+    /// Current iterate.
+    pub cur: Point,
+    /// Trial iterate of the line search.
+    pub trial: Point,
+    /// Best iterate (smallest max(prim, dual)) for the time budget.
+    pub best: Point,
+    pub best_err: f64,
+    /// Outer multipliers `λ_e`, `ν_e` (Algorithm 2).
+    pub lams_e: Vec<Vec<f64>>,
+    pub nus_e: Vec<Vec<f64>>,
+    /// First-order estimates `λ⁺`, `ν⁺` (39).
+    pub lams_p: Vec<Vec<f64>>,
+    pub nus_p: Vec<Vec<f64>>,
+    /// Effective constraint multipliers of the Newton system's gradient,
+    /// `ν⁺ - J_N (ν⁺ - ν)`.
+    nus_g: Vec<Vec<f64>>,
+    /// Per-knot scratch of constraint size.
+    zbuf: Vec<Vec<f64>>,
+    wbuf: Vec<Vec<f64>>,
+    /// Lagrangian gradient per knot.
+    gx: Vec<Vec<f64>>,
+    gu: Vec<Vec<f64>>,
+    /// Scratch of state tangent size per knot (`x_t^α ⊖ x_t`, Jacobian-vector products).
+    dxbuf: Vec<Vec<f64>>,
+    /// Scratch of state representation size per knot.
+    ybuf: Vec<Vec<f64>>,
+    tbuf: Vec<Vec<f64>>,
+    /// Implicit-dynamics Newton solves of the nonlinear rollout, per stage.
+    implicit_lu: Vec<Option<Lu>>,
+    pub lq: LqProblem,
+    pub step: LqSolution,
+    pub riccati: RiccatiSolver,
+    pub data: ProblemData,
+}
+
+impl Workspace {
+    pub fn new(problem: &Problem, opts: &ProxDdpOptions) -> Result<Self> {
+        let n = problem.horizon();
+        let cur = Point::new(problem);
+        let ncs: Vec<usize> = (0..=n)
+            .map(|t| knot_constraints(problem, t).iter().map(|c| c.nr()).sum())
+            .collect();
+        let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
+        let mut knots = Vec::with_capacity(n + 1);
+        for t in 0..=n {
+            let nx_next = if t < n { ndxs[t + 1] } else { 0 };
+            knots.push(LqKnot::new(ndxs[t], problem.nu(t), ncs[t], nx_next));
+        }
+        let nc0 = problem.nc0();
+        let lq = LqProblem {
+            knots,
+            G0: Mat::zeros(nc0, ndxs[0]),
+            g0: faer::Col::zeros(nc0),
+            mu0: 0.0,
+        };
+        let riccati = RiccatiSolver::with_options(
+            &lq,
+            RiccatiOptions {
+                rollout_gains: true,
+                refinement_steps: 1,
+            },
+        )?;
+        let step = LqSolution::new(&lq);
+        let implicit_lu = problem
+            .stages()
+            .iter()
+            .map(|s| match &s.dynamics {
+                Dynamics::Implicit(d) => Some(Lu::new(d.space_next().ndx(), 1)),
+                Dynamics::Explicit(_) => None,
+            })
+            .collect();
+        let vecs = |sizes: &[usize]| sizes.iter().map(|&k| vec![0.0; k]).collect::<Vec<_>>();
+        let nus_sizes: Vec<usize> = ncs.clone();
+        Ok(Self {
+            trial: cur.clone(),
+            best: cur.clone(),
+            best_err: f64::INFINITY,
+            lams_e: cur.lams.clone(),
+            nus_e: cur.nus.clone(),
+            lams_p: cur.lams.clone(),
+            nus_p: cur.nus.clone(),
+            nus_g: cur.nus.clone(),
+            zbuf: vecs(&nus_sizes),
+            wbuf: vecs(&nus_sizes),
+            gx: vecs(&ndxs),
+            gu: (0..n).map(|t| vec![0.0; problem.nu(t)]).collect(),
+            dxbuf: vecs(&ndxs),
+            ybuf: (0..=n).map(|t| vec![0.0; problem.space(t).nx()]).collect(),
+            tbuf: vecs(&ndxs),
+            implicit_lu,
+            lq,
+            step,
+            riccati,
+            data: ProblemData::new(problem, opts.num_threads)?,
+            cur,
+        })
+    }
+
+    /// Loads a guess; missing multipliers are zero. `λ_e`, `ν_e` start at the guess.
+    pub fn load_guess(&mut self, guess: &InitialGuess<'_>) {
+        for (a, b) in self.cur.xs.iter_mut().zip(guess.xs) {
+            a.copy_from_slice(b);
+        }
+        for (a, b) in self.cur.us.iter_mut().zip(guess.us) {
+            a.copy_from_slice(b);
+        }
+        match guess.lambdas {
+            Some(l) => {
+                for (a, b) in self.cur.lams.iter_mut().zip(l) {
+                    a.copy_from_slice(b);
+                }
+            }
+            None => self.cur.lams.iter_mut().for_each(|v| v.fill(0.0)),
+        }
+        match guess.nus {
+            Some(l) => {
+                for (a, b) in self.cur.nus.iter_mut().zip(l) {
+                    a.copy_from_slice(b);
+                }
+            }
+            None => self.cur.nus.iter_mut().for_each(|v| v.fill(0.0)),
+        }
+        for (a, b) in self.lams_e.iter_mut().zip(&self.cur.lams) {
+            a.copy_from_slice(b);
+        }
+        for (a, b) in self.nus_e.iter_mut().zip(&self.cur.nus) {
+            a.copy_from_slice(b);
+        }
+        self.best_err = f64::INFINITY;
+    }
+
+    /// Accepts the current multipliers as the outer ones (BCL success).
+    pub fn accept_multipliers(&mut self) {
+        for (a, b) in self.lams_e.iter_mut().zip(&self.cur.lams) {
+            a.copy_from_slice(b);
+        }
+        for (a, b) in self.nus_e.iter_mut().zip(&self.cur.nus) {
+            a.copy_from_slice(b);
+        }
+    }
+
+    /// Evaluates values and first derivatives at the current point; returns the cost,
+    /// or `None` if a value is not finite.
+    pub fn evaluate_current(&mut self, problem: &Problem) -> Option<f64> {
+        let c = self.data.evaluate(problem, &self.cur.xs, &self.cur.us);
+        if !self.values_finite() || !c.is_finite() {
+            return None;
+        }
+        self.data.compute_derivatives(problem, &self.cur.xs, &self.cur.us);
+        Some(c)
+    }
+
+    fn values_finite(&self) -> bool {
+        let d = &self.data;
+        d.init.value().iter().all(|v| v.is_finite())
+            && d.stages.iter().all(|s| {
+                s.dyn_value().iter().all(|v| v.is_finite())
+                    && s.constraints.iter().all(|c| c.value().iter().all(|v| v.is_finite()))
+            })
+            && d.terminal_constraints
+                .iter()
+                .all(|c| c.value().iter().all(|v| v.is_finite()))
+    }
+
+    /// Multiplier estimates (39) and the residuals (19), (52), (53) at the current point
+    /// for penalty `mu` (dynamics penalty `mu_d`).
+    pub fn estimates_and_residuals(&mut self, problem: &Problem, mu: f64, mu_d: f64) -> Residuals {
+        let n = problem.horizon();
+        let mut prim: f64 = 0.0;
+        let mut inner: f64 = 0.0;
+        // Initial condition and dynamics: λ⁺ = λ_e + f / mu_d.
+        let init = self.data.init.value();
+        for i in 0..init.len() {
+            self.lams_p[0][i] = self.lams_e[0][i] + init[i] / mu_d;
+            prim = prim.max(init[i].abs());
+            inner = inner.max((mu_d * (self.lams_p[0][i] - self.cur.lams[0][i])).abs());
+        }
+        for t in 0..n {
+            let f = self.data.stages[t].dyn_value();
+            for i in 0..f.len() {
+                self.lams_p[t + 1][i] = self.lams_e[t + 1][i] + f[i] / mu_d;
+                prim = prim.max(f[i].abs());
+                inner = inner.max((mu_d * (self.lams_p[t + 1][i] - self.cur.lams[t + 1][i])).abs());
+            }
+        }
+        // Constraints: z = h + mu_i ν_e, ν⁺ = (z - proj_C(z)) / mu_i; the primal measure
+        // (53) is |[h + mu ν_e]_- - h| = mu_i |ν_e - ν⁺|.
+        for t in 0..=n {
+            let cs = knot_constraints(problem, t);
+            let datas = if t < n {
+                &self.data.stages[t].constraints
+            } else {
+                &self.data.terminal_constraints
+            };
+            let mut off = 0;
+            for (c, d) in cs.iter().zip(datas) {
+                let nr = c.nr();
+                let mu_i = c.scale * mu;
+                let h = d.value();
+                let z = &mut self.zbuf[t][off..off + nr];
+                for i in 0..nr {
+                    z[i] = h[i] + mu_i * self.nus_e[t][off + i];
+                }
+                let np = &mut self.nus_p[t][off..off + nr];
+                c.set.normal_cone_project(z, mu_i, np);
+                for i in 0..nr {
+                    np[i] /= mu_i;
+                    prim = prim.max((mu_i * (self.nus_e[t][off + i] - np[i])).abs());
+                    inner = inner.max((mu_i * (np[i] - self.cur.nus[t][off + i])).abs());
+                }
+                off += nr;
+            }
+        }
+        self.data
+            .lagrangian_gradient(problem, &self.cur.lams, &self.cur.nus, &mut self.gx, &mut self.gu);
+        let dual = self
+            .gx
+            .iter()
+            .chain(self.gu.iter())
+            .fold(0.0_f64, |a, g| a.max(norm_inf(g)));
+        Residuals {
+            prim,
+            dual,
+            inner: inner.max(dual),
+        }
+    }
+
+    /// Fills the LQ knots with the Newton system (42)-(46), (65) at the current point.
+    pub fn build_lq(&mut self, problem: &Problem, opts: &ProxDdpOptions, mu: f64, mu_d: f64) {
+        let n = problem.horizon();
+        // Effective constraint multipliers of the gradient: ν⁺ - J_N (ν⁺ - ν). For sets
+        // whose normal-cone Jacobian is a projector (equality, orthant, box) this is
+        // J_N ν, the active multipliers of (46).
+        for t in 0..=n {
+            let cs = knot_constraints(problem, t);
+            let mut off = 0;
+            for c in cs {
+                let nr = c.nr();
+                let mu_i = c.scale * mu;
+                let w = &mut self.wbuf[t][off..off + nr];
+                for i in 0..nr {
+                    w[i] = self.nus_p[t][off + i] - self.cur.nus[t][off + i];
+                }
+                c.set
+                    .apply_normal_cone_jacobian(&self.zbuf[t][off..off + nr], mu_i, crate::linalg::as_mat_mut(w));
+                for i in 0..nr {
+                    self.nus_g[t][off + i] = self.nus_p[t][off + i] - w[i];
+                }
+                off += nr;
+            }
+        }
+        self.data
+            .lagrangian_gradient(problem, &self.cur.lams, &self.nus_g, &mut self.gx, &mut self.gu);
+        if opts.hessian == HessianApprox::Exact {
+            self.data
+                .compute_second_order(problem, &self.cur.xs, &self.cur.us, &self.lams_p, &self.nus_p);
+        }
+        // Initial condition (65).
+        self.lq.G0.copy_from(&self.data.init.jx);
+        for i in 0..self.lq.g0.nrows() {
+            self.lq.g0[i] = mu_d * (self.lams_p[0][i] - self.cur.lams[0][i]);
+        }
+        self.lq.mu0 = mu_d;
+        for t in 0..=n {
+            let knot = &mut self.lq.knots[t];
+            slice_mut(&mut knot.q).copy_from_slice(&self.gx[t]);
+            if t < n {
+                let sd = &self.data.stages[t];
+                knot.Q.copy_from(&sd.cost.lxx);
+                knot.S.copy_from(&sd.cost.lxu);
+                knot.R.copy_from(&sd.cost.luu);
+                slice_mut(&mut knot.r).copy_from_slice(&self.gu[t]);
+                knot.A.copy_from(&sd.dyn_jx);
+                knot.B.copy_from(&sd.dyn_ju);
+                knot.E.copy_from(&sd.dyn_jy);
+                for i in 0..knot.nx_next {
+                    knot.f[i] = mu_d * (self.lams_p[t + 1][i] - self.cur.lams[t + 1][i]);
+                }
+                knot.mu_dyn = mu_d;
+            } else {
+                knot.Q.copy_from(&self.data.terminal_cost.lxx);
+            }
+            // Constraint rows: C = J_N h_x, D = J_N h_u, d = mu_i (ν⁺ - ν), mu_c = mu_i.
+            let cs = knot_constraints(problem, t);
+            let datas = if t < n {
+                &self.data.stages[t].constraints
+            } else {
+                &self.data.terminal_constraints
+            };
+            let mut off = 0;
+            for (c, d) in cs.iter().zip(datas) {
+                let nr = c.nr();
+                let mu_i = c.scale * mu;
+                let z = &self.zbuf[t][off..off + nr];
+                let mut crows = knot.C.as_mut().subrows_mut(off, nr);
+                crows.copy_from(&d.jx);
+                c.set.apply_normal_cone_jacobian(z, mu_i, crows);
+                if knot.nu > 0 {
+                    let mut drows = knot.D.as_mut().subrows_mut(off, nr);
+                    drows.copy_from(&d.ju);
+                    c.set.apply_normal_cone_jacobian(z, mu_i, drows);
+                }
+                for i in 0..nr {
+                    knot.d[off + i] = mu_i * (self.nus_p[t][off + i] - self.cur.nus[t][off + i]);
+                    knot.mu_c[off + i] = mu_i;
+                }
+                off += nr;
+            }
+        }
+        if opts.hessian == HessianApprox::Exact {
+            self.add_second_order(problem);
+        }
+    }
+
+    /// Adds the multiplier-weighted second derivatives (37d)-(37i) to the knots. Cross
+    /// terms between consecutive states of implicit dynamics (`f_xy`, `f_uy`) have no
+    /// place in the knot structure and are left out; `f_yy` joins the next knot's `Q`.
+    fn add_second_order(&mut self, problem: &Problem) {
+        let n = problem.horizon();
+        for t in 0..n {
+            let (left, right) = self.lq.knots.split_at_mut(t + 1);
+            let knot = &mut left[t];
+            let sd = &self.data.stages[t];
+            match &sd.dynamics {
+                DynamicsData::Explicit(d) => {
+                    knot.Q += &d.vhp_xx;
+                    knot.S += &d.vhp_xu;
+                    knot.R += &d.vhp_uu;
+                }
+                DynamicsData::Implicit(d) => {
+                    knot.Q += &d.vhp_xx;
+                    knot.S += &d.vhp_xu;
+                    knot.R += &d.vhp_uu;
+                    right[0].Q += &d.vhp_yy;
+                }
+            }
+            for cd in &sd.constraints {
+                knot.Q += &cd.vhp_xx;
+                knot.S += &cd.vhp_xu;
+                knot.R += &cd.vhp_uu;
+            }
+        }
+        let last = &mut self.lq.knots[n];
+        for cd in &self.data.terminal_constraints {
+            last.Q += &cd.vhp_xx;
+        }
+        if problem.nc0() > 0 && self.data.init.vhp_xx.nrows() > 0 {
+            self.lq.knots[0].Q += &self.data.init.vhp_xx;
+        }
+    }
+
+    /// Directional derivative of the merit function along the step (`dφ(0)`).
+    pub fn merit_slope(&mut self, problem: &Problem, merit: Merit, mu: f64, mu_d: f64) -> f64 {
+        let n = problem.horizon();
+        let st = &self.step;
+        let mut d = 0.0;
+        // Cost gradient.
+        for t in 0..n {
+            let c = &self.data.stages[t].cost;
+            d += dot(c.lx(), slice(&st.xs[t])) + dot(c.lu(), slice(&st.us[t]));
+        }
+        d += dot(self.data.terminal_cost.lx(), slice(&st.xs[n]));
+        // Dynamics and initial condition: multiplier λ° = 2λ⁺ - λ (primal-dual) or λ⁺
+        // (primal), times the linearised change J δz; plus (mu/2)(λ - λ°)ᵀδλ.
+        let lam_o = |lp: f64, l: f64| match merit {
+            Merit::PrimalDual => 2.0 * lp - l,
+            Merit::Primal => lp,
+        };
+        {
+            let jd = &mut self.tbuf[0];
+            matvec(jd, Accum::Replace, self.data.init.jx.as_ref(), slice(&st.xs[0]), 1.0);
+            for i in 0..jd.len().min(self.lams_p[0].len()) {
+                let lo = lam_o(self.lams_p[0][i], self.cur.lams[0][i]);
+                d += lo * jd[i];
+                if merit == Merit::PrimalDual {
+                    d += 0.5 * mu_d * (self.cur.lams[0][i] - lo) * st.lambdas[0][i];
+                }
+            }
+        }
+        for t in 0..n {
+            let sd = &self.data.stages[t];
+            let jd = &mut self.tbuf[t + 1];
+            matvec(jd, Accum::Replace, sd.dyn_jx.as_ref(), slice(&st.xs[t]), 1.0);
+            matvec(jd, Accum::Add, sd.dyn_ju.as_ref(), slice(&st.us[t]), 1.0);
+            matvec(jd, Accum::Add, sd.dyn_jy.as_ref(), slice(&st.xs[t + 1]), 1.0);
+            for i in 0..jd.len() {
+                let lo = lam_o(self.lams_p[t + 1][i], self.cur.lams[t + 1][i]);
+                d += lo * jd[i];
+                if merit == Merit::PrimalDual {
+                    d += 0.5 * mu_d * (self.cur.lams[t + 1][i] - lo) * st.lambdas[t + 1][i];
+                }
+            }
+        }
+        // Constraints: ν° = (2/mu_i) N(h + mu_i(ν_e - ν/2)) (primal-dual) or ν⁺ (primal).
+        for t in 0..=n {
+            let cs = knot_constraints(problem, t);
+            let datas = if t < n {
+                &self.data.stages[t].constraints
+            } else {
+                &self.data.terminal_constraints
+            };
+            let mut off = 0;
+            for (c, cd) in cs.iter().zip(datas) {
+                let nr = c.nr();
+                let mu_i = c.scale * mu;
+                let h = cd.value();
+                let w = &mut self.wbuf[t][off..off + nr];
+                match merit {
+                    Merit::PrimalDual => {
+                        let z = &mut self.zbuf[t][off..off + nr];
+                        for i in 0..nr {
+                            z[i] = h[i] + mu_i * (self.nus_e[t][off + i] - 0.5 * self.cur.nus[t][off + i]);
+                        }
+                        c.set.normal_cone_project(z, mu_i, w);
+                        for wi in w.iter_mut() {
+                            *wi *= 2.0 / mu_i;
+                        }
+                        for i in 0..nr {
+                            d += 0.5 * mu_i * (self.cur.nus[t][off + i] - w[i]) * st.nus[t][off + i];
+                        }
+                    }
+                    Merit::Primal => w.copy_from_slice(&self.nus_p[t][off..off + nr]),
+                }
+                // ν°ᵀ (h_x δx + h_u δu)
+                for j in 0..cd.jx.ncols() {
+                    let dxj = st.xs[t][j];
+                    if dxj != 0.0 {
+                        for i in 0..nr {
+                            d += w[i] * cd.jx[(i, j)] * dxj;
+                        }
+                    }
+                }
+                if t < n {
+                    for j in 0..cd.ju.ncols() {
+                        let duj = st.us[t][j];
+                        if duj != 0.0 {
+                            for i in 0..nr {
+                                d += w[i] * cd.ju[(i, j)] * duj;
+                            }
+                        }
+                    }
+                }
+                off += nr;
+            }
+        }
+        d
+    }
+
+    /// Merit function and infeasibility at the trial point, whose values have just been
+    /// evaluated into `self.data` (the primal-dual AL (17) or the primal AL (35)).
+    pub fn trial_merit(&mut self, problem: &Problem, merit: Merit, mu: f64, mu_d: f64) -> (f64, f64) {
+        let n = problem.horizon();
+        let mut m = self.data.cost;
+        let mut theta: f64 = 0.0;
+        let eq_term = |f: f64, le: f64, l: f64| match merit {
+            Merit::PrimalDual => {
+                let a = f + mu_d * (le - 0.5 * l);
+                a * a / mu_d + 0.25 * mu_d * l * l
+            }
+            Merit::Primal => {
+                let a = f + mu_d * le;
+                0.5 * a * a / mu_d
+            }
+        };
+        let init = self.data.init.value();
+        for i in 0..init.len() {
+            m += eq_term(init[i], self.lams_e[0][i], self.trial.lams[0][i]);
+            theta = theta.max(init[i].abs());
+        }
+        for t in 0..n {
+            let f = self.data.stages[t].dyn_value();
+            for i in 0..f.len() {
+                m += eq_term(f[i], self.lams_e[t + 1][i], self.trial.lams[t + 1][i]);
+                theta = theta.max(f[i].abs());
+            }
+        }
+        for t in 0..=n {
+            let cs = knot_constraints(problem, t);
+            let datas = if t < n {
+                &self.data.stages[t].constraints
+            } else {
+                &self.data.terminal_constraints
+            };
+            let mut off = 0;
+            for (c, cd) in cs.iter().zip(datas) {
+                let nr = c.nr();
+                let mu_i = c.scale * mu;
+                let h = cd.value();
+                theta = theta.max(c.set.violation(h));
+                let z = &mut self.zbuf[t][off..off + nr];
+                let w = &mut self.wbuf[t][off..off + nr];
+                match merit {
+                    Merit::PrimalDual => {
+                        // 2 e(w) + (mu/4)|ν|² with e the Moreau envelope of the set:
+                        // 2 g(proj(w)) + |N(w)|² / mu.
+                        for i in 0..nr {
+                            z[i] = h[i] + mu_i * (self.nus_e[t][off + i] - 0.5 * self.trial.nus[t][off + i]);
+                        }
+                        c.set.project(z, mu_i, w);
+                        m += 2.0 * c.set.penalty(w);
+                        for i in 0..nr {
+                            let r = z[i] - w[i];
+                            let v = self.trial.nus[t][off + i];
+                            m += r * r / mu_i + 0.25 * mu_i * v * v;
+                        }
+                    }
+                    Merit::Primal => {
+                        for i in 0..nr {
+                            z[i] = h[i] + mu_i * self.nus_e[t][off + i];
+                        }
+                        c.set.project(z, mu_i, w);
+                        m += c.set.penalty(w);
+                        for i in 0..nr {
+                            let r = z[i] - w[i];
+                            m += 0.5 * r * r / mu_i;
+                        }
+                    }
+                }
+                off += nr;
+            }
+        }
+        (m, theta)
+    }
+
+    /// Trial point of the linear rollout (50): `x ⊕ α δx`, `u + α δu`, multipliers
+    /// `+ α δ`.
+    pub fn linear_trial(&mut self, problem: &Problem, alpha: f64) {
+        let n = problem.horizon();
+        let st = &self.step;
+        for t in 0..=n {
+            let v = &mut self.dxbuf[t];
+            for (vi, s) in v.iter_mut().zip(slice(&st.xs[t])) {
+                *vi = alpha * s;
+            }
+            problem.space(t).integrate(&self.cur.xs[t], v, &mut self.trial.xs[t]);
+            for (i, nu) in self.trial.nus[t].iter_mut().enumerate() {
+                *nu = self.cur.nus[t][i] + alpha * st.nus[t][i];
+            }
+            for (i, l) in self.trial.lams[t].iter_mut().enumerate() {
+                *l = self.cur.lams[t][i] + alpha * st.lambdas[t][i];
+            }
+        }
+        for t in 0..n {
+            for (i, u) in self.trial.us[t].iter_mut().enumerate() {
+                *u = self.cur.us[t][i] + alpha * st.us[t][i];
+            }
+        }
+    }
+
+    /// Trial point of the nonlinear rollout (51): the feedback gains act on
+    /// `x_t^α ⊖ x_t` and the next state solves the shifted dynamics of the subproblem
+    /// (see the comment on (51e) below). Returns `false` if the rollout fails
+    /// (non-finite state or an implicit solve that does not converge).
+    pub fn nonlinear_trial(&mut self, problem: &Problem, opts: &ProxDdpOptions, alpha: f64, mu_d: f64) -> bool {
+        let n = problem.horizon();
+        // (51a), (51b)
+        {
+            let st = &self.step;
+            let v = &mut self.dxbuf[0];
+            for (vi, s) in v.iter_mut().zip(slice(&st.xs[0])) {
+                *vi = alpha * s;
+            }
+            problem.space(0).integrate(&self.cur.xs[0], v, &mut self.trial.xs[0]);
+            for (i, l) in self.trial.lams[0].iter_mut().enumerate() {
+                *l = self.cur.lams[0][i] + alpha * st.lambdas[0][i];
+            }
+        }
+        for t in 0..=n {
+            let space = problem.space(t);
+            // e = x_t^α ⊖ x_t
+            space.difference(&self.cur.xs[t], &self.trial.xs[t], &mut self.dxbuf[t]);
+            let stage = self.riccati.stage(t);
+            let e = &self.dxbuf[t];
+            // (51c) and the path multipliers.
+            if t < n {
+                let (k, kk) = (stage.k(), stage.K());
+                let u = &mut self.trial.us[t];
+                for i in 0..u.len() {
+                    u[i] = self.cur.us[t][i] + alpha * k[i];
+                }
+                matvec(u, Accum::Add, kk, e, 1.0);
+            }
+            let (zeta, zz) = (stage.zeta(), stage.Z());
+            let nu = &mut self.trial.nus[t];
+            for i in 0..nu.len() {
+                nu[i] = self.cur.nus[t][i] + alpha * zeta[i];
+            }
+            matvec(nu, Accum::Add, zz, e, 1.0);
+            if t == n {
+                break;
+            }
+            // (51d)
+            let Some((xi, xxi)) = stage.lambda_next_gains() else {
+                return false;
+            };
+            let lam = &mut self.trial.lams[t + 1];
+            for i in 0..lam.len() {
+                lam[i] = self.cur.lams[t + 1][i] + alpha * xi[i];
+            }
+            matvec(lam, Accum::Add, xxi, e, 1.0);
+            // (51e), with the part (1 - α) of the current shifted gap
+            // g = f + mu_d (λ_e - λ) (the knot's `f`) kept, as FDDP keeps its gaps: the
+            // next state solves f(x^α, u^α, y) = s with
+            // s = mu_d (λ^α - λ_e) + (1 - α) g,
+            // so that α = 0 gives the current point back and, on linear dynamics, the
+            // rollout equals the linear step (50).
+            let s = &mut self.tbuf[t + 1];
+            let g = &self.lq.knots[t].f;
+            for i in 0..s.len() {
+                s[i] = mu_d * (self.trial.lams[t + 1][i] - self.lams_e[t + 1][i]) + (1.0 - alpha) * g[i];
+            }
+            let stage_model = &problem.stages()[t];
+            let sd = &mut self.data.stages[t];
+            let (xs_lo, xs_hi) = self.trial.xs.split_at_mut(t + 1);
+            let (x, y) = (&xs_lo[t], &mut xs_hi[0]);
+            let u = &self.trial.us[t];
+            match (&stage_model.dynamics, &mut sd.dynamics) {
+                (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
+                    m.forward(x, u, d);
+                    // φ ⊖ y = s  ⇔  y = φ ⊕ (-s)
+                    for si in s.iter_mut() {
+                        *si = -*si;
+                    }
+                    stage_model.space_next().integrate(d.xnext(), s, y);
+                }
+                (Dynamics::Implicit(m), DynamicsData::Implicit(d)) => {
+                    // Newton-Raphson on f(x, u, y) - s = 0 from y = x_{t+1} ⊕ α δx_{t+1}.
+                    let sn = stage_model.space_next();
+                    let v = &mut self.dxbuf[t + 1];
+                    for (vi, st) in v.iter_mut().zip(slice(&self.step.xs[t + 1])) {
+                        *vi = alpha * st;
+                    }
+                    sn.integrate(&self.cur.xs[t + 1], v, y);
+                    let lu = self.implicit_lu[t].as_mut().expect("LU allocated for implicit stages");
+                    let mut ok = false;
+                    for _ in 0..opts.implicit_newton_iters {
+                        m.evaluate(x, u, y, d);
+                        let r = d.value_mut();
+                        let mut err: f64 = 0.0;
+                        for i in 0..r.len() {
+                            r[i] -= s[i];
+                            err = err.max(r[i].abs());
+                        }
+                        if !err.is_finite() {
+                            return false;
+                        }
+                        if err <= opts.implicit_newton_tol * (1.0 + norm_inf(s)) {
+                            ok = true;
+                            break;
+                        }
+                        m.jacobians(x, u, y, d);
+                        if lu.factor(d.jy.as_ref()).is_err() {
+                            return false;
+                        }
+                        let step = &mut self.gx[t + 1];
+                        step.copy_from_slice(d.value());
+                        lu.solve_in_place(crate::linalg::as_mat_mut(step));
+                        for si in step.iter_mut() {
+                            *si = -*si;
+                        }
+                        let ynew = &mut self.ybuf[t + 1];
+                        sn.integrate(y, step, ynew);
+                        y.copy_from_slice(ynew);
+                    }
+                    if !ok {
+                        return false;
+                    }
+                }
+                _ => unreachable!("stage data created for another dynamics kind"),
+            }
+            if !self.trial.xs[t + 1].iter().all(|v| v.is_finite()) {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// Makes the trial point the current one.
+    pub fn accept_trial(&mut self) {
+        std::mem::swap(&mut self.cur, &mut self.trial);
+    }
+
+    /// Keeps a copy of the current point if it is the best so far.
+    pub fn record_best(&mut self, err: f64) {
+        if err < self.best_err {
+            self.best_err = err;
+            self.best.copy_from(&self.cur);
+        }
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}

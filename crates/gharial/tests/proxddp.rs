@@ -1,0 +1,435 @@
+//! ProxDDP on linear-quadratic problems, against independent references: the dense KKT
+//! solve of the exact (unregularised) problem for equality constraints, and the
+//! solver-independent KKT residuals of the returned solution.
+
+use std::sync::Arc;
+
+use faer::{Col, Mat};
+use gharial::constraints::{BoxConstraint, EqualityConstraintSet};
+use gharial::costs::QuadraticCost;
+use gharial::dynamics::{Dynamics, LinearDiscreteDynamics};
+use gharial::functions::{ControlError, StateError, Unary};
+use gharial::lq::{LqKnot, LqProblem, dense, random::SplitMix64};
+use gharial::problem::{Problem, StageConstraint, StageModel, kkt_residuals};
+use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
+use gharial::solvers::{InitialGuess, Status};
+use gharial::spaces::{Manifold, VectorSpace};
+
+/// Data of a random linear-quadratic optimal control problem.
+struct Lq {
+    nx: usize,
+    nu: usize,
+    n: usize,
+    a: Mat<f64>,
+    b: Mat<f64>,
+    c: Vec<f64>,
+    q: Mat<f64>,
+    s: Mat<f64>,
+    r: Mat<f64>,
+    qv: Vec<f64>,
+    rv: Vec<f64>,
+    qf: Mat<f64>,
+    qfv: Vec<f64>,
+    x0: Vec<f64>,
+}
+
+fn spd(rng: &mut SplitMix64, n: usize, shift: f64) -> Mat<f64> {
+    let l = Mat::from_fn(n, n, |_, _| rng.uniform(-1.0, 1.0));
+    Mat::from_fn(n, n, |i, j| {
+        (0..n).map(|k| l[(i, k)] * l[(j, k)]).sum::<f64>() / n as f64 + if i == j { shift } else { 0.0 }
+    })
+}
+
+fn random_lq(nx: usize, nu: usize, n: usize, seed: u64) -> Lq {
+    let mut rng = SplitMix64::new(seed);
+    let a = Mat::from_fn(
+        nx,
+        nx,
+        |i, j| if i == j { 1.0 } else { 0.0 } + 0.2 * rng.uniform(-1.0, 1.0) / (nx as f64).sqrt(),
+    );
+    let b = Mat::from_fn(nx, nu, |_, _| rng.uniform(-1.0, 1.0));
+    let c = (0..nx).map(|_| rng.uniform(-0.1, 0.1)).collect();
+    let q = spd(&mut rng, nx, 0.1);
+    let r = spd(&mut rng, nu, 0.1);
+    let s = Mat::from_fn(nx, nu, |_, _| 0.01 * rng.uniform(-1.0, 1.0));
+    let qv = (0..nx).map(|_| rng.uniform(-1.0, 1.0)).collect();
+    let rv = (0..nu).map(|_| rng.uniform(-1.0, 1.0)).collect();
+    let qf = spd(&mut rng, nx, 1.0);
+    let qfv = (0..nx).map(|_| rng.uniform(-1.0, 1.0)).collect();
+    let x0 = (0..nx).map(|_| rng.uniform(-1.0, 1.0)).collect();
+    Lq {
+        nx,
+        nu,
+        n,
+        a,
+        b,
+        c,
+        q,
+        s,
+        r,
+        qv,
+        rv,
+        qf,
+        qfv,
+        x0,
+    }
+}
+
+fn space(lq: &Lq) -> Arc<dyn Manifold> {
+    Arc::new(VectorSpace::new(lq.nx))
+}
+
+/// The OCP with optional control bounds and a terminal equality `x_N = x_target`.
+fn ocp(lq: &Lq, umax: Option<f64>, x_target: Option<&[f64]>) -> Problem {
+    let sp = space(lq);
+    let dynamics = Dynamics::Explicit(Arc::new(
+        LinearDiscreteDynamics::new(lq.a.as_ref(), lq.b.as_ref(), &lq.c).unwrap(),
+    ));
+    let cost = Arc::new(QuadraticCost::new(lq.q.as_ref(), lq.s.as_ref(), lq.r.as_ref(), &lq.qv, &lq.rv).unwrap());
+    let mut stage = StageModel::new(cost, dynamics).unwrap();
+    if let Some(m) = umax {
+        let f = Arc::new(ControlError::new(sp.as_ref(), &vec![0.0; lq.nu]).unwrap());
+        let set = Arc::new(BoxConstraint::new(&vec![-m; lq.nu], &vec![m; lq.nu]).unwrap());
+        stage.add_constraint(StageConstraint::new("u_box", f, set)).unwrap();
+    }
+    let term = Arc::new(QuadraticCost::terminal(lq.qf.as_ref(), &lq.qfv).unwrap());
+    let mut p = Problem::new(&lq.x0, vec![stage; lq.n], term).unwrap();
+    if let Some(xt) = x_target {
+        let f = Arc::new(Unary::new(Arc::new(StateError::new(sp, xt).unwrap()), 0));
+        p.add_terminal_constraint(StageConstraint::new("x_N", f, Arc::new(EqualityConstraintSet)))
+            .unwrap();
+    }
+    p
+}
+
+/// The exact KKT system of the OCP (no regularisation) as an LQ problem.
+fn exact_lq(lq: &Lq, x_target: Option<&[f64]>) -> LqProblem {
+    let (nx, nu, n) = (lq.nx, lq.nu, lq.n);
+    let mut knots = Vec::new();
+    for t in 0..n {
+        let mut k = LqKnot::new(nx, nu, 0, nx);
+        k.Q.copy_from(&lq.q);
+        k.S.copy_from(&lq.s);
+        k.R.copy_from(&lq.r);
+        k.q = Col::from_fn(nx, |i| lq.qv[i]);
+        k.r = Col::from_fn(nu, |i| lq.rv[i]);
+        k.A.copy_from(&lq.a);
+        k.B.copy_from(&lq.b);
+        k.f = Col::from_fn(nx, |i| lq.c[i]);
+        knots.push(k);
+        let _ = t;
+    }
+    let nc = if x_target.is_some() { nx } else { 0 };
+    let mut k = LqKnot::new(nx, 0, nc, 0);
+    k.Q.copy_from(&lq.qf);
+    k.q = Col::from_fn(nx, |i| lq.qfv[i]);
+    if let Some(xt) = x_target {
+        for i in 0..nx {
+            k.C[(i, i)] = 1.0;
+            k.d[i] = -xt[i];
+        }
+    }
+    knots.push(k);
+    LqProblem {
+        knots,
+        G0: Mat::identity(nx, nx),
+        g0: Col::from_fn(nx, |i| -lq.x0[i]),
+        mu0: 0.0,
+    }
+}
+
+fn zero_guess(p: &Problem) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let n = p.horizon();
+    let xs = (0..=n).map(|t| vec![0.0; p.space(t).nx()]).collect();
+    let us = (0..n).map(|t| vec![0.0; p.nu(t)]).collect();
+    (xs, us)
+}
+
+fn max_diff(a: &[Vec<f64>], b: &[Col<f64>]) -> f64 {
+    a.iter()
+        .zip(b)
+        .flat_map(|(x, y)| x.iter().zip(y.iter()).map(|(p, q)| (p - q).abs()))
+        .fold(0.0, f64::max)
+}
+
+fn solve(p: &Problem, opts: ProxDdpOptions, xs: &[Vec<f64>], us: &[Vec<f64>]) -> gharial::solvers::Solution {
+    let mut solver = ProxDdp::new(opts);
+    solver.setup(p).unwrap();
+    solver.solve(p, InitialGuess::primal(xs, us)).unwrap().clone()
+}
+
+#[test]
+fn equality_constrained_lq_reaches_the_dense_kkt_solution() {
+    for (seed, (nx, nu, n)) in [(1, (3, 2, 10)), (2, (5, 3, 25)), (3, (8, 4, 40)), (4, (2, 1, 5))] {
+        let lq = random_lq(nx, nu, n, seed);
+        let target: Vec<f64> = (0..nx).map(|i| 0.1 * i as f64).collect();
+        for x_target in [None, Some(target.as_slice())] {
+            let p = ocp(&lq, None, x_target);
+            let reference = dense::solve(&exact_lq(&lq, x_target)).unwrap();
+            for rollout in [Rollout::Linear, Rollout::Nonlinear] {
+                let (xs, us) = zero_guess(&p);
+                // The nonlinear rollout recomputes the co-states from the gains, whose
+                // feedback part grows like 1/mu: with mu = 1e-6 its accuracy floor is
+                // about eps |x| / mu, a few 1e-9 here.
+                let tol = if rollout == Rollout::Linear { 1e-10 } else { 1e-8 };
+                let opts = ProxDdpOptions {
+                    rollout,
+                    tol,
+                    mu_init: 1e-6,
+                    ..Default::default()
+                };
+                let sol = solve(&p, opts, &xs, &us);
+                assert_eq!(
+                    sol.status,
+                    Status::Converged,
+                    "seed {seed} {rollout:?}: {:?}",
+                    sol.status
+                );
+                let scale = 1.0 + reference.xs.iter().map(|c| c.norm_max()).fold(0.0, f64::max);
+                let dx = max_diff(&sol.xs, &reference.xs) / scale;
+                let du = max_diff(&sol.us, &reference.us) / scale;
+                let dl = max_diff(&sol.lambdas, &reference.lambdas) / scale;
+                let bound = 100.0 * tol;
+                assert!(
+                    dx < bound && du < bound && dl < 10.0 * bound,
+                    "seed {seed} {rollout:?}: {dx:e} {du:e} {dl:e}"
+                );
+                if x_target.is_some() {
+                    let dn = (0..nx)
+                        .map(|i| (sol.nus[n][i] - reference.nus[n][i]).abs())
+                        .fold(0.0, f64::max);
+                    assert!(dn / scale < 10.0 * bound, "terminal multiplier {dn:e}");
+                }
+                let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+                assert!(kkt.max() < 10.0 * tol, "{kkt:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn box_constrained_lq_satisfies_the_kkt_conditions_for_every_step_acceptance() {
+    let lq = random_lq(4, 2, 30, 7);
+    let p = ocp(&lq, Some(0.3), None);
+    for acc in [
+        StepAcceptance::Linesearch,
+        StepAcceptance::NonmonotoneLinesearch,
+        StepAcceptance::Filter,
+    ] {
+        for rollout in [Rollout::Linear, Rollout::Nonlinear] {
+            let (xs, us) = zero_guess(&p);
+            let opts = ProxDdpOptions {
+                rollout,
+                step_acceptance: acc,
+                ..Default::default()
+            };
+            let sol = solve(&p, opts, &xs, &us);
+            assert_eq!(sol.status, Status::Converged, "{acc:?} {rollout:?}");
+            let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+            assert!(kkt.max() < 1e-6, "{acc:?} {rollout:?}: {kkt:?}");
+            assert!(
+                sol.us.iter().flatten().any(|u| (u.abs() - 0.3).abs() < 1e-7),
+                "the box is active"
+            );
+        }
+    }
+}
+
+#[test]
+fn warm_start_from_a_converged_solution_takes_at_most_two_iterations() {
+    let lq = random_lq(4, 2, 30, 11);
+    let target = vec![0.2, -0.1, 0.0, 0.3];
+    let p = ocp(&lq, Some(0.5), Some(&target));
+    let (xs, us) = zero_guess(&p);
+    let mut solver = ProxDdp::new(ProxDdpOptions::default());
+    solver.setup(&p).unwrap();
+    let first = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().clone();
+    assert_eq!(first.status, Status::Converged);
+    let second = solver.solve(&p, InitialGuess::from_solution(&first)).unwrap();
+    assert_eq!(second.status, Status::Converged);
+    assert!(second.iterations <= 2, "{} iterations", second.iterations);
+}
+
+/// Optimal cost of the box- (and terminal-equality-) constrained OCP as a dense QP solved
+/// by Clarabel, an interior-point solver independent of this library.
+fn clarabel_cost(lq: &Lq, umax: f64, x_target: Option<&[f64]>) -> f64 {
+    use clarabel::algebra::CscMatrix;
+    use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
+    let (nx, nu, n) = (lq.nx, lq.nu, lq.n);
+    let xi = |t: usize, i: usize| t * nx + i;
+    let ui = |t: usize, i: usize| (n + 1) * nx + t * nu + i;
+    let nz = (n + 1) * nx + n * nu;
+    // Upper triangle of P and the linear term.
+    let (mut pi, mut pj, mut pv) = (vec![], vec![], vec![]);
+    let mut q = vec![0.0; nz];
+    let mut push = |i: usize, j: usize, v: f64| {
+        if i <= j && v != 0.0 {
+            pi.push(i);
+            pj.push(j);
+            pv.push(v);
+        }
+    };
+    for t in 0..n {
+        for i in 0..nx {
+            for j in 0..nx {
+                push(xi(t, i), xi(t, j), lq.q[(i, j)]);
+            }
+            for j in 0..nu {
+                push(xi(t, i), ui(t, j), lq.s[(i, j)]);
+            }
+            q[xi(t, i)] = lq.qv[i];
+        }
+        for i in 0..nu {
+            for j in 0..nu {
+                push(ui(t, i), ui(t, j), lq.r[(i, j)]);
+            }
+            q[ui(t, i)] = lq.rv[i];
+        }
+    }
+    for i in 0..nx {
+        for j in 0..nx {
+            push(xi(n, i), xi(n, j), lq.qf[(i, j)]);
+        }
+        q[xi(n, i)] = lq.qfv[i];
+    }
+    let p = CscMatrix::new_from_triplets(nz, nz, pi, pj, pv);
+    // Equalities: x_0 = x0, x_{t+1} - A x_t - B u_t = c, (x_N = target); then u <= umax, -u <= umax.
+    let (mut ai, mut aj, mut av, mut b) = (vec![], vec![], vec![], vec![]);
+    let mut row = 0;
+    for i in 0..nx {
+        ai.push(row);
+        aj.push(xi(0, i));
+        av.push(1.0);
+        b.push(lq.x0[i]);
+        row += 1;
+    }
+    for t in 0..n {
+        for i in 0..nx {
+            ai.push(row);
+            aj.push(xi(t + 1, i));
+            av.push(1.0);
+            for j in 0..nx {
+                ai.push(row);
+                aj.push(xi(t, j));
+                av.push(-lq.a[(i, j)]);
+            }
+            for j in 0..nu {
+                ai.push(row);
+                aj.push(ui(t, j));
+                av.push(-lq.b[(i, j)]);
+            }
+            b.push(lq.c[i]);
+            row += 1;
+        }
+    }
+    if let Some(xt) = x_target {
+        for i in 0..nx {
+            ai.push(row);
+            aj.push(xi(n, i));
+            av.push(1.0);
+            b.push(xt[i]);
+            row += 1;
+        }
+    }
+    let neq = row;
+    for t in 0..n {
+        for i in 0..nu {
+            for sign in [1.0, -1.0] {
+                ai.push(row);
+                aj.push(ui(t, i));
+                av.push(sign);
+                b.push(umax);
+                row += 1;
+            }
+        }
+    }
+    let a = CscMatrix::new_from_triplets(row, nz, ai, aj, av);
+    let cones = [
+        SupportedConeT::ZeroConeT(neq),
+        SupportedConeT::NonnegativeConeT(row - neq),
+    ];
+    let settings = DefaultSettings {
+        verbose: false,
+        tol_gap_abs: 1e-12,
+        tol_gap_rel: 1e-12,
+        tol_feas: 1e-12,
+        ..Default::default()
+    };
+    let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings).unwrap();
+    solver.solve();
+    assert!(
+        matches!(
+            solver.solution.status,
+            SolverStatus::Solved | SolverStatus::AlmostSolved
+        ),
+        "{:?}",
+        solver.solution.status
+    );
+    solver.solution.obj_val
+}
+
+#[test]
+fn box_constrained_lq_has_the_optimal_cost_of_an_independent_qp_solver() {
+    for (seed, (nx, nu, n), umax) in [(21, (3, 2, 20), 0.2), (22, (4, 2, 40), 0.3), (23, (6, 3, 30), 0.1)] {
+        let lq = random_lq(nx, nu, n, seed);
+        // A reachable terminal target: the end of a rollout with controls inside the box.
+        let mut target = lq.x0.clone();
+        for t in 0..n {
+            let u: Vec<f64> = (0..nu).map(|i| 0.5 * umax * ((t + i) as f64).sin()).collect();
+            target = (0..nx)
+                .map(|i| {
+                    lq.c[i]
+                        + (0..nx).map(|j| lq.a[(i, j)] * target[j]).sum::<f64>()
+                        + (0..nu).map(|j| lq.b[(i, j)] * u[j]).sum::<f64>()
+                })
+                .collect();
+        }
+        for x_target in [None, Some(target.as_slice())] {
+            let reference = clarabel_cost(&lq, umax, x_target);
+            let p = ocp(&lq, Some(umax), x_target);
+            for rollout in [Rollout::Linear, Rollout::Nonlinear] {
+                let (xs, us) = zero_guess(&p);
+                let opts = ProxDdpOptions {
+                    rollout,
+                    tol: 1e-9,
+                    ..Default::default()
+                };
+                let sol = solve(&p, opts, &xs, &us);
+                assert_eq!(sol.status, Status::Converged, "seed {seed} {rollout:?}");
+                let rel = (sol.cost - reference).abs() / reference.abs().max(1.0);
+                assert!(
+                    rel < 1e-6,
+                    "seed {seed} {rollout:?}: cost {} vs QP {reference} ({rel:e})",
+                    sol.cost
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn dynamically_infeasible_state_guess_converges() {
+    let lq = random_lq(5, 2, 40, 31);
+    let p = ocp(&lq, Some(0.4), None);
+    let mut rng = SplitMix64::new(99);
+    let xs: Vec<Vec<f64>> = (0..=lq.n)
+        .map(|_| (0..lq.nx).map(|_| rng.uniform(-2.0, 2.0)).collect())
+        .collect();
+    let us: Vec<Vec<f64>> = (0..lq.n)
+        .map(|_| (0..lq.nu).map(|_| rng.uniform(-1.0, 1.0)).collect())
+        .collect();
+    for rollout in [Rollout::Linear, Rollout::Nonlinear] {
+        let sol = solve(
+            &p,
+            ProxDdpOptions {
+                rollout,
+                ..Default::default()
+            },
+            &xs,
+            &us,
+        );
+        assert_eq!(sol.status, Status::Converged, "{rollout:?}");
+        let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+        assert!(kkt.max() < 1e-6, "{rollout:?}: {kkt:?}");
+    }
+}
