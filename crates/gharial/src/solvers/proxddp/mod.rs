@@ -54,21 +54,22 @@ impl std::fmt::Debug for ProxDdp {
     }
 }
 
-/// Dimensions `(nx, ndx, nu, nc)` of every knot, to check that `solve` gets the problem
-/// `setup` was made for.
-fn signature(problem: &Problem) -> Vec<(usize, usize, usize, usize)> {
+/// Dimensions `(nx, ndx, nu, nc)` of every knot, then `(nc0, 0, 0, 0)`, to check that
+/// `solve` gets a problem of the dimensions `setup` was made for.
+fn knot_signature(problem: &Problem) -> impl Iterator<Item = (usize, usize, usize, usize)> + '_ {
     let n = problem.horizon();
-    let mut s: Vec<_> = (0..n)
-        .map(|t| {
+    (0..=n + 1).map(move |t| {
+        if t < n {
             let st = &problem.stages()[t];
             (st.space().nx(), st.space().ndx(), st.nu(), st.nc())
-        })
-        .collect();
-    let sp = problem.space(n);
-    let ncn = problem.terminal_constraints().iter().map(|c| c.nr()).sum();
-    s.push((sp.nx(), sp.ndx(), 0, ncn));
-    s.push((problem.nc0(), 0, 0, 0));
-    s
+        } else if t == n {
+            let sp = problem.space(n);
+            let ncn = problem.terminal_constraints().iter().map(|c| c.nr()).sum();
+            (sp.nx(), sp.ndx(), 0, ncn)
+        } else {
+            (problem.nc0(), 0, 0, 0)
+        }
+    })
 }
 
 impl ProxDdp {
@@ -91,7 +92,7 @@ impl ProxDdp {
         self.options.validate()?;
         self.ws = Some(Box::new(Workspace::new(problem, &self.options)?));
         self.solution = Solution::new(problem, self.options.max_iters + 1);
-        self.signature = signature(problem);
+        self.signature = knot_signature(problem).collect();
         self.filter = Filter::new(self.options.max_iters + 1, 1e-5, 1e-5);
         Ok(())
     }
@@ -133,7 +134,7 @@ impl ProxDdp {
         if self.ws.is_none() {
             return Err(Error::InvalidModel("ProxDdp::solve called before setup".into()));
         }
-        if signature(problem) != self.signature {
+        if !knot_signature(problem).eq(self.signature.iter().copied()) {
             return Err(Error::InvalidModel(
                 "ProxDdp::solve: the problem's dimensions differ from those given to setup".into(),
             ));
