@@ -95,6 +95,8 @@ pub(super) struct Workspace {
     dxbuf: Vec<Vec<f64>>,
     /// Scratch of state representation size per knot.
     ybuf: Vec<Vec<f64>>,
+    /// Scratch of the initial constraint's size.
+    init_buf: Vec<f64>,
     tbuf: Vec<Vec<f64>>,
     /// Implicit-dynamics Newton solves of the nonlinear rollout, per stage.
     implicit_lu: Vec<Option<Lu>>,
@@ -157,6 +159,7 @@ impl Workspace {
             gu: (0..n).map(|t| vec![0.0; problem.nu(t)]).collect(),
             dxbuf: vecs(&ndxs),
             ybuf: (0..=n).map(|t| vec![0.0; problem.space(t).nx()]).collect(),
+            init_buf: vec![0.0; nc0],
             tbuf: vecs(&ndxs),
             implicit_lu,
             lq,
@@ -438,9 +441,9 @@ impl Workspace {
             Merit::Primal => lp,
         };
         {
-            let jd = &mut self.tbuf[0];
+            let jd = &mut self.init_buf;
             matvec(jd, Accum::Replace, self.data.init.jx.as_ref(), slice(&st.xs[0]), 1.0);
-            for i in 0..jd.len().min(self.lams_p[0].len()) {
+            for i in 0..jd.len() {
                 let lo = lam_o(self.lams_p[0][i], self.cur.lams[0][i]);
                 d += lo * jd[i];
                 if merit == Merit::PrimalDual {
