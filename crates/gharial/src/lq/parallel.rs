@@ -49,8 +49,8 @@ use faer::{Accum, Col, Mat};
 use rayon::{ThreadPool, ThreadPoolBuilder};
 
 use super::riccati::{InitialStage, Pass, check_primal_reg, rollout, sweep};
-use super::stage::RiccatiStage;
-use super::{KnotDims, LqError, LqProblem, LqSolution, LqVectors, check_same_dims};
+use super::stage::{ExtraGains, RiccatiStage, StageScratch};
+use super::{KnotDims, LqError, LqProblem, LqSolution, LqVectors, check_regularisation, check_same_dims};
 use crate::linalg::{self, BunchKaufman, FactorError, col_of, col_of_mut, matmul, matvec, matvec_t, slice, slice_mut};
 
 /// Relative cost of a knot of a parameterised leg with respect to a plain knot, used to
@@ -88,6 +88,7 @@ impl std::fmt::Debug for ParallelRiccatiSolver {
 struct Leg {
     start: usize,
     stages: Vec<RiccatiStage>,
+    scratch: StageScratch,
     param: Option<LegParam>,
     result: Result<(), LqError>,
 }
@@ -167,10 +168,16 @@ impl ParallelRiccatiSolver {
         for (j, &s) in starts.iter().enumerate() {
             let end = starts.get(j + 1).copied().unwrap_or(n_knots);
             let ntheta = if end < n_knots { dims[end].nx } else { 0 };
+            // Parameterised legs need the closed loop T = Ã + B̃K.
+            let extra = if end < n_knots {
+                ExtraGains::ClosedLoop
+            } else {
+                ExtraGains::None
+            };
             let stages = (s..end)
                 .map(|t| {
                     let d = dims[t];
-                    RiccatiStage::new(t, d.nx, d.nu, d.nc, d.nx_next, false, d.nx_next.max(ntheta) + 1)
+                    RiccatiStage::new(t, d.nx, d.nu, d.nc, d.nx_next, extra, d.nx_next.max(ntheta) + 1)
                 })
                 .collect();
             let param = (end < n_knots).then(|| {
@@ -200,6 +207,7 @@ impl ParallelRiccatiSolver {
             legs.push(Leg {
                 start: s,
                 stages,
+                scratch: StageScratch::new(&dims[s..end]),
                 param,
                 result: Ok(()),
             });
@@ -246,6 +254,7 @@ impl ParallelRiccatiSolver {
         self.factored = false;
         check_same_dims(problem, &self.dims, self.nc0)?;
         check_primal_reg(primal_reg)?;
+        check_regularisation(problem)?;
         self.legs_backward(problem, None, Pass::Full { primal_reg })?;
         self.condensed_matrices(problem)?;
         self.condensed_vectors();
@@ -260,6 +269,7 @@ impl ParallelRiccatiSolver {
             return Err(LqError::NotFactored);
         }
         check_same_dims(problem, &self.dims, self.nc0)?;
+        check_regularisation(problem)?;
         self.legs_backward(problem, None, Pass::Vectors)?;
         self.condensed_vectors();
         Ok(())
@@ -277,10 +287,10 @@ impl ParallelRiccatiSolver {
         if let Some((steps, mut residual, mut delta)) = self.refinement.take() {
             let mut res = Ok(());
             for _ in 0..steps {
-                residual.set_kkt_residual(problem, sol);
                 self.save_vector_parts();
-                res = self
-                    .legs_backward(problem, Some(&residual), Pass::Vectors)
+                res = residual
+                    .set_kkt_residual(problem, sol)
+                    .and_then(|()| self.legs_backward(problem, Some(&residual), Pass::Vectors))
                     .and_then(|()| {
                         self.condensed_vectors();
                         self.solve_forward(problem, Some(&residual), &mut delta)
@@ -321,9 +331,9 @@ impl ParallelRiccatiSolver {
             let nt = tail_P.nrows();
             let nxs = leg.stages[0].dims().0;
             let mut k = bd.kkt.as_mut();
-            k.rb_mut().submatrix_mut(0, 0, nt, nt).copy_from(tail_P);
-            k.rb_mut().submatrix_mut(nt, 0, nt, nt).copy_from(&e_knot.E);
-            k.rb_mut().submatrix_mut(nt, nt, nt, nt).copy_from(&param.omega);
+            linalg::copy(k.rb_mut().submatrix_mut(0, 0, nt, nt), tail_P);
+            linalg::copy(k.rb_mut().submatrix_mut(nt, 0, nt, nt), e_knot.E.as_ref());
+            linalg::copy(k.rb_mut().submatrix_mut(nt, nt, nt, nt), param.omega.as_ref());
             match bd.bk.factor(bd.kkt.as_ref(), 0.0) {
                 Ok(inertia) if inertia.zero == 0 => {}
                 Err(FactorError::NonFinite) => {
@@ -342,9 +352,7 @@ impl ParallelRiccatiSolver {
             // Feedback columns -[0; Γ_sᵀ].
             let mut g = bd.gains.as_mut().submatrix_mut(0, 1, 2 * nt, nxs);
             g.rb_mut().submatrix_mut(0, 0, nt, nxs).fill(0.0);
-            g.rb_mut()
-                .submatrix_mut(nt, 0, nt, nxs)
-                .copy_from(param.gamma[0].transpose());
+            linalg::copy_transposed(g.rb_mut().submatrix_mut(nt, 0, nt, nxs), param.gamma[0].as_ref());
             for jj in 0..nxs {
                 for i in nt..2 * nt {
                     g[(i, jj)] = -g[(i, jj)];
@@ -352,7 +360,7 @@ impl ParallelRiccatiSolver {
             }
             bd.bk.solve_in_place(g);
             // P̂_s = P_s + Γ_s G_θ.
-            bd.hat_P.copy_from(leg.stages[0].P());
+            linalg::copy(bd.hat_P.as_mut(), leg.stages[0].P());
             matmul(
                 bd.hat_P.as_mut(),
                 Accum::Add,
@@ -417,8 +425,13 @@ impl ParallelRiccatiSolver {
                 r.map_or(slice(&problem.g0), |r| slice(&r.g0)),
             ),
         };
-        self.initial
-            .solve(g0, p0, slice_mut(&mut sol.xs[0]), slice_mut(&mut sol.lambdas[0]));
+        self.initial.solve(
+            problem,
+            g0,
+            p0,
+            slice_mut(&mut sol.xs[0]),
+            slice_mut(&mut sol.lambdas[0]),
+        )?;
         for (j, bd) in self.boundaries.iter().enumerate() {
             // [x_b; θ] = g + G x_s.
             let nt = bd.gains.nrows() / 2;
@@ -489,7 +502,15 @@ impl Leg {
             param.tail_p.fill(0.0);
         }
         let tail = self.param.as_ref().map(|p| (p.zero_P.as_ref(), slice(&p.tail_p)));
-        sweep(&mut self.stages, problem, self.start, rhs, tail, pass)?;
+        sweep(
+            &mut self.stages,
+            &mut self.scratch,
+            problem,
+            self.start,
+            rhs,
+            tail,
+            pass,
+        )?;
         if let Some(param) = &mut self.param {
             param.propagate(&mut self.stages, problem, self.start, pass);
         }
@@ -505,7 +526,7 @@ impl LegParam {
         let nt = self.zero_P.nrows();
         if full {
             let e = &problem.knots[start + n - 1].E;
-            self.gamma[n].copy_from(e.transpose());
+            linalg::copy_transposed(self.gamma[n].as_mut(), e.as_ref());
             for j in 0..nt {
                 for i in 0..nt {
                     self.gamma[n][(i, j)] = -self.gamma[n][(i, j)];
@@ -522,7 +543,7 @@ impl LegParam {
             let gp = gamma_rest[0].as_ref();
             // Γ̃ = (I + P'G)⁻¹ Γ'.
             if full && mu > 0.0 {
-                self.gamma_tilde[i].copy_from(gp);
+                linalg::copy(self.gamma_tilde[i].as_mut(), gp);
                 st.prox_solve_in_place(self.gamma_tilde[i].as_mut());
             }
             let gt = if mu > 0.0 { self.gamma_tilde[i].as_ref() } else { gp };
@@ -562,7 +583,7 @@ impl LegParam {
                 }
                 // Ω -= (B̃ᵀΓ̃)ᵀ H_uu (B̃ᵀΓ̃), H_uu from K⁻¹[I; 0].
                 if nu > 0 {
-                    let bt = st.abf().submatrix(0, nx, ny, nu);
+                    let bt = st.b_tilde(&problem.knots[start + i]);
                     let mut bg = self.bg.as_mut().submatrix_mut(0, 0, nu, nt);
                     matmul(bg.rb_mut(), Accum::Replace, bt.transpose(), gt, 1.0);
                     let mut kinv = self.kinv.as_mut().submatrix_mut(0, 0, nu + nc, nu);
@@ -651,9 +672,18 @@ fn forward_legs(
         match &mut leg.param {
             Some(param) => {
                 let tail = Some((param.zero_P.as_ref(), slice(&param.tail_p)));
-                sweep(&mut leg.stages, problem, leg.start, rhs, tail, Pass::Vectors)?;
+                sweep(
+                    &mut leg.stages,
+                    &mut leg.scratch,
+                    problem,
+                    leg.start,
+                    rhs,
+                    tail,
+                    Pass::Vectors,
+                )?;
                 rollout(
                     &mut leg.stages,
+                    &problem.knots[leg.start..leg.start + n],
                     tail,
                     xs,
                     us,
@@ -665,6 +695,7 @@ fn forward_legs(
             // The last leg's vector part does not depend on θ: it is the backward pass's.
             None => rollout(
                 &mut leg.stages,
+                &problem.knots[leg.start..leg.start + n],
                 None,
                 xs,
                 us,
