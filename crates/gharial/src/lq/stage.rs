@@ -88,9 +88,8 @@ pub struct RiccatiStage {
     lg: Mat<f64>,
     xg: Mat<f64>,
     lamg: Mat<f64>,
-    // Scratch: nu x nx and nc x nx for P, nu for value_from_gains, ny for the forward step.
+    // Scratch: nu x nx and nu for value_from_gains, ny for the forward step.
     w_ux: Mat<f64>,
-    w_cx: Mat<f64>,
     w_u: Col<f64>,
     w_y: Col<f64>,
     // Copy of the vector part, for iterative refinement.
@@ -164,7 +163,6 @@ impl RiccatiStage {
             xg: Mat::zeros(ng, 1 + nx),
             lamg: Mat::zeros(ng, 1 + nx),
             w_ux: Mat::zeros(nu, nx),
-            w_cx: Mat::zeros(nc, nx),
             w_u: Col::zeros(nu),
             w_y: Col::zeros(ny),
             saved: vec![0.0; 2 * nx + 2 * nu + nc + 3 * ny + nz + 3 * ng],
@@ -447,34 +445,26 @@ impl RiccatiStage {
             linalg::negate(rhs.rb_mut());
             self.kkt.solve_in_place(rhs);
         }
-        // P = [I; K]ᵀ [Q_xx Q_xu; Q_ux Q_uu + ρI] [I; K] + Zᵀ diag(mu_c) Z, i.e. the Schur
-        // complement Q_xx + [Q_xu Cᵀ][K; Z] (47b) written as a sum of positive semidefinite
-        // terms: no cancellation when the gains are large (hard rows, small mu). Lower
-        // triangle, then mirrored: P = Q_xx + Q_xu K + KᵀW + Zᵀ(MZ), W = Q_ux + (Q_uu + ρI)K.
+        // P = Q_xx + [Q_xu Cᵀ][K; Z] (47b), the Schur complement of the stage KKT matrix.
+        // (The equivalent sum of semidefinite terms [I; K]ᵀH[I; K] + Zᵀdiag(mu_c)Z is not
+        // used: it agrees with the gains only to the accuracy of the KKT solve, about ε/mu
+        // relative, which the forward pass's co-states P x + p would inherit.) Lower
+        // triangle, then mirrored.
         linalg::copy(self.P.as_mut(), self.qmat.as_ref().submatrix(0, 0, nx, nx));
-        if nu > 0 {
-            let k_fb = self.gains.as_ref().submatrix(0, 1, nu, nx);
-            let q = self.qmat.as_ref();
-            linalg::copy(self.w_ux.as_mut(), q.submatrix(nx, 0, nu, nx));
-            matmul(self.w_ux.as_mut(), Accum::Add, q.submatrix(nx, nx, nu, nu), k_fb, 1.0);
-            if primal_reg != 0.0 {
-                for j in 0..nx {
-                    for i in 0..nu {
-                        self.w_ux[(i, j)] += primal_reg * k_fb[(i, j)];
-                    }
-                }
+        if nk > 0 {
+            let fb = self.gains.as_ref().submatrix(0, 1, nk, nx);
+            if nu > 0 {
+                matmul_lower(
+                    self.P.as_mut(),
+                    Accum::Add,
+                    self.qmat.as_ref().submatrix(0, nx, nx, nu),
+                    fb.subrows(0, nu),
+                    1.0,
+                );
             }
-            matmul_lower(self.P.as_mut(), Accum::Add, q.submatrix(0, nx, nx, nu), k_fb, 1.0);
-            matmul_lower(self.P.as_mut(), Accum::Add, k_fb.transpose(), self.w_ux.as_ref(), 1.0);
-        }
-        if nc > 0 {
-            let z_fb = self.gains.as_ref().submatrix(nu, 1, nc, nx);
-            for j in 0..nx {
-                for i in 0..nc {
-                    self.w_cx[(i, j)] = knot.mu_c[i] * z_fb[(i, j)];
-                }
+            if nc > 0 {
+                matmul_lower(self.P.as_mut(), Accum::Add, knot.C.transpose(), fb.subrows(nu, nc), 1.0);
             }
-            matmul_lower(self.P.as_mut(), Accum::Add, z_fb.transpose(), self.w_cx.as_ref(), 1.0);
         }
         linalg::symmetrize_from_lower(self.P.as_mut());
         if !sum_is_finite(self.P.as_ref()) {
