@@ -190,6 +190,20 @@ pub fn dot(a: &[f64], b: &[f64]) -> f64 {
     s
 }
 
+/// `Σ |v_i|` with four partial sums (vectorisable); NaN if `v` holds a NaN.
+#[inline]
+pub fn norm_l1(v: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let chunks = v.chunks_exact(4);
+    let rest = chunks.remainder();
+    for x in chunks {
+        for k in 0..4 {
+            acc[k] += x[k].abs();
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + rest.iter().map(|x| x.abs()).sum::<f64>()
+}
+
 /// `dst = src` (same shape), column by column.
 #[inline]
 pub fn copy(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {

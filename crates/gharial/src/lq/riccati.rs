@@ -273,9 +273,9 @@ pub(crate) fn sweep(
                 .q_function(knot, next.map(|n| n.0), scratch)
                 .and_then(|()| {
                     st.q_function_vectors(knot, v, next);
-                    st.solve_kkt(knot, next.map(|n| n.0), primal_reg)
+                    st.solve_kkt_with_feedforward(knot, next.map(|n| n.0), primal_reg, v.d)
                 })
-                .and_then(|()| st.solve_kkt_vectors_with(knot, v.d, next)),
+                .and_then(|()| st.solve_kkt_vectors_solved(knot, next)),
             Pass::Vectors => {
                 st.q_function_vectors(knot, v, next);
                 st.solve_kkt_vectors_with(knot, v.d, next)

@@ -371,6 +371,29 @@ impl RiccatiStage {
         P_next: Option<MatRef<'_, f64>>,
         primal_reg: f64,
     ) -> Result<(), LqError> {
+        self.solve_kkt_impl(knot, P_next, primal_reg, None)
+    }
+
+    /// [`solve_kkt`](Self::solve_kkt), also solving for the feedforward column `[k; ζ]`
+    /// with constraint offset `d` in the same solve (finish with
+    /// [`solve_kkt_vectors_solved`](Self::solve_kkt_vectors_solved)).
+    pub(crate) fn solve_kkt_with_feedforward(
+        &mut self,
+        knot: &LqKnot,
+        P_next: Option<MatRef<'_, f64>>,
+        primal_reg: f64,
+        d: &[f64],
+    ) -> Result<(), LqError> {
+        self.solve_kkt_impl(knot, P_next, primal_reg, Some(d))
+    }
+
+    fn solve_kkt_impl(
+        &mut self,
+        knot: &LqKnot,
+        P_next: Option<MatRef<'_, f64>>,
+        primal_reg: f64,
+        d: Option<&[f64]>,
+    ) -> Result<(), LqError> {
         let (nx, nu, nc) = (self.nx, self.nu, self.nc);
         let nk = nu + nc;
         if nk > 0 {
@@ -443,7 +466,13 @@ impl RiccatiStage {
             );
             linalg::copy(rhs.rb_mut().submatrix_mut(nu, 0, nc, nx), knot.C.as_ref());
             linalg::negate(rhs.rb_mut());
-            self.kkt.solve_in_place(rhs);
+            match d {
+                Some(d) => {
+                    self.fill_feedforward_rhs(d);
+                    self.kkt.solve_in_place(self.gains.as_mut());
+                }
+                None => self.kkt.solve_in_place(rhs),
+            }
         }
         // P = Q_xx + [Q_xu Cᵀ][K; Z] (47b), the Schur complement of the stage KKT matrix.
         // (The equivalent sum of semidefinite terms [I; K]ᵀH[I; K] + Zᵀdiag(mu_c)Z is not
@@ -533,18 +562,34 @@ impl RiccatiStage {
         d: &[f64],
         next: Option<(MatRef<'_, f64>, &[f64])>,
     ) -> Result<(), LqError> {
-        let (nx, nu, nc) = (self.nx, self.nu, self.nc);
-        let nk = nu + nc;
-        if nk > 0 {
-            let g0 = col_of_mut(&mut self.gains, 0);
-            for i in 0..nu {
-                g0[i] = -self.qvec[nx + i];
-            }
-            for i in 0..nc {
-                g0[nu + i] = -d[i];
-            }
+        if self.nu + self.nc > 0 {
+            self.fill_feedforward_rhs(d);
             self.kkt.solve_in_place(self.gains.as_mut().subcols_mut(0, 1));
         }
+        self.solve_kkt_vectors_solved(knot, next)
+    }
+
+    /// `-[Q_u; d]` in the feedforward column.
+    fn fill_feedforward_rhs(&mut self, d: &[f64]) {
+        let (nx, nu) = (self.nx, self.nu);
+        let g0 = col_of_mut(&mut self.gains, 0);
+        for i in 0..nu {
+            g0[i] = -self.qvec[nx + i];
+        }
+        for (g, di) in g0[nu..].iter_mut().zip(d) {
+            *g = -di;
+        }
+    }
+
+    /// The vector part after the feedforward column was solved for: `p` and the
+    /// feedforward parts of the extra gains.
+    pub(crate) fn solve_kkt_vectors_solved(
+        &mut self,
+        knot: &LqKnot,
+        next: Option<(MatRef<'_, f64>, &[f64])>,
+    ) -> Result<(), LqError> {
+        let (nx, nu, nc) = (self.nx, self.nu, self.nc);
+        let nk = nu + nc;
         // p = Q_x + Q_xu k + Cᵀ ζ.
         let p = slice_mut(&mut self.p);
         p.copy_from_slice(&slice(&self.qvec)[..nx]);
