@@ -29,6 +29,13 @@ pub struct RiccatiOptions {
 
 /// The proximal Riccati solver of the ProxDDP paper (module docs of [`crate::lq`]).
 ///
+/// [`new`](Self::new) allocates everything for the problem's dimensions; then
+/// [`backward`](Self::backward), [`backward_vectors`](Self::backward_vectors) and
+/// [`forward`](Self::forward) allocate nothing. After a backward pass, [`stage`](Self::stage)
+/// gives each knot's gains, Q-function and value function. With small `mu` set
+/// [`RiccatiOptions::refinement_steps`] to 1 or 2 when the multipliers matter (module
+/// docs, "Accuracy").
+///
 /// ```
 /// use gharial::lq::{LqSolution, RiccatiSolver, random};
 /// let problem = random::peers_problem(4, 2, 2, 10, 42, 1e-8).problem;
