@@ -19,7 +19,7 @@ pub use faer::{Accum, Col, ColMut, ColRef, Mat, MatMut, MatRef};
 /// Products with at most this many multiply-adds use the loops of [`small_matmul`]: faer's
 /// fixed cost per call (dispatch, blocking) dominates below it (measured: `Aᵀ B` for 4 x 4
 /// takes 113 ns in faer, about 20 ns in the loops).
-const SMALL_PRODUCT: usize = 1024;
+const SMALL_PRODUCT: usize = 512;
 
 /// `dst = alpha * lhs * rhs` (`Accum::Replace`) or `dst += alpha * lhs * rhs` (`Accum::Add`).
 #[inline]
@@ -59,8 +59,12 @@ pub fn matmul_lower(mut dst: MatMut<'_, f64>, accum: Accum, lhs: MatRef<'_, f64>
     );
 }
 
-/// Largest dimension handled by the loop kernels (their slices are gathered in arrays).
-const MAX_SMALL_DIM: usize = 64;
+/// Largest inner dimension of the product loop kernels (their slices are gathered in a
+/// fixed array, initialised at every call: small on purpose).
+const MAX_SMALL_DIM: usize = 16;
+
+/// Largest dimension of the vector LDLᵀ solve kernel.
+const MAX_SOLVE_DIM: usize = 64;
 
 /// Loops for small products (all of `dst`, or its lower triangle): axpy form when the
 /// columns of `lhs` are contiguous, dot form when its rows are and the columns of `rhs`
@@ -76,7 +80,8 @@ fn small_matmul(
     let (m, n, k) = (dst.nrows(), dst.ncols(), lhs.ncols());
     let lhs_cols = lhs.row_stride() == 1;
     let dot_form = !lhs_cols && lhs.col_stride() == 1 && rhs.row_stride() == 1;
-    if dst.row_stride() != 1 || !(lhs_cols || dot_form) || m.max(n).max(k) > MAX_SMALL_DIM {
+    let gathered = if lhs_cols { k } else { m };
+    if dst.row_stride() != 1 || !(lhs_cols || dot_form) || gathered > MAX_SMALL_DIM {
         return false;
     }
     let mut a: [&[f64]; MAX_SMALL_DIM] = [&[]; MAX_SMALL_DIM];
@@ -585,9 +590,9 @@ impl Ldlt {
     /// Solves `A X = B` in place (`rhs` holds `B` on entry, `X` on exit).
     pub fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
         let n = self.dim();
-        if (rhs.ncols() <= 2 || n <= SMALL_FACTOR) && n <= MAX_SMALL_DIM {
+        if rhs.ncols() <= 2 && n <= MAX_SOLVE_DIM {
             // Column by column with slices: faer's blocked solve costs more for few columns.
-            let mut l: [&[f64]; MAX_SMALL_DIM] = [&[]; MAX_SMALL_DIM];
+            let mut l: [&[f64]; MAX_SOLVE_DIM] = [&[]; MAX_SOLVE_DIM];
             for (j, lj) in l.iter_mut().enumerate().take(n) {
                 *lj = &self
                     .factors

@@ -26,10 +26,15 @@ pub(crate) enum ExtraGains {
     Rollout,
 }
 
-/// Scratch shared by the knots of a sweep: `P̃[Ã B̃]` and `I + P'G`.
+/// Knots with `nx + nu` up to this copy `A` and `B` side by side for the products of the
+/// Q-function (two calls instead of five: the calls' fixed cost matters more than the copy).
+const SMALL_AB: usize = 24;
+
+/// Scratch shared by the knots of a sweep: `P̃[Ã B̃]`, `[A B]` and `I + P'G`.
 #[derive(Debug)]
 pub(crate) struct StageScratch {
     pab: Mat<f64>,
+    ab: Mat<f64>,
     m: Mat<f64>,
 }
 
@@ -41,6 +46,7 @@ impl StageScratch {
             .fold((0, 0), |(ny, n), d| (ny.max(d.nx_next), n.max(d.nx + d.nu)));
         Self {
             pab: Mat::zeros(ny, n),
+            ab: Mat::zeros(ny, n.min(SMALL_AB)),
             m: Mat::zeros(ny, ny),
         }
     }
@@ -227,39 +233,57 @@ impl RiccatiStage {
                 self.prox.solve_in_place(self.ptilde.as_mut());
                 linalg::symmetrize(self.ptilde.as_mut());
             }
-            // Step 3: Q += [Ã B̃]ᵀ P̃ [Ã B̃] (lower triangle).
-            let (a, b) = ab_of(self.e_minus_identity, &self.ab_tilde, knot);
+            // Step 3: Q += [Ã B̃]ᵀ P̃ [Ã B̃] (lower triangle): two products on a contiguous
+            // [Ã B̃] (the knot's A and B copied side by side when small: fewer calls), five
+            // on the knot's A and B in place when large (no copy).
             let pt = if self.mu_dyn > 0.0 {
                 self.ptilde.as_ref()
             } else {
                 P_next
             };
-            let mut w = scratch.pab.as_mut().submatrix_mut(0, 0, ny, nx + nu);
-            matmul(w.rb_mut().subcols_mut(0, nx), Accum::Replace, pt, a, 1.0);
+            let n = nx + nu;
+            let contiguous = if !self.e_minus_identity {
+                Some(self.ab_tilde.as_ref())
+            } else if n <= SMALL_AB {
+                let mut ab = scratch.ab.as_mut().submatrix_mut(0, 0, ny, n);
+                linalg::copy(ab.rb_mut().subcols_mut(0, nx), knot.A.as_ref());
+                linalg::copy(ab.rb_mut().subcols_mut(nx, nu), knot.B.as_ref());
+                Some(scratch.ab.as_ref().submatrix(0, 0, ny, n))
+            } else {
+                None
+            };
+            let mut w = scratch.pab.as_mut().submatrix_mut(0, 0, ny, n);
             let mut q = self.qmat.as_mut();
-            matmul_lower(
-                q.rb_mut().submatrix_mut(0, 0, nx, nx),
-                Accum::Add,
-                a.transpose(),
-                w.as_ref().subcols(0, nx),
-                1.0,
-            );
-            if nu > 0 {
-                matmul(w.rb_mut().subcols_mut(nx, nu), Accum::Replace, pt, b, 1.0);
-                matmul(
-                    q.rb_mut().submatrix_mut(nx, 0, nu, nx),
+            if let Some(ab) = contiguous {
+                matmul(w.rb_mut(), Accum::Replace, pt, ab, 1.0);
+                matmul_lower(q, Accum::Add, ab.transpose(), w.as_ref(), 1.0);
+            } else {
+                let (a, b) = (knot.A.as_ref(), knot.B.as_ref());
+                matmul(w.rb_mut().subcols_mut(0, nx), Accum::Replace, pt, a, 1.0);
+                matmul_lower(
+                    q.rb_mut().submatrix_mut(0, 0, nx, nx),
                     Accum::Add,
-                    b.transpose(),
+                    a.transpose(),
                     w.as_ref().subcols(0, nx),
                     1.0,
                 );
-                matmul_lower(
-                    q.rb_mut().submatrix_mut(nx, nx, nu, nu),
-                    Accum::Add,
-                    b.transpose(),
-                    w.as_ref().subcols(nx, nu),
-                    1.0,
-                );
+                if nu > 0 {
+                    matmul(w.rb_mut().subcols_mut(nx, nu), Accum::Replace, pt, b, 1.0);
+                    matmul(
+                        q.rb_mut().submatrix_mut(nx, 0, nu, nx),
+                        Accum::Add,
+                        b.transpose(),
+                        w.as_ref().subcols(0, nx),
+                        1.0,
+                    );
+                    matmul_lower(
+                        q.rb_mut().submatrix_mut(nx, nx, nu, nu),
+                        Accum::Add,
+                        b.transpose(),
+                        w.as_ref().subcols(nx, nu),
+                        1.0,
+                    );
+                }
             }
         }
         linalg::symmetrize_from_lower(self.qmat.as_mut());
