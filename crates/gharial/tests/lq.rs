@@ -872,3 +872,28 @@ fn invalid_calls_are_errors() {
     let e: gharial::Error = LqError::NonFinite { knot: 3, field: "q" }.into();
     assert!(e.to_string().contains("LQ knot 3: non-finite value in q"), "{e}");
 }
+
+#[test]
+fn stage_methods_check_their_arguments() {
+    let p = feature_problem(15, false, 0.0);
+    let mut solver = RiccatiSolver::new(&p).unwrap();
+    // A law that forgets the next value function, or passes another knot.
+    let e = solver
+        .backward_with(&p, |knot, st, _| st.solve_kkt(knot, None, 0.0))
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            LqError::Dimension {
+                field: "next value Hessian",
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let other = p.knots[0].clone();
+    let e = solver
+        .backward_with(&p, |_, st, next| st.solve_kkt(&other, next.map(|n| n.0), 0.0))
+        .unwrap_err();
+    assert!(matches!(e, LqError::Dimension { .. }), "{e:?}");
+}

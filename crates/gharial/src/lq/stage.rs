@@ -395,7 +395,47 @@ impl RiccatiStage {
         P_next: Option<MatRef<'_, f64>>,
         primal_reg: f64,
     ) -> Result<(), LqError> {
+        self.check_knot(knot)?;
+        self.check_next(P_next, None)?;
         self.solve_kkt_impl(knot, P_next, primal_reg, None)
+    }
+
+    /// Checks that `knot` has this stage's dimensions (for the public stage methods).
+    fn check_knot(&self, knot: &LqKnot) -> Result<(), LqError> {
+        knot.check_shapes(self.index)?;
+        if (knot.nx, knot.nu, knot.nc, knot.nx_next) != (self.nx, self.nu, self.nc, self.ny) {
+            return Err(LqError::Dimension {
+                knot: self.index,
+                field: "knot dimensions (nx + nu + nc + nx_next)",
+                expected: (self.nx + self.nu + self.nc + self.ny, 1),
+                got: (knot.nx + knot.nu + knot.nc + knot.nx_next, 1),
+            });
+        }
+        Ok(())
+    }
+
+    /// Checks the next value function given to the public stage methods: present exactly
+    /// when the knot has dynamics, of size `nx_next`.
+    fn check_next(&self, P_next: Option<MatRef<'_, f64>>, p_next: Option<&[f64]>) -> Result<(), LqError> {
+        let ny = self.ny;
+        let shape = P_next.map_or((0, 0), |P| (P.nrows(), P.ncols()));
+        if (ny > 0 || P_next.is_some()) && shape != (ny, ny) {
+            return Err(LqError::Dimension {
+                knot: self.index,
+                field: "next value Hessian",
+                expected: (ny, ny),
+                got: shape,
+            });
+        }
+        match p_next {
+            Some(p) if p.len() != ny => Err(LqError::Dimension {
+                knot: self.index,
+                field: "next value gradient",
+                expected: (ny, 1),
+                got: (p.len(), 1),
+            }),
+            _ => Ok(()),
+        }
     }
 
     /// [`solve_kkt`](Self::solve_kkt), also solving for the feedforward column `[k; ζ]`
@@ -576,6 +616,8 @@ impl RiccatiStage {
     /// [`solve_kkt`](Self::solve_kkt). `next` is the next value function (`None` at the
     /// last knot).
     pub fn solve_kkt_vectors(&mut self, knot: &LqKnot, next: Option<(MatRef<'_, f64>, &[f64])>) -> Result<(), LqError> {
+        self.check_knot(knot)?;
+        self.check_next(next.map(|n| n.0), next.map(|n| n.1))?;
         self.solve_kkt_vectors_with(knot, KnotVectors::of(knot).d, next)
     }
 
