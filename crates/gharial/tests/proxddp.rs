@@ -138,6 +138,22 @@ fn exact_lq(lq: &Lq, x_target: Option<&[f64]>) -> LqProblem {
     }
 }
 
+/// A reachable terminal target: the end of a rollout with controls inside `[-umax/2, umax/2]`.
+fn reachable_target(lq: &Lq, umax: f64) -> Vec<f64> {
+    let mut target = lq.x0.clone();
+    for t in 0..lq.n {
+        let u: Vec<f64> = (0..lq.nu).map(|i| 0.5 * umax * ((t + i) as f64).sin()).collect();
+        target = (0..lq.nx)
+            .map(|i| {
+                lq.c[i]
+                    + (0..lq.nx).map(|j| lq.a[(i, j)] * target[j]).sum::<f64>()
+                    + (0..lq.nu).map(|j| lq.b[(i, j)] * u[j]).sum::<f64>()
+            })
+            .collect();
+    }
+    target
+}
+
 fn zero_guess(p: &Problem) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let n = p.horizon();
     let xs = (0..=n).map(|t| vec![0.0; p.space(t).nx()]).collect();
@@ -238,7 +254,7 @@ fn box_constrained_lq_satisfies_the_kkt_conditions_for_every_step_acceptance() {
 #[test]
 fn warm_start_from_a_converged_solution_takes_at_most_two_iterations() {
     let lq = random_lq(4, 2, 30, 11);
-    let target = vec![0.2, -0.1, 0.0, 0.3];
+    let target = reachable_target(&lq, 0.5);
     let p = ocp(&lq, Some(0.5), Some(&target));
     let (xs, us) = zero_guess(&p);
     let mut solver = ProxDdp::new(ProxDdpOptions::default());
@@ -372,26 +388,17 @@ fn clarabel_cost(lq: &Lq, umax: f64, x_target: Option<&[f64]>) -> f64 {
 fn box_constrained_lq_has_the_optimal_cost_of_an_independent_qp_solver() {
     for (seed, (nx, nu, n), umax) in [(21, (3, 2, 20), 0.2), (22, (4, 2, 40), 0.3), (23, (6, 3, 30), 0.1)] {
         let lq = random_lq(nx, nu, n, seed);
-        // A reachable terminal target: the end of a rollout with controls inside the box.
-        let mut target = lq.x0.clone();
-        for t in 0..n {
-            let u: Vec<f64> = (0..nu).map(|i| 0.5 * umax * ((t + i) as f64).sin()).collect();
-            target = (0..nx)
-                .map(|i| {
-                    lq.c[i]
-                        + (0..nx).map(|j| lq.a[(i, j)] * target[j]).sum::<f64>()
-                        + (0..nu).map(|j| lq.b[(i, j)] * u[j]).sum::<f64>()
-                })
-                .collect();
-        }
+        let target = reachable_target(&lq, umax);
         for x_target in [None, Some(target.as_slice())] {
             let reference = clarabel_cost(&lq, umax, x_target);
             let p = ocp(&lq, Some(umax), x_target);
             for rollout in [Rollout::Linear, Rollout::Nonlinear] {
                 let (xs, us) = zero_guess(&p);
+                // The nonlinear rollout's round-off floor is about eps |x| / mu (see above).
+                let tol = if rollout == Rollout::Linear { 1e-9 } else { 1e-8 };
                 let opts = ProxDdpOptions {
                     rollout,
-                    tol: 1e-9,
+                    tol,
                     ..Default::default()
                 };
                 let sol = solve(&p, opts, &xs, &us);
@@ -511,32 +518,54 @@ fn implicit_dynamics_match_the_dense_kkt_solution() {
 #[test]
 fn constraint_and_dynamics_scalings_do_not_change_the_solution() {
     let lq = random_lq(4, 2, 25, 61);
-    let target = vec![0.1, 0.0, -0.1, 0.0];
+    let target = reachable_target(&lq, 0.3);
     let base = ocp(&lq, Some(0.3), Some(&target));
     let reference = {
         let (xs, us) = zero_guess(&base);
-        solve(&base, ProxDdpOptions { tol: 1e-9, verbose: true, ..Default::default() }, &xs, &us)
+        solve(
+            &base,
+            ProxDdpOptions {
+                tol: 1e-9,
+                verbose: true,
+                ..Default::default()
+            },
+            &xs,
+            &us,
+        )
     };
     assert_eq!(reference.status, Status::Converged);
     // Scale the box by 10 and the terminal constraint by 0.1, and the dynamics by 1e-3.
     let mut p = base.clone();
     for st in p.stages_mut() {
         let c = st.constraints()[0].clone().with_scale(10.0);
-        *st = StageModel::new(st.cost.clone(), st.dynamics.clone()).unwrap().with_constraint(c).unwrap();
+        *st = StageModel::new(st.cost.clone(), st.dynamics.clone())
+            .unwrap()
+            .with_constraint(c)
+            .unwrap();
     }
     let mut q = Problem::new(&lq.x0, p.stages().to_vec(), p.terminal_cost().clone()).unwrap();
-    q.add_terminal_constraint(base.terminal_constraints()[0].clone().with_scale(0.1)).unwrap();
+    q.add_terminal_constraint(base.terminal_constraints()[0].clone().with_scale(0.1))
+        .unwrap();
     let (xs, us) = zero_guess(&q);
     let opts = ProxDdpOptions {
         tol: 1e-9,
         dyn_al_scale: 1e-3,
-        verbose: true,
         ..Default::default()
     };
     let sol = solve(&q, opts, &xs, &us);
     assert_eq!(sol.status, Status::Converged);
-    let dx: f64 = sol.xs.iter().zip(&reference.xs).flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p - q).abs())).fold(0.0, f64::max);
-    let du: f64 = sol.us.iter().zip(&reference.us).flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p - q).abs())).fold(0.0, f64::max);
+    let dx: f64 = sol
+        .xs
+        .iter()
+        .zip(&reference.xs)
+        .flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p - q).abs()))
+        .fold(0.0, f64::max);
+    let du: f64 = sol
+        .us
+        .iter()
+        .zip(&reference.us)
+        .flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p - q).abs()))
+        .fold(0.0, f64::max);
     assert!(dx < 1e-7 && du < 1e-7, "{dx:e} {du:e}");
 }
 
@@ -546,11 +575,41 @@ fn invalid_options_and_inputs_give_errors() {
     let p = ocp(&lq, Some(0.5), None);
     let (xs, us) = zero_guess(&p);
     for (opts, name) in [
-        (ProxDdpOptions { tol: 0.0, ..Default::default() }, "tol"),
-        (ProxDdpOptions { mu_init: f64::NAN, ..Default::default() }, "mu_init"),
-        (ProxDdpOptions { mu_update_factor: 1.5, ..Default::default() }, "mu_update_factor"),
-        (ProxDdpOptions { max_iters: 0, ..Default::default() }, "max_iters"),
-        (ProxDdpOptions { num_threads: 0, ..Default::default() }, "num_threads"),
+        (
+            ProxDdpOptions {
+                tol: 0.0,
+                ..Default::default()
+            },
+            "tol",
+        ),
+        (
+            ProxDdpOptions {
+                mu_init: f64::NAN,
+                ..Default::default()
+            },
+            "mu_init",
+        ),
+        (
+            ProxDdpOptions {
+                mu_update_factor: 1.5,
+                ..Default::default()
+            },
+            "mu_update_factor",
+        ),
+        (
+            ProxDdpOptions {
+                max_iters: 0,
+                ..Default::default()
+            },
+            "max_iters",
+        ),
+        (
+            ProxDdpOptions {
+                num_threads: 0,
+                ..Default::default()
+            },
+            "num_threads",
+        ),
     ] {
         let e = ProxDdp::new(opts).setup(&p).err().unwrap();
         assert!(e.to_string().contains(name), "{e}");
@@ -610,9 +669,21 @@ fn diverging_problems_return_a_status_and_finite_values() {
     lq.r = Mat::from_fn(2, 2, |i, j| if i == j { -1.0 } else { 0.0 });
     let p = ocp(&lq, None, None);
     let (xs, us) = zero_guess(&p);
-    let sol = solve(&p, ProxDdpOptions { max_iters: 30, ..Default::default() }, &xs, &us);
+    let sol = solve(
+        &p,
+        ProxDdpOptions {
+            max_iters: 30,
+            ..Default::default()
+        },
+        &xs,
+        &us,
+    );
     assert_ne!(sol.status, Status::Converged);
-    assert!(sol.xs.iter().chain(&sol.us).flatten().all(|v| v.is_finite()), "{:?}", sol.status);
+    assert!(
+        sol.xs.iter().chain(&sol.us).flatten().all(|v| v.is_finite()),
+        "{:?}",
+        sol.status
+    );
     assert!(sol.cost.is_finite());
 
     // A guess at which the model evaluates to NaN: reported, guess returned unchanged.

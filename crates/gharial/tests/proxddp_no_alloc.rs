@@ -98,7 +98,11 @@ fn problem(implicit: bool) -> Problem {
             Arc::new(BoxConstraint::new(&[-1.5], &[1.5]).unwrap()),
         ))
         .unwrap()
-        .with_constraint(StageConstraint::new("angle", Arc::new(AngleBound), Arc::new(NegativeOrthant)))
+        .with_constraint(StageConstraint::new(
+            "angle",
+            Arc::new(AngleBound),
+            Arc::new(NegativeOrthant),
+        ))
         .unwrap();
     let term = Arc::new(QuadraticStateCost::diagonal(space.clone(), &target, &[1.0, 1.0], 0).unwrap());
     let mut p = Problem::new(&[0.0, 0.0], vec![stage; 30], term).unwrap();
@@ -114,10 +118,16 @@ fn solve_does_not_allocate_after_setup() {
     for implicit in [false, true] {
         let p = problem(implicit);
         let n = p.horizon();
-        let xs: Vec<Vec<f64>> = (0..=n).map(|t| vec![std::f64::consts::PI * t as f64 / n as f64, 0.0]).collect();
+        let xs: Vec<Vec<f64>> = (0..=n)
+            .map(|t| vec![std::f64::consts::PI * t as f64 / n as f64, 0.0])
+            .collect();
         let us = vec![vec![0.0]; n];
         for rollout in [Rollout::Linear, Rollout::Nonlinear] {
-            for step_acceptance in [StepAcceptance::Linesearch, StepAcceptance::NonmonotoneLinesearch, StepAcceptance::Filter] {
+            for step_acceptance in [
+                StepAcceptance::Linesearch,
+                StepAcceptance::NonmonotoneLinesearch,
+                StepAcceptance::Filter,
+            ] {
                 for hessian in [HessianApprox::GaussNewton, HessianApprox::Exact] {
                     let opts = ProxDdpOptions {
                         rollout,
@@ -134,7 +144,10 @@ fn solve_does_not_allocate_after_setup() {
                         iterations = sol.iterations;
                     });
                     assert!(iterations > 3, "the solves must do real work");
-                    assert_eq!(count, 0, "implicit {implicit} {rollout:?} {step_acceptance:?} {hessian:?}");
+                    assert_eq!(
+                        count, 0,
+                        "implicit {implicit} {rollout:?} {step_acceptance:?} {hessian:?}"
+                    );
                 }
             }
         }

@@ -65,7 +65,11 @@ impl StageConstraint {
     fn validate(&self, what: &str, space: &dyn Manifold, nu: usize) -> Result<()> {
         let w = format!("{what} constraint `{}`", self.name);
         check_dim(format_args!("{w}: state size nx"), space.nx(), self.func.nx())?;
-        check_dim(format_args!("{w}: state tangent size ndx"), space.ndx(), self.func.ndx())?;
+        check_dim(
+            format_args!("{w}: state tangent size ndx"),
+            space.ndx(),
+            self.func.ndx(),
+        )?;
         check_dim(format_args!("{w}: control size nu"), nu, self.func.nu())?;
         if let Some(d) = self.set.dim() {
             check_dim(format_args!("{w}: set dimension"), self.func.nr(), d)?;

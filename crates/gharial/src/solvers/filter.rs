@@ -74,13 +74,21 @@ impl Filter {
         self.entries.push((phi, theta));
     }
 
-    /// Backtracking search for a step acceptable to the filter; `trial(α)` returns
+    /// Backtracking search for a step acceptable to the filter: the full step first, then
+    /// `alpha_model` (a model minimiser, when given and in `(0, 1)`), then halving;
+    /// `trial(α)` returns
     /// `(φ(α), θ(α))`. The accepted trial is added to the filter, which therefore holds
     /// the iterates it accepted: the starting point of a search sequence (an empty
     /// filter) is not an entry, so the first step is taken whole when it is finite,
     /// and every later step must not be dominated by an earlier iterate.
-    pub fn search(&mut self, mut trial: impl FnMut(f64) -> (f64, f64), opts: &LinesearchOptions) -> LinesearchResult {
+    pub fn search(
+        &mut self,
+        mut trial: impl FnMut(f64) -> (f64, f64),
+        alpha_model: Option<f64>,
+        opts: &LinesearchOptions,
+    ) -> LinesearchResult {
         let mut alpha = 1.0;
+        let mut model = alpha_model.filter(|&a| a > opts.alpha_min && a < 1.0);
         let mut trials = 0;
         loop {
             let (phi, theta) = trial(alpha);
@@ -102,7 +110,10 @@ impl Filter {
                     trials,
                 };
             }
-            alpha = (alpha * opts.contraction_max).max(opts.alpha_min);
+            alpha = match model.take() {
+                Some(a) => a,
+                None => (alpha * opts.contraction_max).max(opts.alpha_min),
+            };
         }
     }
 }
@@ -147,23 +158,33 @@ mod tests {
     fn search_backtracks_until_acceptable() {
         let mut f = Filter::new(8, 1e-5, 1e-5);
         // Empty filter: the full step is taken.
-        let r = f.search(|_| (5.0, 5.0), &LinesearchOptions::default());
+        let r = f.search(|_| (5.0, 5.0), None, &LinesearchOptions::default());
         assert!(r.accepted && r.alpha == 1.0);
         assert_eq!(f.entries(), &[(5.0, 5.0)]);
         // Trials are better than (5, 5) only for α ≤ 0.25.
         let r = f.search(
             |a| if a > 0.25 { (6.0, 6.0) } else { (0.5, 0.5) },
+            None,
             &LinesearchOptions::default(),
         );
         assert!(r.accepted);
         assert_eq!(r.alpha, 0.25);
         assert_eq!(f.entries(), &[(0.5, 0.5)]);
+        // A model step is tried right after the full step.
+        let mut g = Filter::new(8, 1e-5, 1e-5);
+        g.add(1.0, 1.0);
+        let r = g.search(
+            |a| if a == 0.3 { (0.1, 0.1) } else { (9.0, 9.0) },
+            Some(0.3),
+            &LinesearchOptions::default(),
+        );
+        assert!(r.accepted && r.alpha == 0.3 && r.trials == 2);
         // A trial equal to a stored pair is rejected until the trial limit.
         let opts = LinesearchOptions {
             max_trials: 3,
             ..Default::default()
         };
-        let r = f.search(|_| (0.5, 0.5), &opts);
+        let r = f.search(|_| (0.5, 0.5), None, &opts);
         assert!(!r.accepted);
         assert_eq!(r.trials, 3);
     }

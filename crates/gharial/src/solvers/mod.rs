@@ -38,6 +38,9 @@ pub enum Status {
     RegularizationFailure,
     /// The wall-time budget was exhausted; the best iterate so far is returned.
     TimeBudget,
+    /// Newton steps no longer reduce the residuals: they are at the round-off floor of
+    /// the arithmetic (for ProxDDP, about `ε |x| / mu`), above the requested tolerance.
+    Stalled,
 }
 
 impl Status {
@@ -57,6 +60,7 @@ impl fmt::Display for Status {
             Status::NonFinite => "non-finite values",
             Status::RegularizationFailure => "regularization failure",
             Status::TimeBudget => "time budget exhausted",
+            Status::Stalled => "stalled at round-off level",
         };
         f.write_str(s)
     }

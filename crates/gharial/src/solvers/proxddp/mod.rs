@@ -168,6 +168,9 @@ impl ProxDdp {
         // solved as accurately as the arithmetic allows and the outer loop takes over.
         let mut stalled = false;
         let mut roundoff_inner = f64::INFINITY;
+        // Consecutive outer updates forced by stalls, and the residual before them.
+        let mut stall_updates = 0;
+        let mut stall_err = f64::INFINITY;
         sol.history.clear();
         if opts.verbose {
             print_header();
@@ -196,10 +199,38 @@ impl ProxDdp {
                 break;
             }
             if res.inner <= omega || stalled {
+                if stalled {
+                    let err = res.prim.max(res.dual);
+                    if err < 0.5 * stall_err {
+                        stall_err = err;
+                        stall_updates = 0;
+                    }
+                    stall_updates += 1;
+                    if stall_updates > 3 {
+                        status = Status::Stalled;
+                        break;
+                    }
+                } else {
+                    stall_updates = 0;
+                    stall_err = f64::INFINITY;
+                }
                 stalled = false;
                 // Outer update of Algorithm 2 (lines 9-24).
                 al_iter += 1;
-                if res.prim <= eta {
+                let success = res.prim <= eta;
+                if opts.verbose {
+                    eprintln!(
+                        "  outer {al_iter}: prim_err {:.3e} {} eta {eta:.3e} -> {}",
+                        res.prim,
+                        if success { "<=" } else { ">" },
+                        if success {
+                            "multipliers accepted"
+                        } else {
+                            "mu decreased"
+                        }
+                    );
+                }
+                if success {
                     ws.accept_multipliers();
                     omega *= mu.powf(opts.bcl_alpha_omega);
                     eta *= mu.powf(opts.bcl_alpha_eta);
@@ -250,7 +281,8 @@ impl ProxDdp {
                     status = Status::NonFinite;
                     break 'outer;
                 }
-                let d = ws.merit_slope(problem, opts.merit, mu, mu_d);
+                ws.prepare_model(problem);
+                let d = ws.model_slope(problem, opts.merit, mu, mu_d, 0.0);
                 if !d.is_finite() {
                     status = Status::NonFinite;
                     break 'outer;
@@ -277,6 +309,8 @@ impl ProxDdp {
             } else {
                 roundoff_inner = f64::INFINITY;
             }
+            let alpha_model =
+                (!roundoff).then(|| ws.model_step(problem, opts.merit, mu, mu_d, opts.linesearch.alpha_min));
             let mut trial = |alpha: f64| -> (f64, f64) {
                 let ok = match opts.rollout {
                     Rollout::Linear => {
@@ -304,10 +338,10 @@ impl ProxDdp {
                         trials: 1,
                     }
                 }
-                StepAcceptance::Filter => filter.search(&mut trial, &opts.linesearch),
+                StepAcceptance::Filter => filter.search(&mut trial, alpha_model, &opts.linesearch),
                 StepAcceptance::Linesearch | StepAcceptance::NonmonotoneLinesearch => {
                     let reference = nonmonotone.reference(phi0);
-                    armijo(|a| trial(a).0, phi0, dphi0, reference, &opts.linesearch)
+                    armijo(|a| trial(a).0, phi0, dphi0, reference, alpha_model, &opts.linesearch)
                 }
             };
             let record = IterationRecord {
