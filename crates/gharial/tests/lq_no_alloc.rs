@@ -1,61 +1,14 @@
 //! The LQ solvers allocate nothing after construction (a counting global allocator;
 //! this file is its own test binary so that no other test allocates concurrently).
-// A global allocator can only be written with `unsafe`; it forwards to `System`.
-#![allow(unsafe_code)]
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use gharial::lq::random::{self, SplitMix64, VariedOptions};
 use gharial::lq::{LqSolution, ParallelRiccatiSolver, RiccatiOptions, RiccatiSolver};
 
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-thread_local! {
-    /// Allocations made by the current thread (const-initialised, no destructor: usable
-    /// from the allocator).
-    static LOCAL: std::cell::Cell<usize> = const { std::cell::Cell::new(0) };
-}
-
-fn count() {
-    ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-    LOCAL.with(|c| c.set(c.get() + 1));
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        unsafe { System.alloc(layout) }
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+#[path = "support/counting_alloc.rs"]
+mod counting_alloc;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
-
-/// Allocations made by every thread while `f` runs.
-fn allocations_during(f: impl FnOnce()) -> usize {
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
-    f();
-    ALLOCATIONS.load(Ordering::SeqCst) - before
-}
-
-/// Allocations made by the current thread while `f` runs.
-fn local_allocations_during(f: impl FnOnce()) -> usize {
-    let before = LOCAL.with(|c| c.get());
-    f();
-    LOCAL.with(|c| c.get()) - before
-}
+static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
 
 /// Problems that exercise every path: general `E` with `mu_dyn > 0` (LU of `E`, `I + P'G`),
 /// hard rows (Bunch-Kaufman), varying dimensions, the peers' problem (`E = -I`, LDLᵀ).
@@ -97,7 +50,7 @@ fn lq_solvers_allocate_nothing_after_setup() {
         };
         let mut solver = RiccatiSolver::with_options(p, opts).unwrap();
         let mut sol = LqSolution::new(p);
-        let n = local_allocations_during(|| {
+        let n = counting_alloc::local_allocations_during(|| {
             for _ in 0..3 {
                 solver.backward(p, 1e-9).unwrap();
                 solver.forward(p, &mut sol).unwrap();
@@ -123,7 +76,7 @@ fn lq_solvers_allocate_nothing_after_setup() {
             solver.forward(p, sol).unwrap();
         }
         let solves: usize = 126;
-        let n = allocations_during(|| {
+        let n = counting_alloc::allocations_during(|| {
             for _ in 0..solves {
                 solver.backward(p, 0.0).unwrap();
                 solver.backward_vectors(p).unwrap();
