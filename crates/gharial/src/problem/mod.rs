@@ -326,6 +326,16 @@ impl Problem {
         &self.terminal_constraints
     }
 
+    /// The constraints of knot `t`: the path constraints of stage `t` for `t < N`, the
+    /// terminal constraints for `t = N`.
+    pub fn constraints(&self, t: usize) -> &[StageConstraint] {
+        if t < self.stages.len() {
+            self.stages[t].constraints()
+        } else {
+            &self.terminal_constraints
+        }
+    }
+
     /// Space of state `x_t`, `t = 0..=N`.
     pub fn space(&self, t: usize) -> &Arc<dyn Manifold> {
         if t < self.stages.len() {

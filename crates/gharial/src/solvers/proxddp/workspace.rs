@@ -9,7 +9,7 @@ use crate::dynamics::Dynamics;
 use crate::error::Result;
 use crate::linalg::{Lu, matvec, norm_inf, slice, slice_mut};
 use crate::lq::{LqKnot, LqProblem, LqSolution, RiccatiOptions, RiccatiSolver};
-use crate::problem::{DynamicsData, Problem, ProblemData, StageConstraint};
+use crate::problem::{DynamicsData, Problem, ProblemData};
 use crate::solvers::InitialGuess;
 
 /// A primal-dual point `(xs, us, λs, νs)`.
@@ -45,15 +45,6 @@ impl Point {
         for (a, b) in self.nus.iter_mut().zip(&o.nus) {
             a.copy_from_slice(b);
         }
-    }
-}
-
-/// The constraints of knot `t` (`t < N`: path constraints; `t = N`: terminal ones).
-fn knot_constraints(problem: &Problem, t: usize) -> &[StageConstraint] {
-    if t < problem.horizon() {
-        problem.stages()[t].constraints()
-    } else {
-        problem.terminal_constraints()
     }
 }
 
@@ -116,7 +107,7 @@ impl Workspace {
         let n = problem.horizon();
         let cur = Point::new(problem);
         let ncs: Vec<usize> = (0..=n)
-            .map(|t| knot_constraints(problem, t).iter().map(|c| c.nr()).sum())
+            .map(|t| problem.constraints(t).iter().map(|c| c.nr()).sum())
             .collect();
         let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
         let mut knots = Vec::with_capacity(n + 1);
@@ -269,12 +260,8 @@ impl Workspace {
         // Constraints: z = h + mu_i ν_e, ν⁺ = (z - proj_C(z)) / mu_i; the primal measure
         // (53) is |[h + mu ν_e]_- - h| = mu_i |ν_e - ν⁺|.
         for t in 0..=n {
-            let cs = knot_constraints(problem, t);
-            let datas = if t < n {
-                &self.data.stages[t].constraints
-            } else {
-                &self.data.terminal_constraints
-            };
+            let cs = problem.constraints(t);
+            let datas = self.data.constraint_data(t);
             let mut off = 0;
             for (c, d) in cs.iter().zip(datas) {
                 let nr = c.nr();
@@ -315,7 +302,7 @@ impl Workspace {
         // whose normal-cone Jacobian is a projector (equality, orthant, box) this is
         // J_N ν, the active multipliers of (46).
         for t in 0..=n {
-            let cs = knot_constraints(problem, t);
+            let cs = problem.constraints(t);
             let mut off = 0;
             for c in cs {
                 let nr = c.nr();
@@ -364,12 +351,8 @@ impl Workspace {
                 knot.Q.copy_from(&self.data.terminal_cost.lxx);
             }
             // Constraint rows: C = J_N h_x, D = J_N h_u, d = mu_i (ν⁺ - ν), mu_c = mu_i.
-            let cs = knot_constraints(problem, t);
-            let datas = if t < n {
-                &self.data.stages[t].constraints
-            } else {
-                &self.data.terminal_constraints
-            };
+            let cs = problem.constraints(t);
+            let datas = self.data.constraint_data(t);
             let mut off = 0;
             for (c, d) in cs.iter().zip(datas) {
                 let nr = c.nr();
@@ -480,11 +463,7 @@ impl Workspace {
             matvec(a, Accum::Add, sd.dyn_jy.as_ref(), slice(&st.xs[t + 1]), 1.0);
         }
         for t in 0..=n {
-            let datas = if t < n {
-                &self.data.stages[t].constraints
-            } else {
-                &self.data.terminal_constraints
-            };
+            let datas = self.data.constraint_data(t);
             let mut off = 0;
             for cd in datas {
                 let nr = cd.value.nrows();
@@ -543,12 +522,8 @@ impl Workspace {
         // 2 e(w) + (mu/4)|ν(α)|² (primal-dual) or e(w) (primal), e the Moreau envelope
         // of the set, whose gradient is N(w) / mu with N the normal-cone projection.
         for t in 0..=n {
-            let cs = knot_constraints(problem, t);
-            let datas = if t < n {
-                &self.data.stages[t].constraints
-            } else {
-                &self.data.terminal_constraints
-            };
+            let cs = problem.constraints(t);
+            let datas = self.data.constraint_data(t);
             let mut off = 0;
             for (c, cd) in cs.iter().zip(datas) {
                 let nr = c.nr();
@@ -635,12 +610,8 @@ impl Workspace {
             }
         }
         for t in 0..=n {
-            let cs = knot_constraints(problem, t);
-            let datas = if t < n {
-                &self.data.stages[t].constraints
-            } else {
-                &self.data.terminal_constraints
-            };
+            let cs = problem.constraints(t);
+            let datas = self.data.constraint_data(t);
             let mut off = 0;
             for (c, cd) in cs.iter().zip(datas) {
                 let nr = c.nr();
