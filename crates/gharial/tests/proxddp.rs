@@ -695,3 +695,100 @@ fn diverging_problems_return_a_status_and_finite_values() {
     assert_eq!(sol.status, Status::NonFinite);
     assert_eq!(sol.xs, xs);
 }
+
+/// `h(x) = x_0² + x_1² - r²` (stay in a disc), with exact second derivatives through
+/// hyper-dual numbers.
+struct Disc {
+    radius: f64,
+}
+
+impl gharial::functions::autodiff::AutoStageFn for Disc {
+    fn nx(&self) -> usize {
+        4
+    }
+    fn nu(&self) -> usize {
+        2
+    }
+    fn nr(&self) -> usize {
+        1
+    }
+    fn eval<D: gharial::functions::autodiff::ManifoldScalar>(&self, x: &[D], _u: &[D], out: &mut [D]) {
+        out[0] = x[0] * x[0] + x[1] * x[1] - D::from(self.radius * self.radius);
+    }
+}
+
+#[test]
+fn exact_and_gauss_newton_hessians_reach_the_same_kkt_point() {
+    // A planar double integrator steered towards (2, 1) while staying in the unit disc:
+    // the curvature of the active disc constraint enters the exact Hessian only.
+    use gharial::constraints::NegativeOrthant;
+    use gharial::functions::autodiff::AutoDiff;
+    use gharial::solvers::proxddp::HessianApprox;
+    let dt = 0.1;
+    let a = Mat::from_fn(4, 4, |i, j| {
+        if i == j {
+            1.0
+        } else if j == i + 2 {
+            dt
+        } else {
+            0.0
+        }
+    });
+    let b = Mat::from_fn(4, 2, |i, j| if i == j + 2 { dt } else { 0.0 });
+    let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(4));
+    let dynamics = Dynamics::Explicit(Arc::new(
+        LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &[0.0; 4]).unwrap(),
+    ));
+    let q = Mat::from_fn(4, 4, |i, j| if i == j && i < 2 { 1.0 } else { 0.0 });
+    let qv = [-1.2, -0.4, 0.0, 0.0];
+    let cost = Arc::new(
+        QuadraticCost::new(
+            q.as_ref(),
+            Mat::zeros(4, 2).as_ref(),
+            Mat::<f64>::identity(2, 2).as_ref(),
+            &qv,
+            &[0.0; 2],
+        )
+        .unwrap(),
+    );
+    let disc = Arc::new(AutoDiff::stage(space, Disc { radius: 1.0 }).unwrap());
+    let stage = StageModel::new(cost, dynamics)
+        .unwrap()
+        .with_constraint(StageConstraint::new("disc", disc, Arc::new(NegativeOrthant)))
+        .unwrap();
+    let term = Arc::new(QuadraticCost::terminal(q.as_ref(), &qv).unwrap());
+    let p = Problem::new(&[0.0, 0.0, 0.0, 0.0], vec![stage; 30], term).unwrap();
+    let (xs, us) = zero_guess(&p);
+    let mut sols = Vec::new();
+    for hessian in [HessianApprox::Exact, HessianApprox::GaussNewton] {
+        let opts = ProxDdpOptions {
+            hessian,
+            tol: 1e-8,
+            ..Default::default()
+        };
+        let sol = solve(&p, opts, &xs, &us);
+        assert_eq!(sol.status, Status::Converged, "{hessian:?}");
+        let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+        assert!(kkt.max() < 1e-7, "{hessian:?}: {kkt:?}");
+        // The disc is active at the end of the horizon (x_N itself is not constrained).
+        let end = &sol.xs[29];
+        assert!((end[0] * end[0] + end[1] * end[1] - 1.0).abs() < 1e-6, "{end:?}");
+        sols.push(sol);
+    }
+    let dx = max_diff(
+        &sols[0].xs,
+        &sols[1]
+            .xs
+            .iter()
+            .map(|v| Col::from_fn(v.len(), |i| v[i]))
+            .collect::<Vec<_>>(),
+    );
+    assert!(dx < 1e-6, "{dx:e}");
+    // Newton with the constraint curvature converges faster than Gauss-Newton here.
+    assert!(
+        sols[0].iterations < sols[1].iterations,
+        "exact {} vs Gauss-Newton {}",
+        sols[0].iterations,
+        sols[1].iterations
+    );
+}

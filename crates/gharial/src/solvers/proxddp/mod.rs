@@ -338,7 +338,7 @@ impl ProxDdp {
                         trials: 1,
                     }
                 }
-                StepAcceptance::Filter => filter.search(&mut trial, alpha_model, &opts.linesearch),
+                StepAcceptance::Filter => filter.search(&mut trial, phi0, dphi0, alpha_model, &opts.linesearch),
                 StepAcceptance::Linesearch | StepAcceptance::NonmonotoneLinesearch => {
                     let reference = nonmonotone.reference(phi0);
                     armijo(|a| trial(a).0, phi0, dphi0, reference, alpha_model, &opts.linesearch)
