@@ -167,6 +167,91 @@ impl JointType {
     }
 }
 
+impl JointType {
+    /// `placement · M_J(q)` (the joint frame in its parent joint frame), with the product
+    /// specialised to the joint type: an aligned revolute joint touches two columns of the
+    /// rotation, a prismatic joint only the translation.
+    #[inline]
+    pub(crate) fn placed_transform(&self, placement: &Se3, q: &[f64]) -> Se3 {
+        match self {
+            JointType::Revolute(a) => {
+                let (s, c) = q[0].sin_cos();
+                placement_rotated(placement, a, c, s)
+            }
+            JointType::RevoluteUnbounded(a) => placement_rotated(placement, a, q[0], q[1]),
+            JointType::Prismatic(a) => {
+                let r = &placement.rotation;
+                let d = match a {
+                    Axis::X => r.column(0) * q[0],
+                    Axis::Y => r.column(1) * q[0],
+                    Axis::Z => r.column(2) * q[0],
+                    Axis::Unaligned(u) => r * (u * q[0]),
+                };
+                Se3::new(*r, placement.translation + d)
+            }
+            _ => placement.compose(&self.transform(q)),
+        }
+    }
+
+    /// World Jacobian columns `oMi · S_k` of the joint (first `nv` entries of `out`) for
+    /// the world placement `o` of its frame.
+    #[inline]
+    pub(crate) fn world_columns(&self, o: &Se3, out: &mut [Motion]) {
+        let r = &o.rotation;
+        let p = &o.translation;
+        let col = |k: usize| Vec3::new(r[(0, k)], r[(1, k)], r[(2, k)]);
+        let angular = |w: Vec3| Motion::new(p.cross(&w), w);
+        let linear = |u: Vec3| Motion::new(u, Vec3::zeros());
+        let axis = |a: &Axis| match a {
+            Axis::X => col(0),
+            Axis::Y => col(1),
+            Axis::Z => col(2),
+            Axis::Unaligned(u) => r * u,
+        };
+        match self {
+            JointType::Universe => {}
+            JointType::Revolute(a) | JointType::RevoluteUnbounded(a) => out[0] = angular(axis(a)),
+            JointType::Prismatic(a) => out[0] = linear(axis(a)),
+            JointType::FreeFlyer => {
+                for k in 0..3 {
+                    let u = col(k);
+                    out[k] = linear(u);
+                    out[3 + k] = angular(u);
+                }
+            }
+            JointType::Spherical => (0..3).for_each(|k| out[k] = angular(col(k))),
+            JointType::Translation => (0..3).for_each(|k| out[k] = linear(col(k))),
+            JointType::Planar => {
+                out[0] = linear(col(0));
+                out[1] = linear(col(1));
+                out[2] = angular(col(2));
+            }
+        }
+    }
+}
+
+/// `placement · R_axis(c, s)`: only the rotation changes.
+#[inline]
+fn placement_rotated(placement: &Se3, a: &Axis, c: f64, s: f64) -> Se3 {
+    let r = &placement.rotation;
+    let rot = match a {
+        Axis::X => {
+            let (r1, r2) = (r.column(1), r.column(2));
+            Mat3::from_columns(&[r.column(0).into_owned(), r1 * c + r2 * s, r2 * c - r1 * s])
+        }
+        Axis::Y => {
+            let (r0, r2) = (r.column(0), r.column(2));
+            Mat3::from_columns(&[r0 * c - r2 * s, r.column(1).into_owned(), r0 * s + r2 * c])
+        }
+        Axis::Z => {
+            let (r0, r1) = (r.column(0), r.column(1));
+            Mat3::from_columns(&[r0 * c + r1 * s, r1 * c - r0 * s, r.column(2).into_owned()])
+        }
+        Axis::Unaligned(_) => r * axis_rotation(a, c, s),
+    };
+    Se3::new(rot, placement.translation)
+}
+
 /// Rotation about an axis given cos and sin of the angle.
 #[inline]
 fn axis_rotation(a: &Axis, c: f64, s: f64) -> Mat3 {

@@ -184,8 +184,6 @@ pub struct Model {
     pub(crate) frames: Vec<Frame>,
     pub(crate) nq: usize,
     pub(crate) nv: usize,
-    /// Motion-subspace column of each degree of freedom, in its joint's frame.
-    pub(crate) s: Vec<Motion>,
     /// Parent degree of freedom (in the tree of dofs), or `NONE`.
     pub(crate) dof_parent: Vec<usize>,
     /// Joint of each degree of freedom.
@@ -241,7 +239,6 @@ impl Model {
             }],
             nq: 0,
             nv: 0,
-            s: Vec::new(),
             dof_parent: Vec::new(),
             dof_joint: Vec::new(),
             lower_position_limit: Vec::new(),
@@ -317,9 +314,7 @@ impl Model {
         } else {
             self.joints[anc].idx_v + self.joints[anc].nv - 1
         };
-        let s = kind.subspace();
         for k in 0..nv {
-            self.s.push(s[k]);
             self.dof_parent.push(prev);
             self.dof_joint.push(id);
             prev = self.nv + k;
