@@ -1,8 +1,9 @@
 //! Preallocated workspace and results of the algorithms.
 //!
-//! All spatial quantities are stored in the world frame (Featherstone's "spatial"
-//! formulation, Pinocchio's `WORLD` convention); local quantities are obtained by the
-//! accessors. Dense matrices are stored as column-major `Vec<f64>` and exposed as faer
+//! Spatial quantities are stored in the world frame (Featherstone's "spatial"
+//! formulation, Pinocchio's `WORLD` convention), except those of the local-frame RNEA
+//! (`rnea`, `nonlinear_effects`, `generalized_gravity`: joint velocities, accelerations and
+//! forces in each joint's own frame, as Pinocchio's `data.v`, `data.a_gf`, `data.f`). Dense matrices are stored as column-major `Vec<f64>` and exposed as faer
 //! views.
 
 use crate::error::{Error, Result};
@@ -25,6 +26,11 @@ pub struct Data {
     pub(crate) o_ycrb: Vec<Inertia>,
     pub(crate) oh: Vec<Force>,
     pub(crate) of: Vec<Force>,
+    /// Joint velocities, accelerations (gravity included) and transmitted forces in each
+    /// joint's own frame (the local-frame RNEA).
+    pub(crate) v: Vec<Motion>,
+    pub(crate) a_gf: Vec<Motion>,
+    pub(crate) f: Vec<Force>,
     pub(crate) c: Vec<Motion>,
     pub(crate) ia: Vec<Sym6>,
     pub(crate) pa: Vec<Force>,
@@ -97,6 +103,9 @@ impl Data {
             o_ycrb: vec![Inertia::zero(); n],
             oh: vec![Force::zero(); n],
             of: vec![Force::zero(); n],
+            v: vec![Motion::zero(); n],
+            a_gf: vec![Motion::zero(); n],
+            f: vec![Force::zero(); n],
             c: vec![Motion::zero(); n],
             ia: vec![Sym6::default(); n],
             pa: vec![Force::zero(); n],
@@ -227,14 +236,9 @@ impl Data {
     }
 
     /// Spatial force transmitted from the parent to the subtree of joint `i` (gravity
-    /// included), in the world frame, after `rnea`. Panics if `i` is out of range.
-    pub fn joint_force_world(&self, i: usize) -> &Force {
-        &self.of[i]
-    }
-
-    /// The same force in the frame of joint `i` (Pinocchio's `data.f[i]`). Panics if `i` is
-    /// out of range.
-    pub fn joint_force_local(&self, i: usize) -> Force {
-        self.o_mi[i].act_inv_force(&self.of[i])
+    /// included), in the frame of joint `i` (Pinocchio's `data.f[i]`), after `rnea`,
+    /// `nonlinear_effects` or `generalized_gravity`. Panics if `i` is out of range.
+    pub fn joint_force_local(&self, i: usize) -> &Force {
+        &self.f[i]
     }
 }

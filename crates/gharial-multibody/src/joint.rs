@@ -4,7 +4,7 @@
 //! no bias acceleration (`c = 0`), and its configuration space is a Lie group with
 //! `q ⊕ v` such that `M_J(q ⊕ v) = M_J(q) exp(S v)`.
 
-use crate::spatial::{Mat3, Motion, Se3, Vec3};
+use crate::spatial::{Force, Mat3, Motion, Se3, Vec3};
 use nalgebra::{Quaternion, UnitQuaternion};
 
 /// Axis of a one-degree-of-freedom joint.
@@ -227,6 +227,82 @@ impl JointType {
                 out[2] = angular(col(2));
             }
         }
+    }
+}
+
+impl JointType {
+    /// Joint velocity `S x` in the joint's own (child) frame for the joint's tangent
+    /// coordinates `x` (length `nv`).
+    #[inline]
+    pub(crate) fn local_motion(&self, x: &[f64]) -> Motion {
+        let z = Vec3::zeros();
+        match self {
+            JointType::Universe => Motion::zero(),
+            JointType::Revolute(a) | JointType::RevoluteUnbounded(a) => Motion::new(z, axis_times(a, x[0])),
+            JointType::Prismatic(a) => Motion::new(axis_times(a, x[0]), z),
+            JointType::FreeFlyer => Motion::from_slice(x),
+            JointType::Spherical => Motion::new(z, Vec3::new(x[0], x[1], x[2])),
+            JointType::Translation => Motion::new(Vec3::new(x[0], x[1], x[2]), z),
+            JointType::Planar => Motion::new(Vec3::new(x[0], x[1], 0.0), Vec3::new(0.0, 0.0, x[2])),
+        }
+    }
+
+    /// `m × (S x)`, with the product specialised to the joint's motion subspace.
+    #[inline]
+    pub(crate) fn cross_local_motion(&self, m: &Motion, x: &[f64]) -> Motion {
+        match self {
+            JointType::Revolute(a) | JointType::RevoluteUnbounded(a) => {
+                Motion::new(cross_axis(&m.linear, a, x[0]), cross_axis(&m.angular, a, x[0]))
+            }
+            JointType::Prismatic(a) => Motion::new(cross_axis(&m.angular, a, x[0]), Vec3::zeros()),
+            _ => m.cross(&self.local_motion(x)),
+        }
+    }
+
+    /// `Sᵀ f` for a force `f` in the joint's own frame, written into `out` (length `nv`).
+    #[inline]
+    pub(crate) fn project_local_force(&self, f: &Force, out: &mut [f64]) {
+        let dot_axis = |u: &Vec3, a: &Axis| match a {
+            Axis::X => u.x,
+            Axis::Y => u.y,
+            Axis::Z => u.z,
+            Axis::Unaligned(d) => u.dot(d),
+        };
+        match self {
+            JointType::Universe => {}
+            JointType::Revolute(a) | JointType::RevoluteUnbounded(a) => out[0] = dot_axis(&f.angular, a),
+            JointType::Prismatic(a) => out[0] = dot_axis(&f.linear, a),
+            JointType::FreeFlyer => out[..6].copy_from_slice(&f.to_array()),
+            JointType::Spherical => out[..3].copy_from_slice(f.angular.as_slice()),
+            JointType::Translation => out[..3].copy_from_slice(f.linear.as_slice()),
+            JointType::Planar => {
+                out[0] = f.linear.x;
+                out[1] = f.linear.y;
+                out[2] = f.angular.z;
+            }
+        }
+    }
+}
+
+/// `w a` for a unit axis.
+#[inline]
+fn axis_times(a: &Axis, w: f64) -> Vec3 {
+    match a {
+        Axis::X => Vec3::new(w, 0.0, 0.0),
+        Axis::Y => Vec3::new(0.0, w, 0.0),
+        Axis::Z => Vec3::new(0.0, 0.0, w),
+        Axis::Unaligned(u) => u * w,
+    }
+}
+
+/// `u × (w a)` for a unit axis `a`.
+#[inline]
+fn cross_axis(u: &Vec3, a: &Axis, w: f64) -> Vec3 {
+    match a {
+        Axis::X => Vec3::new(0.0, u.z * w, -(u.y * w)),
+        Axis::Y => Vec3::new(-(u.z * w), 0.0, u.x * w),
+        Axis::Z => Vec3::new(u.y * w, -(u.x * w), 0.0),
+        Axis::Unaligned(d) => u.cross(&(d * w)),
     }
 }
 
