@@ -16,7 +16,7 @@
 //! (plain derivatives in LOCAL and LWA; q-derivatives along `q ⊕ δ`).
 
 use crate::data::{Data, check_data};
-use crate::derivatives::rnea_derivatives_kernel;
+use crate::derivatives::{rnea_derivatives_kernel, velocity_pass};
 use crate::dynamics::{factor_mass_matrix, minv_from_factor};
 use crate::error::{Error, Result, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
@@ -454,10 +454,10 @@ pub fn compute_constraint_dynamics_derivatives(
     let mut m = std::mem::take(&mut data.m);
     // ∂τ/∂q, ∂τ/∂v of RNEA(q, v, ddq), stored transposed; the factorization of M from
     // `constraint_dynamics` stays valid (same q).
+    velocity_pass(model, data, &q, &v);
     rnea_derivatives_kernel::<true>(
         model,
         data,
-        &q,
         &v,
         &cdata.ddq,
         &mut cdata.ddq_dq_t,

@@ -56,10 +56,10 @@ pub struct Data {
     pub(crate) minv: Vec<f64>,
     pub(crate) dtau_dq: Vec<f64>,
     pub(crate) dtau_dv: Vec<f64>,
-    /// Transposed storage (row-major) of `ddq_dq`.
-    pub(crate) ddq_dq_t: Vec<f64>,
-    /// Transposed storage (row-major) of `ddq_dv`.
-    pub(crate) ddq_dv_t: Vec<f64>,
+    pub(crate) ddq_dq: Vec<f64>,
+    pub(crate) ddq_dv: Vec<f64>,
+    /// Scratch list of (offset, coefficient) pairs for the tree-sparse kernels.
+    pub(crate) terms: Vec<(usize, f64)>,
     pub(crate) l: Vec<f64>,
     pub(crate) d: Vec<f64>,
     pub(crate) jcom: Vec<f64>,
@@ -128,8 +128,9 @@ impl Data {
             minv: vec![0.0; nv * nv],
             dtau_dq: vec![0.0; nv * nv],
             dtau_dv: vec![0.0; nv * nv],
-            ddq_dq_t: vec![0.0; nv * nv],
-            ddq_dv_t: vec![0.0; nv * nv],
+            ddq_dq: vec![0.0; nv * nv],
+            ddq_dv: vec![0.0; nv * nv],
+            terms: Vec::with_capacity(nv + 1),
             l: vec![0.0; nv * nv],
             d: vec![0.0; nv],
             jcom: vec![0.0; 3 * nv],
@@ -185,24 +186,26 @@ impl Data {
         MatRef::from_column_major_slice(&self.minv, self.nv, self.nv)
     }
 
-    /// ∂tau/∂q of the last `compute_rnea_derivatives`.
+    /// ∂tau/∂q of the last `compute_rnea_derivatives` (or, after `compute_aba_derivatives`,
+    /// at the accelerations it computed).
     pub fn dtau_dq(&self) -> MatRef<'_, f64> {
         MatRef::from_column_major_slice(&self.dtau_dq, self.nv, self.nv)
     }
 
-    /// ∂tau/∂v of the last `compute_rnea_derivatives`.
+    /// ∂tau/∂v of the last `compute_rnea_derivatives` (or, after `compute_aba_derivatives`,
+    /// at the accelerations it computed).
     pub fn dtau_dv(&self) -> MatRef<'_, f64> {
         MatRef::from_column_major_slice(&self.dtau_dv, self.nv, self.nv)
     }
 
     /// ∂ddq/∂q of the last `compute_aba_derivatives`.
     pub fn ddq_dq(&self) -> MatRef<'_, f64> {
-        MatRef::from_row_major_slice(&self.ddq_dq_t, self.nv, self.nv)
+        MatRef::from_column_major_slice(&self.ddq_dq, self.nv, self.nv)
     }
 
     /// ∂ddq/∂v of the last `compute_aba_derivatives`.
     pub fn ddq_dv(&self) -> MatRef<'_, f64> {
-        MatRef::from_row_major_slice(&self.ddq_dv_t, self.nv, self.nv)
+        MatRef::from_column_major_slice(&self.ddq_dv, self.nv, self.nv)
     }
 
     /// Total mass (universe excluded), after `center_of_mass` or `jacobian_center_of_mass`.

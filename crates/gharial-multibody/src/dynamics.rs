@@ -4,7 +4,7 @@
 use crate::data::{Data, check_data};
 use crate::error::{Error, Result, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
-use crate::linalg::{ltdl_factor, ltdl_solve_rows, small_spd_inverse};
+use crate::linalg::{ltdl_factor, ltdl_inverse, small_spd_inverse};
 use crate::model::{Model, NONE};
 use crate::spatial::{Force, Motion, Sym6, Vec3};
 use faer::MatRef;
@@ -240,12 +240,7 @@ pub(crate) fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<()> {
 
 /// `M⁻¹` from the factorization in `data.l`, `data.d`.
 pub(crate) fn minv_from_factor(model: &Model, data: &mut Data) {
-    let nv = model.nv;
-    data.minv.fill(0.0);
-    for k in 0..nv {
-        data.minv[k * nv + k] = 1.0;
-    }
-    ltdl_solve_rows(nv, nv, &model.dof_parent, &data.l, &data.d, &mut data.minv);
+    ltdl_inverse(&model.dof_tree(), &data.l, &data.d, &mut data.minv, &mut data.terms);
 }
 
 /// Inverse of the joint-space inertia matrix (CRBA and a tree-sparse `Lᵀ D L`

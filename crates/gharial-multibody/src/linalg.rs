@@ -9,6 +9,122 @@
 use crate::error::{Error, Result};
 use crate::model::NONE;
 
+/// The tree of degrees of freedom: parent of each dof (`NONE` at a root) and, for each
+/// dof `k`, the end of a range `k..end` containing all its descendants.
+#[derive(Clone, Copy)]
+pub(crate) struct DofTree<'a> {
+    pub(crate) parent: &'a [usize],
+    pub(crate) subtree_end: &'a [usize],
+}
+
+/// `out[j] += Σ_(o, b) b · src[o + j]` for every `j < out.len()`: a linear combination of
+/// slices of `src` (starting at the offsets `o`), accumulated in registers sixteen entries
+/// at a time.
+#[inline]
+pub(crate) fn add_combination(out: &mut [f64], src: &[f64], terms: &[(usize, f64)]) {
+    let n = out.len();
+    let mut j = 0;
+    while j + 16 <= n {
+        add_combination_chunk::<16>(out, src, terms, j);
+        j += 16;
+    }
+    if j + 8 <= n {
+        add_combination_chunk::<8>(out, src, terms, j);
+        j += 8;
+    }
+    if j + 4 <= n {
+        add_combination_chunk::<4>(out, src, terms, j);
+        j += 4;
+    }
+    if j + 2 <= n {
+        add_combination_chunk::<2>(out, src, terms, j);
+        j += 2;
+    }
+    if j < n {
+        add_combination_chunk::<1>(out, src, terms, j);
+    }
+}
+
+/// Entries `j..j + W` of [`add_combination`].
+#[inline(always)]
+fn add_combination_chunk<const W: usize>(out: &mut [f64], src: &[f64], terms: &[(usize, f64)], j: usize) {
+    let chunk: &mut [f64; W] = (&mut out[j..j + W]).try_into().expect("chunk of W entries");
+    let mut acc = *chunk;
+    for &(o, b) in terms {
+        let s: &[f64; W] = src[o + j..o + j + W].try_into().expect("chunk of W entries");
+        for t in 0..W {
+            acc[t] += b * s[t];
+        }
+    }
+    *chunk = acc;
+}
+
+/// `M⁻¹` (n × n, full symmetric) into `out` from the factorization `M = Lᵀ D L` left by
+/// [`ltdl_factor`] in `l`, `d`: the rows of `Y = L⁻ᵀ` (row k lives on the subtree of k),
+/// scaled by `D⁻¹`, then `X = L⁻¹ Y` root first (row k of X from the rows of its
+/// ancestors).
+pub(crate) fn ltdl_inverse(tree: &DofTree<'_>, l: &[f64], d: &[f64], out: &mut [f64], terms: &mut Vec<(usize, f64)>) {
+    let n = d.len();
+    out.fill(0.0);
+    for k in 0..n {
+        out[k * n + k] = 1.0;
+    }
+    for k in (0..n).rev() {
+        let end = tree.subtree_end[k];
+        let (left, right) = out.split_at_mut(k * n);
+        let yk = &right[k..end];
+        let mut i = tree.parent[k];
+        while i != NONE {
+            axpy(-l[i * n + k], yk, &mut left[i * n + k..i * n + end]);
+            i = tree.parent[i];
+        }
+    }
+    for k in 0..n {
+        let s = 1.0 / d[k];
+        out[k * n + k..k * n + tree.subtree_end[k]]
+            .iter_mut()
+            .for_each(|x| *x *= s);
+    }
+    for k in 0..n {
+        terms.clear();
+        let mut i = tree.parent[k];
+        while i != NONE {
+            terms.push((i * n, -l[i * n + k]));
+            i = tree.parent[i];
+        }
+        let (left, right) = out.split_at_mut(k * n);
+        add_combination(&mut right[..n], left, terms);
+    }
+}
+
+/// `out = −S B` for a symmetric `S` and a `B` whose column `c` is zero outside the
+/// ancestors of dof `c` and the range `c..subtree_end[c]` (n × n, column-major): each
+/// output column combines only the columns of `S` selected by the nonzeros of `B`.
+pub(crate) fn minv_times_tree_sparse(
+    tree: &DofTree<'_>,
+    s: &[f64],
+    b: &[f64],
+    out: &mut [f64],
+    terms: &mut Vec<(usize, f64)>,
+) {
+    let n = tree.parent.len();
+    for c in 0..n {
+        let col = &b[c * n..(c + 1) * n];
+        terms.clear();
+        let mut r = tree.parent[c];
+        while r != NONE {
+            terms.push((r * n, -col[r]));
+            r = tree.parent[r];
+        }
+        for r in c..tree.subtree_end[c] {
+            terms.push((r * n, -col[r]));
+        }
+        let o = &mut out[c * n..(c + 1) * n];
+        o.fill(0.0);
+        add_combination(o, s, terms);
+    }
+}
+
 /// In-place `M = Lᵀ D L` factorization. `h` holds M (n × n, column-major, at least the
 /// lower triangle); on return its strict lower triangle holds L and `d` holds D.
 pub(crate) fn ltdl_factor(n: usize, parent: &[usize], h: &mut [f64], d: &mut [f64]) -> Result<()> {

@@ -3,6 +3,7 @@
 use crate::data::Data;
 use crate::error::{Error, Result};
 use crate::joint::{JointModel, JointType};
+use crate::linalg::DofTree;
 use crate::spatial::{Inertia, Motion, Se3, Vec3};
 
 /// Sentinel for "no parent degree of freedom".
@@ -188,6 +189,9 @@ pub struct Model {
     pub(crate) dof_parent: Vec<usize>,
     /// Joint of each degree of freedom.
     pub(crate) dof_joint: Vec<usize>,
+    /// End (exclusive) of a range `k..end` of dofs containing every descendant of dof `k`
+    /// (exactly its subtree when joints were added depth first, as the URDF loader does).
+    pub(crate) dof_subtree_end: Vec<usize>,
     /// Lower position limits (nq).
     pub lower_position_limit: Vec<f64>,
     /// Upper position limits (nq).
@@ -241,6 +245,7 @@ impl Model {
             nv: 0,
             dof_parent: Vec::new(),
             dof_joint: Vec::new(),
+            dof_subtree_end: Vec::new(),
             lower_position_limit: Vec::new(),
             upper_position_limit: Vec::new(),
             velocity_limit: Vec::new(),
@@ -314,9 +319,15 @@ impl Model {
         } else {
             self.joints[anc].idx_v + self.joints[anc].nv - 1
         };
+        let mut a = prev;
+        while a != NONE {
+            self.dof_subtree_end[a] = self.nv + nv;
+            a = self.dof_parent[a];
+        }
         for k in 0..nv {
             self.dof_parent.push(prev);
             self.dof_joint.push(id);
+            self.dof_subtree_end.push(self.nv + nv);
             prev = self.nv + k;
         }
         self.joints.push(jm);
@@ -463,6 +474,14 @@ impl Model {
     /// Allocates the workspace of every algorithm for this model.
     pub fn create_data(&self) -> Data {
         Data::new(self)
+    }
+
+    /// The tree of degrees of freedom, for the tree-sparse matrix kernels.
+    pub(crate) fn dof_tree(&self) -> DofTree<'_> {
+        DofTree {
+            parent: &self.dof_parent,
+            subtree_end: &self.dof_subtree_end,
+        }
     }
 
     /// Checks a frame id.
