@@ -232,10 +232,9 @@ pub(crate) fn velocity_pass(model: &Model, data: &mut Data, q: &[f64], v: &[f64]
 
 /// The RNEA derivative recursion at (q, v, a), after a [`velocity_pass`] at (q, v) (or a
 /// pass leaving the same quantities, such as the ABA). Writes `dtau_dq`, `dtau_dv` and
-/// `M` into `dq`, `dv`, `m` (column-major, or row-major when `T`), `tau` into
-/// `data.tau`, and leaves `oa_gf`, the subtree quantities and the per-dof columns in `data`.
+/// `M` into `dq`, `dv`, `m` (column-major), `tau` into `data.tau`, and leaves `oa_gf`, the subtree quantities and the per-dof columns in `data`.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn rnea_derivatives_kernel<const T: bool>(
+pub(crate) fn rnea_derivatives_kernel(
     model: &Model,
     data: &mut Data,
     v: &[f64],
@@ -245,7 +244,7 @@ pub(crate) fn rnea_derivatives_kernel<const T: bool>(
     m: &mut [f64],
 ) {
     let nv = model.nv;
-    let idx = |r: usize, c: usize| if T { r * nv + c } else { c * nv + r };
+    let idx = |r: usize, c: usize| c * nv + r;
     dq.fill(0.0);
     dv.fill(0.0);
     m.fill(0.0);
@@ -343,7 +342,7 @@ fn rnea_derivatives_into_data(model: &Model, data: &mut Data, v: &[f64], a: &[f6
     let mut dq = std::mem::take(&mut data.dtau_dq);
     let mut dv = std::mem::take(&mut data.dtau_dv);
     let mut m = std::mem::take(&mut data.m);
-    rnea_derivatives_kernel::<false>(model, data, v, a, &mut dq, &mut dv, &mut m);
+    rnea_derivatives_kernel(model, data, v, a, &mut dq, &mut dv, &mut m);
     data.dtau_dq = dq;
     data.dtau_dv = dv;
     data.m = m;

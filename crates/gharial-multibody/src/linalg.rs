@@ -17,41 +17,48 @@ pub(crate) struct DofTree<'a> {
     pub(crate) subtree_end: &'a [usize],
 }
 
-/// `out[j] += Σ_(o, b) b · src[o + j]` for every `j < out.len()`: a linear combination of
-/// slices of `src` (starting at the offsets `o`), accumulated in registers sixteen entries
-/// at a time.
+/// `out[j] += Σ_(k, b) b · src[k·stride + j]` for every `j < out.len()`: a linear
+/// combination of columns of `src` (column k starts at `k·stride`), accumulated in
+/// registers sixteen entries at a time.
 #[inline]
-pub(crate) fn add_combination(out: &mut [f64], src: &[f64], terms: &[(usize, f64)]) {
+pub(crate) fn add_combination(out: &mut [f64], src: &[f64], stride: usize, terms: &[(usize, f64)]) {
     let n = out.len();
     let mut j = 0;
     while j + 16 <= n {
-        add_combination_chunk::<16>(out, src, terms, j);
+        add_combination_chunk::<16>(out, src, stride, terms, j);
         j += 16;
     }
     if j + 8 <= n {
-        add_combination_chunk::<8>(out, src, terms, j);
+        add_combination_chunk::<8>(out, src, stride, terms, j);
         j += 8;
     }
     if j + 4 <= n {
-        add_combination_chunk::<4>(out, src, terms, j);
+        add_combination_chunk::<4>(out, src, stride, terms, j);
         j += 4;
     }
     if j + 2 <= n {
-        add_combination_chunk::<2>(out, src, terms, j);
+        add_combination_chunk::<2>(out, src, stride, terms, j);
         j += 2;
     }
     if j < n {
-        add_combination_chunk::<1>(out, src, terms, j);
+        add_combination_chunk::<1>(out, src, stride, terms, j);
     }
 }
 
 /// Entries `j..j + W` of [`add_combination`].
 #[inline(always)]
-fn add_combination_chunk<const W: usize>(out: &mut [f64], src: &[f64], terms: &[(usize, f64)], j: usize) {
+fn add_combination_chunk<const W: usize>(
+    out: &mut [f64],
+    src: &[f64],
+    stride: usize,
+    terms: &[(usize, f64)],
+    j: usize,
+) {
     let chunk: &mut [f64; W] = (&mut out[j..j + W]).try_into().expect("chunk of W entries");
     let mut acc = *chunk;
-    for &(o, b) in terms {
-        let s: &[f64; W] = src[o + j..o + j + W].try_into().expect("chunk of W entries");
+    for &(k, b) in terms {
+        let o = k * stride + j;
+        let s: &[f64; W] = src[o..o + W].try_into().expect("chunk of W entries");
         for t in 0..W {
             acc[t] += b * s[t];
         }
@@ -89,11 +96,11 @@ pub(crate) fn ltdl_inverse(tree: &DofTree<'_>, l: &[f64], d: &[f64], out: &mut [
         terms.clear();
         let mut i = tree.parent[k];
         while i != NONE {
-            terms.push((i * n, -l[i * n + k]));
+            terms.push((i, -l[i * n + k]));
             i = tree.parent[i];
         }
         let (left, right) = out.split_at_mut(k * n);
-        add_combination(&mut right[..n], left, terms);
+        add_combination(&mut right[..n], left, n, terms);
     }
 }
 
@@ -113,15 +120,15 @@ pub(crate) fn minv_times_tree_sparse(
         terms.clear();
         let mut r = tree.parent[c];
         while r != NONE {
-            terms.push((r * n, -col[r]));
+            terms.push((r, -col[r]));
             r = tree.parent[r];
         }
         for r in c..tree.subtree_end[c] {
-            terms.push((r * n, -col[r]));
+            terms.push((r, -col[r]));
         }
         let o = &mut out[c * n..(c + 1) * n];
         o.fill(0.0);
-        add_combination(o, s, terms);
+        add_combination(o, s, n, terms);
     }
 }
 
@@ -235,31 +242,6 @@ pub(crate) fn cholesky_solve(n: usize, l: &[f64], x: &mut [f64]) {
             s -= l[i * n + k] * x[k];
         }
         x[i] = s / l[i * n + i];
-    }
-}
-
-/// Solves `X (L Lᵀ) = B` in place, `B` stored column-major with `n` columns of length m
-/// (i.e. the rows of `(L Lᵀ)⁻¹ Bᵀ` are the columns of the result).
-pub(crate) fn cholesky_solve_right(n: usize, m: usize, l: &[f64], x: &mut [f64]) {
-    // W Lᵀ = B: W[:, j] = (B[:, j] − Σ_{k<j} W[:, k] L[j][k]) / L[j][j].
-    for j in 0..n {
-        let (left, right) = x.split_at_mut(j * m);
-        let xj = &mut right[..m];
-        for k in 0..j {
-            axpy(-l[k * n + j], &left[k * m..(k + 1) * m], xj);
-        }
-        let s = 1.0 / l[j * n + j];
-        xj.iter_mut().for_each(|v| *v *= s);
-    }
-    // V L = W: V[:, j] = (W[:, j] − Σ_{k>j} V[:, k] L[k][j]) / L[j][j].
-    for j in (0..n).rev() {
-        let (left, right) = x.split_at_mut((j + 1) * m);
-        let xj = &mut left[j * m..];
-        for k in j + 1..n {
-            axpy(-l[j * n + k], &right[(k - j - 1) * m..(k - j) * m], xj);
-        }
-        let s = 1.0 / l[j * n + j];
-        xj.iter_mut().for_each(|v| *v *= s);
     }
 }
 
