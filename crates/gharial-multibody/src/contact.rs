@@ -341,7 +341,7 @@ pub fn constraint_dynamics(
     for k in 0..nv {
         cdata.ddq[k] = tau[k] - data.nle[k];
     }
-    ltdl_solve_rows(nv, 1, &model.dof_parent, &data.l, &data.d, &mut cdata.ddq);
+    ltdl_solve_rows(&model.dof_tree(), 1, &data.l, &data.d, &mut cdata.ddq);
     // Contact Jacobian and drift.
     cdata.jc.fill(0.0);
     let g = model.gravity;
@@ -367,7 +367,7 @@ pub fn constraint_dynamics(
     }
     // Jc M⁻¹ (rows of M⁻¹ Jcᵀ), Delassus matrix and its Cholesky factor.
     cdata.jcminv.copy_from_slice(&cdata.jc);
-    ltdl_solve_rows(nv, nc, &model.dof_parent, &data.l, &data.d, &mut cdata.jcminv);
+    ltdl_solve_rows(&model.dof_tree(), nc, &data.l, &data.d, &mut cdata.jcminv);
     cdata.delassus.fill(0.0);
     for k in 0..nv {
         let a = &cdata.jcminv[k * nc..(k + 1) * nc];

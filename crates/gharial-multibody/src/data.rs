@@ -131,7 +131,7 @@ impl Data {
             ddq_dq: vec![0.0; nv * nv],
             ddq_dv: vec![0.0; nv * nv],
             terms: Vec::with_capacity(nv + 1),
-            l: vec![0.0; nv * nv],
+            l: vec![0.0; model.dof_tree().anc.len()],
             d: vec![0.0; nv],
             jcom: vec![0.0; 3 * nv],
             mass: 0.0,

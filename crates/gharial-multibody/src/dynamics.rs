@@ -234,8 +234,7 @@ pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f
 
 /// Factorizes `data.m` into `data.l`, `data.d` (`M = Lᵀ D L`).
 pub(crate) fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<()> {
-    data.l.copy_from_slice(&data.m);
-    ltdl_factor(model.nv, &model.dof_parent, &mut data.l, &mut data.d)
+    ltdl_factor(&model.dof_tree(), &data.m, &mut data.l, &mut data.d)
 }
 
 /// `M⁻¹` from the factorization in `data.l`, `data.d`.

@@ -192,6 +192,10 @@ pub struct Model {
     /// End (exclusive) of a range `k..end` of dofs containing every descendant of dof `k`
     /// (exactly its subtree when joints were added depth first, as the URDF loader does).
     pub(crate) dof_subtree_end: Vec<usize>,
+    /// Ancestors of every dof, nearest first, concatenated; those of dof k are
+    /// `dof_anc[dof_anc_start[k]..dof_anc_start[k + 1]]`.
+    pub(crate) dof_anc: Vec<usize>,
+    pub(crate) dof_anc_start: Vec<usize>,
     /// Lower position limits (nq).
     pub lower_position_limit: Vec<f64>,
     /// Upper position limits (nq).
@@ -246,6 +250,8 @@ impl Model {
             dof_parent: Vec::new(),
             dof_joint: Vec::new(),
             dof_subtree_end: Vec::new(),
+            dof_anc: Vec::new(),
+            dof_anc_start: vec![0],
             lower_position_limit: Vec::new(),
             upper_position_limit: Vec::new(),
             velocity_limit: Vec::new(),
@@ -328,6 +334,12 @@ impl Model {
             self.dof_parent.push(prev);
             self.dof_joint.push(id);
             self.dof_subtree_end.push(self.nv + nv);
+            if prev != NONE {
+                self.dof_anc.push(prev);
+                self.dof_anc
+                    .extend_from_within(self.dof_anc_start[prev]..self.dof_anc_start[prev + 1]);
+            }
+            self.dof_anc_start.push(self.dof_anc.len());
             prev = self.nv + k;
         }
         self.joints.push(jm);
@@ -481,6 +493,8 @@ impl Model {
         DofTree {
             parent: &self.dof_parent,
             subtree_end: &self.dof_subtree_end,
+            anc_start: &self.dof_anc_start,
+            anc: &self.dof_anc,
         }
     }
 
