@@ -105,6 +105,8 @@ impl ContactModel {
 pub struct ContactData {
     nc: usize,
     nv: usize,
+    /// Hash of the tree of dofs of the model the data was created for.
+    dof_tree_hash: u64,
     ncontacts: usize,
     q: Vec<f64>,
     v: Vec<f64>,
@@ -122,7 +124,8 @@ pub struct ContactData {
     pq: Vec<f64>,
     /// `[Qᵀ | Λ⁻¹]` (nc × (nv + nc), column-major).
     qt_linv: Vec<f64>,
-    /// `∂τ/∂x − ∂(Jcᵀ λ)/∂x` of the RNEA at the solution (nv × nv, column-major), x = q, v.
+    /// `∂τ/∂x − ∂(Jcᵀ λ)/∂x` of the RNEA at the solution (nv × nv, column-major), x = q, v;
+    /// only written at dof pairs on one path to the root (zero elsewhere).
     b_dq: Vec<f64>,
     b_dv: Vec<f64>,
     /// `−∂g/∂x` of the constraint function at fixed ddq (nc × nv, column-major).
@@ -153,6 +156,7 @@ impl ContactData {
         Ok(Self {
             nc,
             nv,
+            dof_tree_hash: model.dof_tree_hash,
             ncontacts: contacts.len(),
             q: vec![0.0; model.nq()],
             v: vec![0.0; nv],
@@ -241,9 +245,13 @@ impl ContactData {
 
 fn check_sizes(model: &Model, contacts: &[ContactModel], cdata: &ContactData) -> Result<()> {
     let nc: usize = contacts.iter().map(|c| c.size()).sum();
-    if nc != cdata.nc || contacts.len() != cdata.ncontacts || cdata.nv != model.nv() {
+    if nc != cdata.nc
+        || contacts.len() != cdata.ncontacts
+        || cdata.nv != model.nv()
+        || cdata.dof_tree_hash != model.dof_tree_hash
+    {
         return Err(Error::Invalid(format!(
-            "contact data was created for {} contacts ({} rows, nv = {}), called with {} contacts ({} rows, nv = {})",
+            "contact data was created for {} contacts ({} rows, nv = {}, or another tree), called with {} contacts ({} rows, nv = {})",
             cdata.ncontacts,
             cdata.nc,
             cdata.nv,
@@ -283,7 +291,6 @@ pub(crate) fn mass_matrix_and_nle(model: &Model, data: &mut Data, q: &[f64], v: 
         let oh = oy.mul_motion(&ov);
         data.of[i] = oy.mul_motion(&oa) + ov.cross_force(&oh);
     }
-    data.m.fill(0.0);
     for i in (1..model.njoints()).rev() {
         let jm = model.joints[i];
         let y = data.o_ycrb[i];

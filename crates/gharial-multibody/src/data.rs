@@ -16,6 +16,8 @@ use faer::MatRef;
 #[derive(Clone, Debug)]
 pub struct Data {
     pub(crate) nv: usize,
+    /// Hash of the tree of dofs of the model the data was created for.
+    pub(crate) dof_tree_hash: u64,
     // Per joint.
     pub(crate) li_mi: Vec<Se3>,
     pub(crate) o_mi: Vec<Se3>,
@@ -52,6 +54,9 @@ pub struct Data {
     pub(crate) nle: Vec<f64>,
     pub(crate) g: Vec<f64>,
     pub(crate) ddq: Vec<f64>,
+    /// M (n × n, column-major). Like `dtau_dq` and `dtau_dv`, only its entries at dof
+    /// pairs on one path to the root are ever written: the others stay zero from the
+    /// allocation, so the algorithms do not clear them.
     pub(crate) m: Vec<f64>,
     pub(crate) minv: Vec<f64>,
     pub(crate) dtau_dq: Vec<f64>,
@@ -69,11 +74,16 @@ pub struct Data {
     pub(crate) acom: Vec3,
 }
 
-/// Checks that `data` was created for a model of the same shape as `model`.
+/// Checks that `data` was created for a model of the same shape as `model` (the same
+/// tree of degrees of freedom: the dof-pair matrices rely on it, see [`Data::m`]).
 pub(crate) fn check_data(model: &Model, data: &Data) -> Result<()> {
-    if data.li_mi.len() != model.njoints() || data.nv != model.nv() || data.o_mf.len() != model.nframes() {
+    if data.li_mi.len() != model.njoints()
+        || data.nv != model.nv()
+        || data.o_mf.len() != model.nframes()
+        || data.dof_tree_hash != model.dof_tree_hash
+    {
         return Err(Error::Invalid(format!(
-            "data was created for a model with {} joints, nv = {}, {} frames; model `{}` has {} joints, nv = {}, {} frames",
+            "data was created for a model with {} joints, nv = {}, {} frames (or another tree); model `{}` has {} joints, nv = {}, {} frames",
             data.li_mi.len(),
             data.nv,
             data.o_mf.len(),
@@ -94,6 +104,7 @@ impl Data {
         let nf = model.nframes();
         Self {
             nv,
+            dof_tree_hash: model.dof_tree_hash,
             li_mi: vec![Se3::identity(); n],
             o_mi: vec![Se3::identity(); n],
             ov: vec![Motion::zero(); n],

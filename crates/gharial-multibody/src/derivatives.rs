@@ -232,7 +232,8 @@ pub(crate) fn velocity_pass(model: &Model, data: &mut Data, q: &[f64], v: &[f64]
 
 /// The RNEA derivative recursion at (q, v, a), after a [`velocity_pass`] at (q, v) (or a
 /// pass leaving the same quantities, such as the ABA). Writes `dtau_dq`, `dtau_dv` and
-/// `M` into `dq`, `dv`, `m` (column-major), `tau` into `data.tau`, and leaves `oa_gf`, the subtree quantities and the per-dof columns in `data`.
+/// `M` into `dq`, `dv`, `m` (column-major; only the entries at dof pairs on one path to
+/// the root are written, the others must be zero), `tau` into `data.tau`, and leaves `oa_gf`, the subtree quantities and the per-dof columns in `data`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn rnea_derivatives_kernel(
     model: &Model,
@@ -245,9 +246,6 @@ pub(crate) fn rnea_derivatives_kernel(
 ) {
     let nv = model.nv;
     let idx = |r: usize, c: usize| c * nv + r;
-    dq.fill(0.0);
-    dv.fill(0.0);
-    m.fill(0.0);
     data.oa_gf[0] = -model.gravity;
     for i in 1..model.njoints() {
         let p = model.parents[i];

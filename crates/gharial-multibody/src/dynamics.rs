@@ -103,7 +103,6 @@ pub(crate) fn crba_unchecked(model: &Model, data: &mut Data, q: &[f64]) {
         jacobian_step(model, data, i);
         data.o_ycrb[i] = model.inertias[i].transformed(&data.o_mi[i]);
     }
-    data.m.fill(0.0);
     for i in (1..model.njoints()).rev() {
         let jm = model.joints[i];
         let y = data.o_ycrb[i];

@@ -196,6 +196,9 @@ pub struct Model {
     /// `dof_anc[dof_anc_start[k]..dof_anc_start[k + 1]]`.
     pub(crate) dof_anc: Vec<usize>,
     pub(crate) dof_anc_start: Vec<usize>,
+    /// Hash of `dof_parent`, recorded by `Data` and `ContactData` to check that they are
+    /// used with a model of the same tree.
+    pub(crate) dof_tree_hash: u64,
     /// Lower position limits (nq).
     pub lower_position_limit: Vec<f64>,
     /// Upper position limits (nq).
@@ -252,6 +255,7 @@ impl Model {
             dof_subtree_end: Vec::new(),
             dof_anc: Vec::new(),
             dof_anc_start: vec![0],
+            dof_tree_hash: 0,
             lower_position_limit: Vec::new(),
             upper_position_limit: Vec::new(),
             velocity_limit: Vec::new(),
@@ -340,6 +344,8 @@ impl Model {
                     .extend_from_within(self.dof_anc_start[prev]..self.dof_anc_start[prev + 1]);
             }
             self.dof_anc_start.push(self.dof_anc.len());
+            // FNV-1a step over the parent index (NONE included).
+            self.dof_tree_hash = (self.dof_tree_hash ^ prev as u64).wrapping_mul(0x0100_0000_01b3);
             prev = self.nv + k;
         }
         self.joints.push(jm);
