@@ -16,12 +16,12 @@
 //! (plain derivatives in LOCAL and LWA; q-derivatives along `q ⊕ δ`).
 
 use crate::data::{Data, check_data};
-use crate::derivatives::rnea_derivatives_kernel;
+use crate::derivatives::{rnea_derivatives_kernel, velocity_pass};
 use crate::dynamics::{factor_mass_matrix, minv_from_factor};
 use crate::error::{Error, Result, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
 use crate::lie::{jlog6_blocks, log6};
-use crate::linalg::{axpy, cholesky_factor, cholesky_solve, cholesky_solve_right, ltdl_solve_rows};
+use crate::linalg::{DofTree, add_combination, axpy, cholesky_factor, cholesky_solve, ltdl_solve_rows};
 use crate::model::{Model, NONE, ReferenceFrame};
 use crate::spatial::{Force, Mat3, Motion, Se3, Vec3};
 use faer::MatRef;
@@ -105,22 +105,39 @@ impl ContactModel {
 pub struct ContactData {
     nc: usize,
     nv: usize,
+    /// Hash of the tree of dofs of the model the data was created for.
+    dof_tree_hash: u64,
     ncontacts: usize,
     q: Vec<f64>,
     v: Vec<f64>,
+    /// Jc (nc × nv, column-major).
     jc: Vec<f64>,
+    /// `G = M⁻¹ Jcᵀ`, stored transposed (nc × nv, column-major: row k of G is contiguous).
     jcminv: Vec<f64>,
+    /// Cholesky factor of the Delassus matrix `Λ = Jc M⁻¹ Jcᵀ` (lower, nc × nc).
     delassus: Vec<f64>,
     gamma: Vec<f64>,
     lambda: Vec<f64>,
     ddq: Vec<f64>,
-    ddq_dq_t: Vec<f64>,
-    ddq_dv_t: Vec<f64>,
-    ddq_dtau_t: Vec<f64>,
-    dl_dq_t: Vec<f64>,
-    dl_dv_t: Vec<f64>,
-    dl_dtau_t: Vec<f64>,
+    /// `[P | Q]` (nv × (nv + nc), column-major) with `P = M⁻¹ − G Λ⁻¹ Gᵀ = ∂ddq/∂τ` and
+    /// `Q = G Λ⁻¹`.
+    pq: Vec<f64>,
+    /// `[Qᵀ | Λ⁻¹]` (nc × (nv + nc), column-major).
+    qt_linv: Vec<f64>,
+    /// `∂τ/∂x − ∂(Jcᵀ λ)/∂x` of the RNEA at the solution (nv × nv, column-major), x = q, v;
+    /// only written at dof pairs on one path to the root (zero elsewhere).
+    b_dq: Vec<f64>,
+    b_dv: Vec<f64>,
+    /// `−∂g/∂x` of the constraint function at fixed ddq (nc × nv, column-major).
+    r2_dq: Vec<f64>,
+    r2_dv: Vec<f64>,
+    ddq_dq: Vec<f64>,
+    ddq_dv: Vec<f64>,
+    dl_dq: Vec<f64>,
+    dl_dv: Vec<f64>,
+    dl_dtau: Vec<f64>,
     chain: Vec<usize>,
+    terms: Vec<(usize, f64)>,
 }
 
 impl ContactData {
@@ -139,6 +156,7 @@ impl ContactData {
         Ok(Self {
             nc,
             nv,
+            dof_tree_hash: model.dof_tree_hash,
             ncontacts: contacts.len(),
             q: vec![0.0; model.nq()],
             v: vec![0.0; nv],
@@ -148,12 +166,18 @@ impl ContactData {
             gamma: vec![0.0; nc],
             lambda: vec![0.0; nc],
             ddq: vec![0.0; nv],
-            ddq_dq_t: vec![0.0; nv * nv],
-            ddq_dv_t: vec![0.0; nv * nv],
-            ddq_dtau_t: vec![0.0; nv * nv],
-            dl_dq_t: vec![0.0; nc * nv],
-            dl_dv_t: vec![0.0; nc * nv],
-            dl_dtau_t: vec![0.0; nc * nv],
+            pq: vec![0.0; nv * (nv + nc)],
+            qt_linv: vec![0.0; nc * (nv + nc)],
+            b_dq: vec![0.0; nv * nv],
+            b_dv: vec![0.0; nv * nv],
+            r2_dq: vec![0.0; nc * nv],
+            r2_dv: vec![0.0; nc * nv],
+            ddq_dq: vec![0.0; nv * nv],
+            ddq_dv: vec![0.0; nv * nv],
+            dl_dq: vec![0.0; nc * nv],
+            dl_dv: vec![0.0; nc * nv],
+            dl_dtau: vec![0.0; nc * nv],
+            terms: Vec::with_capacity(nv + nc + 1),
             chain: Vec::with_capacity(nv),
         })
     }
@@ -190,40 +214,44 @@ impl ContactData {
 
     /// ∂ddq/∂q (nv × nv).
     pub fn ddq_dq(&self) -> MatRef<'_, f64> {
-        MatRef::from_row_major_slice(&self.ddq_dq_t, self.nv, self.nv)
+        MatRef::from_column_major_slice(&self.ddq_dq, self.nv, self.nv)
     }
 
     /// ∂ddq/∂v (nv × nv).
     pub fn ddq_dv(&self) -> MatRef<'_, f64> {
-        MatRef::from_row_major_slice(&self.ddq_dv_t, self.nv, self.nv)
+        MatRef::from_column_major_slice(&self.ddq_dv, self.nv, self.nv)
     }
 
     /// ∂ddq/∂τ (nv × nv).
     pub fn ddq_dtau(&self) -> MatRef<'_, f64> {
-        MatRef::from_row_major_slice(&self.ddq_dtau_t, self.nv, self.nv)
+        MatRef::from_column_major_slice(&self.pq[..self.nv * self.nv], self.nv, self.nv)
     }
 
     /// ∂λ/∂q (nc × nv).
     pub fn dlambda_dq(&self) -> MatRef<'_, f64> {
-        MatRef::from_row_major_slice(&self.dl_dq_t, self.nc, self.nv)
+        MatRef::from_column_major_slice(&self.dl_dq, self.nc, self.nv)
     }
 
     /// ∂λ/∂v (nc × nv).
     pub fn dlambda_dv(&self) -> MatRef<'_, f64> {
-        MatRef::from_row_major_slice(&self.dl_dv_t, self.nc, self.nv)
+        MatRef::from_column_major_slice(&self.dl_dv, self.nc, self.nv)
     }
 
     /// ∂λ/∂τ (nc × nv).
     pub fn dlambda_dtau(&self) -> MatRef<'_, f64> {
-        MatRef::from_row_major_slice(&self.dl_dtau_t, self.nc, self.nv)
+        MatRef::from_column_major_slice(&self.dl_dtau, self.nc, self.nv)
     }
 }
 
 fn check_sizes(model: &Model, contacts: &[ContactModel], cdata: &ContactData) -> Result<()> {
     let nc: usize = contacts.iter().map(|c| c.size()).sum();
-    if nc != cdata.nc || contacts.len() != cdata.ncontacts || cdata.nv != model.nv() {
+    if nc != cdata.nc
+        || contacts.len() != cdata.ncontacts
+        || cdata.nv != model.nv()
+        || cdata.dof_tree_hash != model.dof_tree_hash
+    {
         return Err(Error::Invalid(format!(
-            "contact data was created for {} contacts ({} rows, nv = {}), called with {} contacts ({} rows, nv = {})",
+            "contact data was created for {} contacts ({} rows, nv = {}, or another tree), called with {} contacts ({} rows, nv = {})",
             cdata.ncontacts,
             cdata.nc,
             cdata.nv,
@@ -263,7 +291,6 @@ pub(crate) fn mass_matrix_and_nle(model: &Model, data: &mut Data, q: &[f64], v: 
         let oh = oy.mul_motion(&ov);
         data.of[i] = oy.mul_motion(&oa) + ov.cross_force(&oh);
     }
-    data.m.fill(0.0);
     for i in (1..model.njoints()).rev() {
         let jm = model.joints[i];
         let y = data.o_ycrb[i];
@@ -321,7 +348,7 @@ pub fn constraint_dynamics(
     for k in 0..nv {
         cdata.ddq[k] = tau[k] - data.nle[k];
     }
-    ltdl_solve_rows(nv, 1, &model.dof_parent, &data.l, &data.d, &mut cdata.ddq);
+    ltdl_solve_rows(&model.dof_tree(), 1, &data.l, &data.d, &mut cdata.ddq);
     // Contact Jacobian and drift.
     cdata.jc.fill(0.0);
     let g = model.gravity;
@@ -347,7 +374,7 @@ pub fn constraint_dynamics(
     }
     // Jc M⁻¹ (rows of M⁻¹ Jcᵀ), Delassus matrix and its Cholesky factor.
     cdata.jcminv.copy_from_slice(&cdata.jc);
-    ltdl_solve_rows(nv, nc, &model.dof_parent, &data.l, &data.d, &mut cdata.jcminv);
+    ltdl_solve_rows(&model.dof_tree(), nc, &data.l, &data.d, &mut cdata.jcminv);
     cdata.delassus.fill(0.0);
     for k in 0..nv {
         let a = &cdata.jcminv[k * nc..(k + 1) * nc];
@@ -452,25 +479,17 @@ pub fn compute_constraint_dynamics_derivatives(
     let q = std::mem::take(&mut cdata.q);
     let v = std::mem::take(&mut cdata.v);
     let mut m = std::mem::take(&mut data.m);
-    // ∂τ/∂q, ∂τ/∂v of RNEA(q, v, ddq), stored transposed; the factorization of M from
-    // `constraint_dynamics` stays valid (same q).
-    rnea_derivatives_kernel::<true>(
-        model,
-        data,
-        &q,
-        &v,
-        &cdata.ddq,
-        &mut cdata.ddq_dq_t,
-        &mut cdata.ddq_dv_t,
-        &mut m,
-    );
+    // ∂τ/∂q, ∂τ/∂v of RNEA(q, v, ddq); the factorization of M from `constraint_dynamics`
+    // stays valid (same q).
+    velocity_pass(model, data, &q, &v);
+    rnea_derivatives_kernel(model, data, &v, &cdata.ddq, &mut cdata.b_dq, &mut cdata.b_dv, &mut m);
     data.m = m;
     cdata.q = q;
     cdata.v = v;
     let g = model.gravity;
-    // Subtract ∂(Jcᵀ λ)/∂q and build −∂g (stored transposed in dl_*_t).
-    cdata.dl_dq_t.fill(0.0);
-    cdata.dl_dv_t.fill(0.0);
+    // Subtract ∂(Jcᵀ λ)/∂q and build −∂g.
+    cdata.r2_dq.fill(0.0);
+    cdata.r2_dv.fill(0.0);
     let mut off = 0;
     for (ci, c) in contacts.iter().enumerate() {
         let i = c.joint;
@@ -512,7 +531,7 @@ pub fn compute_constraint_dynamics_derivatives(
                         val -= jr.dot(&jc.cross_force(&of));
                     }
                 }
-                cdata.ddq_dq_t[rr * nv + cc] -= val;
+                cdata.b_dq[cc * nv + rr] -= val;
             }
         }
         // −∂g/∂q and −∂g/∂v, columns over the support.
@@ -572,67 +591,112 @@ pub fn compute_constraint_dynamics_derivatives(
                 }
             };
             for rrow in 0..c.size() {
-                cdata.dl_dq_t[(off + rrow) * nv + cc] = -gq[rrow];
-                cdata.dl_dv_t[(off + rrow) * nv + cc] = -gv[rrow];
+                cdata.r2_dq[cc * nc + off + rrow] = -gq[rrow];
+                cdata.r2_dv[cc * nc + off + rrow] = -gv[rrow];
             }
         }
         off += c.size();
     }
-    // r1 = −(∂τ − ∂(Jcᵀλ)), Yᵀ = r1ᵀ M⁻¹.
-    for x in [&mut cdata.ddq_dq_t, &mut cdata.ddq_dv_t] {
-        x.iter_mut().for_each(|e| *e = -*e);
-        ltdl_solve_rows(nv, nv, &model.dof_parent, &data.l, &data.d, x);
-    }
-    // Zᵀ = r2ᵀ − Yᵀ Jcᵀ; ∂λᵀ = Zᵀ Λ⁻¹; ∂ddqᵀ = Yᵀ + ∂λᵀ Jc M⁻¹.
-    for (yt, zt) in [
-        (&mut cdata.ddq_dq_t, &mut cdata.dl_dq_t),
-        (&mut cdata.ddq_dv_t, &mut cdata.dl_dv_t),
+    kkt_inverse_blocks(model, data, cdata);
+    let tree = model.dof_tree();
+    let cd = &mut *cdata;
+    for (b, r2, ddq_dx, dl_dx) in [
+        (&cd.b_dq, &cd.r2_dq, &mut cd.ddq_dq, &mut cd.dl_dq),
+        (&cd.b_dv, &cd.r2_dv, &mut cd.ddq_dv, &mut cd.dl_dv),
     ] {
-        kkt_back_substitution(nv, nc, &cdata.jc, &cdata.jcminv, &cdata.delassus, yt, zt);
+        kkt_derivatives(&tree, nc, &cd.pq, &cd.qt_linv, b, r2, ddq_dx, dl_dx, &mut cd.terms);
     }
-    // τ: ∂λ/∂τ = −Λ⁻¹ Jc M⁻¹, ∂ddq/∂τ = M⁻¹ + M⁻¹ Jcᵀ ∂λ/∂τ.
-    minv_from_factor(model, data);
-    cdata.ddq_dtau_t.copy_from_slice(&data.minv);
-    for k in 0..nv {
-        for a in 0..nc {
-            cdata.dl_dtau_t[a * nv + k] = -cdata.jcminv[k * nc + a];
-        }
-    }
-    cholesky_solve_right(nc, nv, &cdata.delassus, &mut cdata.dl_dtau_t);
-    for j in 0..nv {
-        let col = &mut cdata.ddq_dtau_t[j * nv..(j + 1) * nv];
-        for a in 0..nc {
-            axpy(cdata.jcminv[j * nc + a], &cdata.dl_dtau_t[a * nv..(a + 1) * nv], col);
-        }
+    // τ: ∂ddq/∂τ = P, ∂λ/∂τ = −Qᵀ.
+    for (x, y) in cdata.dl_dtau.iter_mut().zip(&cdata.qt_linv[..nc * nv]) {
+        *x = -y;
     }
     Ok(())
 }
 
-/// Given `yt = Yᵀ` (nv × nv, Y = M⁻¹ r1) and `zt = r2ᵀ` (nv × nc), computes
-/// `∂λᵀ = (r2 − Jc Y)ᵀ Λ⁻¹` into `zt` and `∂ddqᵀ = Yᵀ + ∂λᵀ Jc M⁻¹` into `yt`.
-fn kkt_back_substitution(
-    nv: usize,
-    nc: usize,
-    jc: &[f64],
-    jcminv: &[f64],
-    chol: &[f64],
-    yt: &mut [f64],
-    zt: &mut [f64],
-) {
+/// The blocks of the inverse KKT matrix at the last `constraint_dynamics`: `M⁻¹` (from
+/// the factorization of M), `Λ⁻¹` (from its Cholesky factor), `Qᵀ = Λ⁻¹ Gᵀ`, `Q` and
+/// `P = M⁻¹ − Q Gᵀ` (`G = M⁻¹ Jcᵀ`).
+fn kkt_inverse_blocks(model: &Model, data: &mut Data, cdata: &mut ContactData) {
+    let (nv, nc) = (model.nv, cdata.nc);
+    minv_from_factor(model, data);
+    let (qt, linv) = cdata.qt_linv.split_at_mut(nc * nv);
+    linv.fill(0.0);
+    for a in 0..nc {
+        let col = &mut linv[a * nc..(a + 1) * nc];
+        col[a] = 1.0;
+        cholesky_solve(nc, &cdata.delassus, col);
+    }
+    // Column k of Qᵀ: Λ⁻¹ (row k of G).
     for k in 0..nv {
-        let ycol = &yt[k * nv..(k + 1) * nv];
+        let g_k = &cdata.jcminv[k * nc..(k + 1) * nc];
+        cdata.terms.clear();
+        cdata.terms.extend(g_k.iter().copied().enumerate());
+        let col = &mut qt[k * nc..(k + 1) * nc];
+        col.fill(0.0);
+        add_combination(col, linv, nc, &cdata.terms);
+    }
+    let (p, q) = cdata.pq.split_at_mut(nv * nv);
+    for k in 0..nv {
         for a in 0..nc {
-            let jak = jc[k * nc + a];
-            if jak != 0.0 {
-                axpy(-jak, ycol, &mut zt[a * nv..(a + 1) * nv]);
-            }
+            q[a * nv + k] = qt[k * nc + a];
         }
     }
-    cholesky_solve_right(nc, nv, chol, zt);
-    for j in 0..nv {
-        let col = &mut yt[j * nv..(j + 1) * nv];
-        for a in 0..nc {
-            axpy(jcminv[j * nc + a], &zt[a * nv..(a + 1) * nv], col);
+    // Column c of P: M⁻¹ e_c − Q (row c of G).
+    for c in 0..nv {
+        let g_c = &cdata.jcminv[c * nc..(c + 1) * nc];
+        cdata.terms.clear();
+        cdata.terms.extend(g_c.iter().enumerate().map(|(a, &gca)| (a, -gca)));
+        let col = &mut p[c * nv..(c + 1) * nv];
+        col.copy_from_slice(&data.minv[c * nv..(c + 1) * nv]);
+        add_combination(col, q, nv, &cdata.terms);
+    }
+}
+
+/// Derivatives of ddq and λ from `b = ∂τ − ∂(Jcᵀλ)` (nv × nv, zero outside dof pairs on
+/// one path to the root) and `r2 = −∂g` (nc × nv), with the KKT inverse blocks:
+/// `∂ddq = −P b + Q r2`, `∂λ = Qᵀ b + Λ⁻¹ r2`. Each output column combines only the
+/// columns selected by the nonzeros of column c of b and r2.
+#[allow(clippy::too_many_arguments)]
+fn kkt_derivatives(
+    tree: &DofTree<'_>,
+    nc: usize,
+    pq: &[f64],
+    qt_linv: &[f64],
+    b: &[f64],
+    r2: &[f64],
+    ddq_dx: &mut [f64],
+    dl_dx: &mut [f64],
+    terms: &mut Vec<(usize, f64)>,
+) {
+    let nv = tree.parent.len();
+    for c in 0..nv {
+        let bc = &b[c * nv..(c + 1) * nv];
+        let r2c = &r2[c * nc..(c + 1) * nc];
+        // ∂ddq: columns r of P, nv + a of [P | Q].
+        terms.clear();
+        let mut r = tree.parent[c];
+        while r != NONE {
+            terms.push((r, -bc[r]));
+            r = tree.parent[r];
         }
+        for r in c..tree.subtree_end[c] {
+            terms.push((r, -bc[r]));
+        }
+        let path = terms.len();
+        for (a, &x) in r2c.iter().enumerate() {
+            if x != 0.0 {
+                terms.push((nv + a, x));
+            }
+        }
+        let out = &mut ddq_dx[c * nv..(c + 1) * nv];
+        out.fill(0.0);
+        add_combination(out, pq, nv, terms);
+        // ∂λ: the same columns of [Qᵀ | Λ⁻¹], signs of b flipped.
+        for t in &mut terms[..path] {
+            t.1 = -t.1;
+        }
+        let out = &mut dl_dx[c * nc..(c + 1) * nc];
+        out.fill(0.0);
+        add_combination(out, qt_linv, nc, terms);
     }
 }

@@ -1,8 +1,9 @@
 //! Preallocated workspace and results of the algorithms.
 //!
-//! All spatial quantities are stored in the world frame (Featherstone's "spatial"
-//! formulation, Pinocchio's `WORLD` convention); local quantities are obtained by the
-//! accessors. Dense matrices are stored as column-major `Vec<f64>` and exposed as faer
+//! Spatial quantities are stored in the world frame (Featherstone's "spatial"
+//! formulation, Pinocchio's `WORLD` convention), except those of the local-frame RNEA
+//! (`rnea`, `nonlinear_effects`, `generalized_gravity`: joint velocities, accelerations and
+//! forces in each joint's own frame, as Pinocchio's `data.v`, `data.a_gf`, `data.f`). Dense matrices are stored as column-major `Vec<f64>` and exposed as faer
 //! views.
 
 use crate::error::{Error, Result};
@@ -15,6 +16,8 @@ use faer::MatRef;
 #[derive(Clone, Debug)]
 pub struct Data {
     pub(crate) nv: usize,
+    /// Hash of the tree of dofs of the model the data was created for.
+    pub(crate) dof_tree_hash: u64,
     // Per joint.
     pub(crate) li_mi: Vec<Se3>,
     pub(crate) o_mi: Vec<Se3>,
@@ -25,6 +28,11 @@ pub struct Data {
     pub(crate) o_ycrb: Vec<Inertia>,
     pub(crate) oh: Vec<Force>,
     pub(crate) of: Vec<Force>,
+    /// Joint velocities, accelerations (gravity included) and transmitted forces in each
+    /// joint's own frame (the local-frame RNEA).
+    pub(crate) v: Vec<Motion>,
+    pub(crate) a_gf: Vec<Motion>,
+    pub(crate) f: Vec<Force>,
     pub(crate) c: Vec<Motion>,
     pub(crate) ia: Vec<Sym6>,
     pub(crate) pa: Vec<Force>,
@@ -46,14 +54,17 @@ pub struct Data {
     pub(crate) nle: Vec<f64>,
     pub(crate) g: Vec<f64>,
     pub(crate) ddq: Vec<f64>,
+    /// M (n × n, column-major). Like `dtau_dq` and `dtau_dv`, only its entries at dof
+    /// pairs on one path to the root are ever written: the others stay zero from the
+    /// allocation, so the algorithms do not clear them.
     pub(crate) m: Vec<f64>,
     pub(crate) minv: Vec<f64>,
     pub(crate) dtau_dq: Vec<f64>,
     pub(crate) dtau_dv: Vec<f64>,
-    /// Transposed storage (row-major) of `ddq_dq`.
-    pub(crate) ddq_dq_t: Vec<f64>,
-    /// Transposed storage (row-major) of `ddq_dv`.
-    pub(crate) ddq_dv_t: Vec<f64>,
+    pub(crate) ddq_dq: Vec<f64>,
+    pub(crate) ddq_dv: Vec<f64>,
+    /// Scratch list of (offset, coefficient) pairs for the tree-sparse kernels.
+    pub(crate) terms: Vec<(usize, f64)>,
     pub(crate) l: Vec<f64>,
     pub(crate) d: Vec<f64>,
     pub(crate) jcom: Vec<f64>,
@@ -63,11 +74,16 @@ pub struct Data {
     pub(crate) acom: Vec3,
 }
 
-/// Checks that `data` was created for a model of the same shape as `model`.
+/// Checks that `data` was created for a model of the same shape as `model` (the same
+/// tree of degrees of freedom: the dof-pair matrices rely on it, see [`Data::m`]).
 pub(crate) fn check_data(model: &Model, data: &Data) -> Result<()> {
-    if data.li_mi.len() != model.njoints() || data.nv != model.nv() || data.o_mf.len() != model.nframes() {
+    if data.li_mi.len() != model.njoints()
+        || data.nv != model.nv()
+        || data.o_mf.len() != model.nframes()
+        || data.dof_tree_hash != model.dof_tree_hash
+    {
         return Err(Error::Invalid(format!(
-            "data was created for a model with {} joints, nv = {}, {} frames; model `{}` has {} joints, nv = {}, {} frames",
+            "data was created for a model with {} joints, nv = {}, {} frames (or another tree); model `{}` has {} joints, nv = {}, {} frames",
             data.li_mi.len(),
             data.nv,
             data.o_mf.len(),
@@ -88,6 +104,7 @@ impl Data {
         let nf = model.nframes();
         Self {
             nv,
+            dof_tree_hash: model.dof_tree_hash,
             li_mi: vec![Se3::identity(); n],
             o_mi: vec![Se3::identity(); n],
             ov: vec![Motion::zero(); n],
@@ -97,6 +114,9 @@ impl Data {
             o_ycrb: vec![Inertia::zero(); n],
             oh: vec![Force::zero(); n],
             of: vec![Force::zero(); n],
+            v: vec![Motion::zero(); n],
+            a_gf: vec![Motion::zero(); n],
+            f: vec![Force::zero(); n],
             c: vec![Motion::zero(); n],
             ia: vec![Sym6::default(); n],
             pa: vec![Force::zero(); n],
@@ -119,9 +139,10 @@ impl Data {
             minv: vec![0.0; nv * nv],
             dtau_dq: vec![0.0; nv * nv],
             dtau_dv: vec![0.0; nv * nv],
-            ddq_dq_t: vec![0.0; nv * nv],
-            ddq_dv_t: vec![0.0; nv * nv],
-            l: vec![0.0; nv * nv],
+            ddq_dq: vec![0.0; nv * nv],
+            ddq_dv: vec![0.0; nv * nv],
+            terms: Vec::with_capacity(nv + 1),
+            l: vec![0.0; model.dof_tree().anc.len()],
             d: vec![0.0; nv],
             jcom: vec![0.0; 3 * nv],
             mass: 0.0,
@@ -176,24 +197,26 @@ impl Data {
         MatRef::from_column_major_slice(&self.minv, self.nv, self.nv)
     }
 
-    /// ∂tau/∂q of the last `compute_rnea_derivatives`.
+    /// ∂tau/∂q of the last `compute_rnea_derivatives` (or, after `compute_aba_derivatives`,
+    /// at the accelerations it computed).
     pub fn dtau_dq(&self) -> MatRef<'_, f64> {
         MatRef::from_column_major_slice(&self.dtau_dq, self.nv, self.nv)
     }
 
-    /// ∂tau/∂v of the last `compute_rnea_derivatives`.
+    /// ∂tau/∂v of the last `compute_rnea_derivatives` (or, after `compute_aba_derivatives`,
+    /// at the accelerations it computed).
     pub fn dtau_dv(&self) -> MatRef<'_, f64> {
         MatRef::from_column_major_slice(&self.dtau_dv, self.nv, self.nv)
     }
 
     /// ∂ddq/∂q of the last `compute_aba_derivatives`.
     pub fn ddq_dq(&self) -> MatRef<'_, f64> {
-        MatRef::from_row_major_slice(&self.ddq_dq_t, self.nv, self.nv)
+        MatRef::from_column_major_slice(&self.ddq_dq, self.nv, self.nv)
     }
 
     /// ∂ddq/∂v of the last `compute_aba_derivatives`.
     pub fn ddq_dv(&self) -> MatRef<'_, f64> {
-        MatRef::from_row_major_slice(&self.ddq_dv_t, self.nv, self.nv)
+        MatRef::from_column_major_slice(&self.ddq_dv, self.nv, self.nv)
     }
 
     /// Total mass (universe excluded), after `center_of_mass` or `jacobian_center_of_mass`.
@@ -227,14 +250,9 @@ impl Data {
     }
 
     /// Spatial force transmitted from the parent to the subtree of joint `i` (gravity
-    /// included), in the world frame, after `rnea`. Panics if `i` is out of range.
-    pub fn joint_force_world(&self, i: usize) -> &Force {
-        &self.of[i]
-    }
-
-    /// The same force in the frame of joint `i` (Pinocchio's `data.f[i]`). Panics if `i` is
-    /// out of range.
-    pub fn joint_force_local(&self, i: usize) -> Force {
-        self.o_mi[i].act_inv_force(&self.of[i])
+    /// included), in the frame of joint `i` (Pinocchio's `data.f[i]`), after `rnea`,
+    /// `nonlinear_effects` or `generalized_gravity`. Panics if `i` is out of range.
+    pub fn joint_force_local(&self, i: usize) -> &Force {
+        &self.f[i]
     }
 }

@@ -21,24 +21,36 @@ use crate::data::{Data, check_data};
 use crate::dynamics::{aba_unchecked, factor_mass_matrix, minv_from_factor};
 use crate::error::{Error, Result, check_vec};
 use crate::kinematics::{express_motion, frame_placement_of, jacobian_step, joint_motion, placement_step};
-use crate::linalg::ltdl_solve_rows;
+use crate::linalg::minv_times_tree_sparse;
 use crate::model::{Model, NONE, ReferenceFrame};
 use crate::spatial::{Force, Inertia, Mat3, Motion, Se3, Vec3, skew};
 use faer::MatMut;
 
 /// `T_k` block of `D_k` for a body with world inertia `y`, velocity `ov` and momentum `oh`:
-/// `[ω]× I_o − I_o [ω]× − (h νᵀ + ν hᵀ − 2 (ν·h) I) − [h_τ]×`.
+/// `[ω]× I_o − I_o [ω]× − (h νᵀ + ν hᵀ − 2 (ν·h) 𝟙) − [h_τ]×`. With `X = [ω]× I_o`, the
+/// first two terms are `X + Xᵀ` (I_o symmetric): the symmetric part is formed on its upper
+/// triangle.
 #[inline]
 fn t_block(y: &Inertia, ov: &Motion, oh: &Force) -> Mat3 {
-    let w = skew(&ov.angular);
+    let x = skew(&ov.angular) * y.rotational;
     let h = &y.first_moment;
     let nu = &ov.linear;
-    let mut t = w * y.rotational - y.rotational * w - (h * nu.transpose() + nu * h.transpose()) - skew(&oh.angular);
     let d = 2.0 * nu.dot(h);
-    t[(0, 0)] += d;
-    t[(1, 1)] += d;
-    t[(2, 2)] += d;
-    t
+    let s = |i: usize, j: usize| x[(i, j)] + x[(j, i)] - (h[i] * nu[j] + nu[i] * h[j]);
+    let (s00, s11, s22) = (s(0, 0) + d, s(1, 1) + d, s(2, 2) + d);
+    let (s01, s02, s12) = (s(0, 1), s(0, 2), s(1, 2));
+    let w = &oh.angular;
+    Mat3::new(
+        s00,
+        s01 + w.z,
+        s02 - w.y,
+        s01 - w.z,
+        s11,
+        s12 + w.x,
+        s02 + w.y,
+        s12 - w.x,
+        s22,
+    )
 }
 
 /// `D m = [−2 h_f × m_ang, T m_ang]`.
@@ -203,14 +215,29 @@ pub fn frame_acceleration_derivatives(
     Ok(())
 }
 
-/// The RNEA derivative recursion at (q, v, a). Writes `dtau_dq`, `dtau_dv` and `M` into
-/// `dq`, `dv`, `m` (column-major, or row-major when `T`), `tau` into `data.tau`, and
-/// leaves the world-frame kinematics (`oMi`, `J`, `ov`, `oa_gf`, ...) in `data`.
+/// World-frame velocity pass: `oMi`, `J`, the world inertias `oY`, velocities `ov` and
+/// momenta `oh`.
+pub(crate) fn velocity_pass(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) {
+    for i in 1..model.njoints() {
+        placement_step(model, data, i, q);
+        jacobian_step(model, data, i);
+        let p = model.parents[i];
+        let oy = model.inertias[i].transformed(&data.o_mi[i]);
+        let ov = data.ov[p] + joint_motion(model, data, i, v);
+        data.o_y[i] = oy;
+        data.ov[i] = ov;
+        data.oh[i] = oy.mul_motion(&ov);
+    }
+}
+
+/// The RNEA derivative recursion at (q, v, a), after a [`velocity_pass`] at (q, v) (or a
+/// pass leaving the same quantities, such as the ABA). Writes `dtau_dq`, `dtau_dv` and
+/// `M` into `dq`, `dv`, `m` (column-major; only the entries at dof pairs on one path to
+/// the root are written, the others must be zero), `tau` into `data.tau`, and leaves `oa_gf`, the subtree quantities and the per-dof columns in `data`.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn rnea_derivatives_kernel<const T: bool>(
+pub(crate) fn rnea_derivatives_kernel(
     model: &Model,
     data: &mut Data,
-    q: &[f64],
     v: &[f64],
     a: &[f64],
     dq: &mut [f64],
@@ -218,24 +245,15 @@ pub(crate) fn rnea_derivatives_kernel<const T: bool>(
     m: &mut [f64],
 ) {
     let nv = model.nv;
-    let idx = |r: usize, c: usize| if T { r * nv + c } else { c * nv + r };
-    dq.fill(0.0);
-    dv.fill(0.0);
-    m.fill(0.0);
+    let idx = |r: usize, c: usize| c * nv + r;
     data.oa_gf[0] = -model.gravity;
     for i in 1..model.njoints() {
-        placement_step(model, data, i, q);
-        jacobian_step(model, data, i);
         let p = model.parents[i];
-        let oy = model.inertias[i].transformed(&data.o_mi[i]);
         let vj = joint_motion(model, data, i, v);
         let (ovp, oap) = (data.ov[p], data.oa_gf[p]);
-        let ov = ovp + vj;
+        let (ov, oy, oh) = (data.ov[i], data.o_y[i], data.oh[i]);
         let oa = oap + joint_motion(model, data, i, a) + ovp.cross(&vj);
-        data.ov[i] = ov;
         data.oa_gf[i] = oa;
-        let oh = oy.mul_motion(&ov);
-        data.o_y[i] = oy;
         data.o_ycrb[i] = oy;
         data.hcrb[i] = oh;
         data.tcrb[i] = t_block(&oy, &ov, &oh);
@@ -312,48 +330,44 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("a", a, model.nv)?;
-    let mut dq = std::mem::take(&mut data.dtau_dq);
-    let mut dv = std::mem::take(&mut data.dtau_dv);
-    let mut m = std::mem::take(&mut data.m);
-    rnea_derivatives_kernel::<false>(model, data, q, v, a, &mut dq, &mut dv, &mut m);
-    data.dtau_dq = dq;
-    data.dtau_dv = dv;
-    data.m = m;
+    velocity_pass(model, data, q, v);
+    rnea_derivatives_into_data(model, data, v, a);
     Ok(())
 }
 
+/// [`rnea_derivatives_kernel`] into `data.dtau_dq`, `data.dtau_dv`, `data.m`.
+fn rnea_derivatives_into_data(model: &Model, data: &mut Data, v: &[f64], a: &[f64]) {
+    let mut dq = std::mem::take(&mut data.dtau_dq);
+    let mut dv = std::mem::take(&mut data.dtau_dv);
+    let mut m = std::mem::take(&mut data.m);
+    rnea_derivatives_kernel(model, data, v, a, &mut dq, &mut dv, &mut m);
+    data.dtau_dq = dq;
+    data.dtau_dv = dv;
+    data.m = m;
+}
+
 /// Derivatives of the forward dynamics at (q, v, tau): `ddq_dq = −M⁻¹ ∂τ/∂q`,
-/// `ddq_dv = −M⁻¹ ∂τ/∂v` (RNEA derivatives at `a = aba(q, v, tau)`) and
-/// `ddq_dtau = M⁻¹`, read with [`Data::ddq_dq`], [`Data::ddq_dv`], [`Data::minv`];
-/// also computes `ddq` ([`Data::ddq`]) and `M`.
+/// `ddq_dv = −M⁻¹ ∂τ/∂v` (RNEA derivatives at `a = aba(q, v, tau)`, left in
+/// [`Data::dtau_dq`], [`Data::dtau_dv`]) and `ddq_dtau = M⁻¹`, read with [`Data::ddq_dq`],
+/// [`Data::ddq_dv`], [`Data::minv`]; also computes `ddq` ([`Data::ddq`]) and `M`.
+///
+/// The ABA leaves the world kinematics the RNEA derivatives need (`oMi`, `J`, `oY`, `ov`,
+/// `oh`); `M⁻¹` comes from the tree-sparse `Lᵀ D L` factorization of `M`, and the products
+/// with `M⁻¹` visit only the nonzeros of `∂τ/∂q`, `∂τ/∂v` (pairs of dofs on one path to
+/// the root).
 pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64]) -> Result<()> {
     check_vec("q", q, model.nq)?;
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("tau", tau, model.nv)?;
     aba_unchecked(model, data, q, v, tau)?;
-    aba_derivatives_from_ddq(model, data, q, v)
-}
-
-/// ABA derivatives once `data.ddq` holds the accelerations.
-pub(crate) fn aba_derivatives_from_ddq(model: &Model, data: &mut Data, q: &[f64], v: &[f64]) -> Result<()> {
-    let nv = model.nv;
     let ddq = std::mem::take(&mut data.ddq);
-    let mut dq = std::mem::take(&mut data.ddq_dq_t);
-    let mut dv = std::mem::take(&mut data.ddq_dv_t);
-    let mut m = std::mem::take(&mut data.m);
-    rnea_derivatives_kernel::<true>(model, data, q, v, &ddq, &mut dq, &mut dv, &mut m);
+    rnea_derivatives_into_data(model, data, v, &ddq);
     data.ddq = ddq;
-    data.m = m;
-    let res = factor_mass_matrix(model, data);
-    if res.is_ok() {
-        minv_from_factor(model, data);
-        for x in [&mut dq, &mut dv] {
-            ltdl_solve_rows(nv, nv, &model.dof_parent, &data.l, &data.d, x);
-            x.iter_mut().for_each(|e| *e = -*e);
-        }
-    }
-    data.ddq_dq_t = dq;
-    data.ddq_dv_t = dv;
-    res
+    factor_mass_matrix(model, data)?;
+    minv_from_factor(model, data);
+    let tree = model.dof_tree();
+    minv_times_tree_sparse(&tree, &data.minv, &data.dtau_dq, &mut data.ddq_dq, &mut data.terms);
+    minv_times_tree_sparse(&tree, &data.minv, &data.dtau_dv, &mut data.ddq_dv, &mut data.terms);
+    Ok(())
 }

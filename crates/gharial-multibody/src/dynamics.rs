@@ -4,46 +4,51 @@
 use crate::data::{Data, check_data};
 use crate::error::{Error, Result, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
-use crate::linalg::{ltdl_factor, ltdl_solve_rows, small_spd_inverse};
+use crate::linalg::{ltdl_factor, ltdl_inverse, small_spd_inverse};
 use crate::model::{Model, NONE};
 use crate::spatial::{Force, Motion, Sym6, Vec3};
 use faer::MatRef;
 
-/// Recursive Newton-Euler pass in the world frame. `v` or `a` absent means zero.
-/// Fills `oMi`, `J`, `ov`, `oa_gf`, `oY`, `oh`, `of` (subtree forces) and `tau`.
+/// Recursive Newton-Euler pass in the joint frames (Featherstone, RBDA §5.3): with
+/// `liMi`, `v_i = liMi⁻¹ v_λ + S_i q̇_i`, `a_i = liMi⁻¹ a_λ + S_i q̈_i + v_i × S_i q̇_i`
+/// (gravity as the acceleration `−g` of the universe), `f_i = Y_i a_i + v_i ×* Y_i v_i`,
+/// then `τ_i = S_iᵀ f_i` and `f_λ += liMi f_i` from the leaves. `v` or `a` absent means
+/// zero. Fills `liMi`, `v`, `a_gf`, `f` and `tau`.
 fn rnea_pass(model: &Model, data: &mut Data, q: &[f64], v: Option<&[f64]>, a: Option<&[f64]>) {
-    data.oa_gf[0] = -model.gravity;
+    data.a_gf[0] = -model.gravity;
     for i in 1..model.njoints() {
-        placement_step(model, data, i, q);
-        jacobian_step(model, data, i);
+        let jm = &model.joints[i];
+        let (iq, iv) = (jm.idx_q, jm.idx_v);
+        let li = jm.kind.placed_transform(&model.placements[i], &q[iq..iq + jm.nq]);
+        data.li_mi[i] = li;
         let p = model.parents[i];
-        let oy = model.inertias[i].transformed(&data.o_mi[i]);
-        data.o_y[i] = oy;
-        let mut oa = data.oa_gf[p];
-        let mut ov = data.ov[p];
+        let mut ai = li.act_inv_motion(&data.a_gf[p]);
+        let mut vi = Motion::zero();
         if let Some(v) = v {
-            let vj = joint_motion(model, data, i, v);
-            oa += ov.cross(&vj);
-            ov += vj;
+            let vj = &v[iv..iv + jm.nv];
+            vi = jm.kind.local_motion(vj);
+            if p != 0 {
+                vi += li.act_inv_motion(&data.v[p]);
+            }
+            ai += jm.kind.cross_local_motion(&vi, vj);
         }
         if let Some(a) = a {
-            oa += joint_motion(model, data, i, a);
+            ai += jm.kind.local_motion(&a[iv..iv + jm.nv]);
         }
-        data.ov[i] = ov;
-        data.oa_gf[i] = oa;
-        let oh = oy.mul_motion(&ov);
-        data.oh[i] = oh;
-        data.of[i] = oy.mul_motion(&oa) + ov.cross_force(&oh);
+        let y = &model.inertias[i];
+        let h = y.mul_motion(&vi);
+        data.v[i] = vi;
+        data.a_gf[i] = ai;
+        data.f[i] = y.mul_motion(&ai) + vi.cross_force(&h);
     }
     for i in (1..model.njoints()).rev() {
         let jm = &model.joints[i];
-        let f = data.of[i];
-        for k in jm.idx_v..jm.idx_v + jm.nv {
-            data.tau[k] = data.j[k].dot(&f);
-        }
+        let f = data.f[i];
+        jm.kind
+            .project_local_force(&f, &mut data.tau[jm.idx_v..jm.idx_v + jm.nv]);
         let p = model.parents[i];
         if p != 0 {
-            data.of[p] += f;
+            data.f[p] += data.li_mi[i].act_force(&f);
         }
     }
     if let Some(a) = a {
@@ -60,9 +65,6 @@ pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f6
     check_vec("v", v, model.nv)?;
     check_vec("a", a, model.nv)?;
     rnea_pass(model, data, q, Some(v), Some(a));
-    for i in 1..model.njoints() {
-        data.oa[i] = data.oa_gf[i] + model.gravity;
-    }
     Ok(&data.tau)
 }
 
@@ -80,9 +82,6 @@ pub fn nonlinear_effects<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[
 pub fn generalized_gravity<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d [f64]> {
     check_vec("q", q, model.nq)?;
     check_data(model, data)?;
-    for i in 0..model.njoints() {
-        data.ov[i] = Motion::zero();
-    }
     rnea_pass(model, data, q, None, None);
     data.g.copy_from_slice(&data.tau);
     Ok(&data.g)
@@ -104,7 +103,6 @@ pub(crate) fn crba_unchecked(model: &Model, data: &mut Data, q: &[f64]) {
         jacobian_step(model, data, i);
         data.o_ycrb[i] = model.inertias[i].transformed(&data.o_mi[i]);
     }
-    data.m.fill(0.0);
     for i in (1..model.njoints()).rev() {
         let jm = model.joints[i];
         let y = data.o_ycrb[i];
@@ -235,18 +233,12 @@ pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f
 
 /// Factorizes `data.m` into `data.l`, `data.d` (`M = Lᵀ D L`).
 pub(crate) fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<()> {
-    data.l.copy_from_slice(&data.m);
-    ltdl_factor(model.nv, &model.dof_parent, &mut data.l, &mut data.d)
+    ltdl_factor(&model.dof_tree(), &data.m, &mut data.l, &mut data.d)
 }
 
 /// `M⁻¹` from the factorization in `data.l`, `data.d`.
 pub(crate) fn minv_from_factor(model: &Model, data: &mut Data) {
-    let nv = model.nv;
-    data.minv.fill(0.0);
-    for k in 0..nv {
-        data.minv[k * nv + k] = 1.0;
-    }
-    ltdl_solve_rows(nv, nv, &model.dof_parent, &data.l, &data.d, &mut data.minv);
+    ltdl_inverse(&model.dof_tree(), &data.l, &data.d, &mut data.minv, &mut data.terms);
 }
 
 /// Inverse of the joint-space inertia matrix (CRBA and a tree-sparse `Lᵀ D L`

@@ -4,7 +4,7 @@
 //! no bias acceleration (`c = 0`), and its configuration space is a Lie group with
 //! `q ⊕ v` such that `M_J(q ⊕ v) = M_J(q) exp(S v)`.
 
-use crate::spatial::{Mat3, Motion, Se3, Vec3};
+use crate::spatial::{Force, Mat3, Motion, Se3, Vec3};
 use nalgebra::{Quaternion, UnitQuaternion};
 
 /// Axis of a one-degree-of-freedom joint.
@@ -165,6 +165,167 @@ impl JointType {
             JointType::Translation => Se3::new(Mat3::identity(), Vec3::new(q[0], q[1], q[2])),
         }
     }
+}
+
+impl JointType {
+    /// `placement · M_J(q)` (the joint frame in its parent joint frame), with the product
+    /// specialised to the joint type: an aligned revolute joint touches two columns of the
+    /// rotation, a prismatic joint only the translation.
+    #[inline]
+    pub(crate) fn placed_transform(&self, placement: &Se3, q: &[f64]) -> Se3 {
+        match self {
+            JointType::Revolute(a) => {
+                let (s, c) = q[0].sin_cos();
+                placement_rotated(placement, a, c, s)
+            }
+            JointType::RevoluteUnbounded(a) => placement_rotated(placement, a, q[0], q[1]),
+            JointType::Prismatic(a) => {
+                let r = &placement.rotation;
+                let d = match a {
+                    Axis::X => r.column(0) * q[0],
+                    Axis::Y => r.column(1) * q[0],
+                    Axis::Z => r.column(2) * q[0],
+                    Axis::Unaligned(u) => r * (u * q[0]),
+                };
+                Se3::new(*r, placement.translation + d)
+            }
+            _ => placement.compose(&self.transform(q)),
+        }
+    }
+
+    /// World Jacobian columns `oMi · S_k` of the joint (first `nv` entries of `out`) for
+    /// the world placement `o` of its frame.
+    #[inline]
+    pub(crate) fn world_columns(&self, o: &Se3, out: &mut [Motion]) {
+        let r = &o.rotation;
+        let p = &o.translation;
+        let col = |k: usize| Vec3::new(r[(0, k)], r[(1, k)], r[(2, k)]);
+        let angular = |w: Vec3| Motion::new(p.cross(&w), w);
+        let linear = |u: Vec3| Motion::new(u, Vec3::zeros());
+        let axis = |a: &Axis| match a {
+            Axis::X => col(0),
+            Axis::Y => col(1),
+            Axis::Z => col(2),
+            Axis::Unaligned(u) => r * u,
+        };
+        match self {
+            JointType::Universe => {}
+            JointType::Revolute(a) | JointType::RevoluteUnbounded(a) => out[0] = angular(axis(a)),
+            JointType::Prismatic(a) => out[0] = linear(axis(a)),
+            JointType::FreeFlyer => {
+                for k in 0..3 {
+                    let u = col(k);
+                    out[k] = linear(u);
+                    out[3 + k] = angular(u);
+                }
+            }
+            JointType::Spherical => (0..3).for_each(|k| out[k] = angular(col(k))),
+            JointType::Translation => (0..3).for_each(|k| out[k] = linear(col(k))),
+            JointType::Planar => {
+                out[0] = linear(col(0));
+                out[1] = linear(col(1));
+                out[2] = angular(col(2));
+            }
+        }
+    }
+}
+
+impl JointType {
+    /// Joint velocity `S x` in the joint's own (child) frame for the joint's tangent
+    /// coordinates `x` (length `nv`).
+    #[inline]
+    pub(crate) fn local_motion(&self, x: &[f64]) -> Motion {
+        let z = Vec3::zeros();
+        match self {
+            JointType::Universe => Motion::zero(),
+            JointType::Revolute(a) | JointType::RevoluteUnbounded(a) => Motion::new(z, axis_times(a, x[0])),
+            JointType::Prismatic(a) => Motion::new(axis_times(a, x[0]), z),
+            JointType::FreeFlyer => Motion::from_slice(x),
+            JointType::Spherical => Motion::new(z, Vec3::new(x[0], x[1], x[2])),
+            JointType::Translation => Motion::new(Vec3::new(x[0], x[1], x[2]), z),
+            JointType::Planar => Motion::new(Vec3::new(x[0], x[1], 0.0), Vec3::new(0.0, 0.0, x[2])),
+        }
+    }
+
+    /// `m × (S x)`, with the product specialised to the joint's motion subspace.
+    #[inline]
+    pub(crate) fn cross_local_motion(&self, m: &Motion, x: &[f64]) -> Motion {
+        match self {
+            JointType::Revolute(a) | JointType::RevoluteUnbounded(a) => {
+                Motion::new(cross_axis(&m.linear, a, x[0]), cross_axis(&m.angular, a, x[0]))
+            }
+            JointType::Prismatic(a) => Motion::new(cross_axis(&m.angular, a, x[0]), Vec3::zeros()),
+            _ => m.cross(&self.local_motion(x)),
+        }
+    }
+
+    /// `Sᵀ f` for a force `f` in the joint's own frame, written into `out` (length `nv`).
+    #[inline]
+    pub(crate) fn project_local_force(&self, f: &Force, out: &mut [f64]) {
+        let dot_axis = |u: &Vec3, a: &Axis| match a {
+            Axis::X => u.x,
+            Axis::Y => u.y,
+            Axis::Z => u.z,
+            Axis::Unaligned(d) => u.dot(d),
+        };
+        match self {
+            JointType::Universe => {}
+            JointType::Revolute(a) | JointType::RevoluteUnbounded(a) => out[0] = dot_axis(&f.angular, a),
+            JointType::Prismatic(a) => out[0] = dot_axis(&f.linear, a),
+            JointType::FreeFlyer => out[..6].copy_from_slice(&f.to_array()),
+            JointType::Spherical => out[..3].copy_from_slice(f.angular.as_slice()),
+            JointType::Translation => out[..3].copy_from_slice(f.linear.as_slice()),
+            JointType::Planar => {
+                out[0] = f.linear.x;
+                out[1] = f.linear.y;
+                out[2] = f.angular.z;
+            }
+        }
+    }
+}
+
+/// `w a` for a unit axis.
+#[inline]
+fn axis_times(a: &Axis, w: f64) -> Vec3 {
+    match a {
+        Axis::X => Vec3::new(w, 0.0, 0.0),
+        Axis::Y => Vec3::new(0.0, w, 0.0),
+        Axis::Z => Vec3::new(0.0, 0.0, w),
+        Axis::Unaligned(u) => u * w,
+    }
+}
+
+/// `u × (w a)` for a unit axis `a`.
+#[inline]
+fn cross_axis(u: &Vec3, a: &Axis, w: f64) -> Vec3 {
+    match a {
+        Axis::X => Vec3::new(0.0, u.z * w, -(u.y * w)),
+        Axis::Y => Vec3::new(-(u.z * w), 0.0, u.x * w),
+        Axis::Z => Vec3::new(u.y * w, -(u.x * w), 0.0),
+        Axis::Unaligned(d) => u.cross(&(d * w)),
+    }
+}
+
+/// `placement · R_axis(c, s)`: only the rotation changes.
+#[inline]
+fn placement_rotated(placement: &Se3, a: &Axis, c: f64, s: f64) -> Se3 {
+    let r = &placement.rotation;
+    let rot = match a {
+        Axis::X => {
+            let (r1, r2) = (r.column(1), r.column(2));
+            Mat3::from_columns(&[r.column(0).into_owned(), r1 * c + r2 * s, r2 * c - r1 * s])
+        }
+        Axis::Y => {
+            let (r0, r2) = (r.column(0), r.column(2));
+            Mat3::from_columns(&[r0 * c - r2 * s, r.column(1).into_owned(), r0 * s + r2 * c])
+        }
+        Axis::Z => {
+            let (r0, r1) = (r.column(0), r.column(1));
+            Mat3::from_columns(&[r0 * c + r1 * s, r1 * c - r0 * s, r.column(2).into_owned()])
+        }
+        Axis::Unaligned(_) => r * axis_rotation(a, c, s),
+    };
+    Se3::new(rot, placement.translation)
 }
 
 /// Rotation about an axis given cos and sin of the angle.

@@ -31,8 +31,9 @@ impl Model {
 #[inline]
 pub(crate) fn placement_step(model: &Model, data: &mut Data, i: usize, q: &[f64]) {
     let jm = &model.joints[i];
-    let m = jm.kind.transform(&q[jm.idx_q..jm.idx_q + jm.nq]);
-    let li = model.placements[i].compose(&m);
+    let li = jm
+        .kind
+        .placed_transform(&model.placements[i], &q[jm.idx_q..jm.idx_q + jm.nq]);
     data.li_mi[i] = li;
     let p = model.parents[i];
     data.o_mi[i] = if p == 0 { li } else { data.o_mi[p].compose(&li) };
@@ -42,16 +43,8 @@ pub(crate) fn placement_step(model: &Model, data: &mut Data, i: usize, q: &[f64]
 #[inline]
 pub(crate) fn jacobian_step(model: &Model, data: &mut Data, i: usize) {
     let jm = &model.joints[i];
-    let o = &data.o_mi[i];
-    for k in jm.idx_v..jm.idx_v + jm.nv {
-        let s = &model.s[k];
-        data.j[k] = if s.linear == crate::spatial::Vec3::zeros() {
-            let w = o.rotation * s.angular;
-            Motion::new(o.translation.cross(&w), w)
-        } else {
-            o.act_motion(s)
-        };
-    }
+    jm.kind
+        .world_columns(&data.o_mi[i], &mut data.j[jm.idx_v..jm.idx_v + jm.nv]);
 }
 
 /// `Σ_k J_k x_k` over the dofs of joint `i`.

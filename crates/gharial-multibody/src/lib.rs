@@ -6,7 +6,8 @@
 //!
 //! Conventions are Pinocchio's: spatial vectors are `[linear, angular]`, free-flyer
 //! quaternions are `[x, y, z, w]`, q-derivatives are taken along tangent perturbations
-//! `q ⊕ δ`, and the world-frame (`WORLD`) quantities are the internal representation.
+//! `q ⊕ δ`. Kinematics, CRBA, ABA and the derivatives work in the world frame (`WORLD`);
+//! the RNEA works in the joint frames.
 //!
 //! ```no_run
 //! use gharial_multibody::{Model, RootJoint, rnea, neutral};

@@ -2,53 +2,199 @@
 //!
 //! The mass matrix of a kinematic tree factors as `M = Lᵀ D L` without fill-in, `L` unit
 //! lower triangular with `L[k][i] ≠ 0` only when dof `i` is an ancestor of dof `k`
-//! (Featherstone, *Rigid Body Dynamics Algorithms*, §6.5). The solves act on "rows
-//! stored as columns": a right-hand side matrix `B` (n × m) is passed transposed,
-//! column-major, so every update is a contiguous AXPY of length m.
+//! (Featherstone, *Rigid Body Dynamics Algorithms*, §6.5). `L` is stored by compressed
+//! rows: row k holds `L[k][a]` for the ancestors `a` of k, nearest first, so that the
+//! ancestors of an ancestor are a suffix of the row. The solves act on "rows stored as
+//! columns": a right-hand side matrix `B` (n × m) is passed transposed, column-major.
 
 use crate::error::{Error, Result};
-use crate::model::NONE;
 
-/// In-place `M = Lᵀ D L` factorization. `h` holds M (n × n, column-major, at least the
-/// lower triangle); on return its strict lower triangle holds L and `d` holds D.
-pub(crate) fn ltdl_factor(n: usize, parent: &[usize], h: &mut [f64], d: &mut [f64]) -> Result<()> {
+/// The tree of degrees of freedom: parent of each dof (`NONE` at a root), for each dof
+/// `k` the end of a range `k..end` containing all its descendants, and the ancestors of
+/// every dof (nearest first) in one flat list.
+#[derive(Clone, Copy)]
+pub(crate) struct DofTree<'a> {
+    pub(crate) parent: &'a [usize],
+    pub(crate) subtree_end: &'a [usize],
+    pub(crate) anc_start: &'a [usize],
+    pub(crate) anc: &'a [usize],
+}
+
+impl DofTree<'_> {
+    /// Number of dofs.
+    #[inline]
+    pub(crate) fn n(&self) -> usize {
+        self.parent.len()
+    }
+
+    /// Range of the ancestors of dof `k` in `anc` (and of row k of a compressed `L`).
+    #[inline]
+    pub(crate) fn anc_range(&self, k: usize) -> core::ops::Range<usize> {
+        self.anc_start[k]..self.anc_start[k + 1]
+    }
+
+    /// Ancestors of dof `k`, nearest first.
+    #[inline]
+    pub(crate) fn ancestors(&self, k: usize) -> &[usize] {
+        &self.anc[self.anc_range(k)]
+    }
+}
+
+/// `out[j] += Σ_(k, b) b · src[k·stride + j]` for every `j < out.len()`: a linear
+/// combination of columns of `src` (column k starts at `k·stride`), accumulated in
+/// registers sixteen entries at a time.
+#[inline]
+pub(crate) fn add_combination(out: &mut [f64], src: &[f64], stride: usize, terms: &[(usize, f64)]) {
+    let n = out.len();
+    let mut j = 0;
+    while j + 16 <= n {
+        add_combination_chunk::<16>(out, src, stride, terms, j);
+        j += 16;
+    }
+    if j + 8 <= n {
+        add_combination_chunk::<8>(out, src, stride, terms, j);
+        j += 8;
+    }
+    if j + 4 <= n {
+        add_combination_chunk::<4>(out, src, stride, terms, j);
+        j += 4;
+    }
+    if j + 2 <= n {
+        add_combination_chunk::<2>(out, src, stride, terms, j);
+        j += 2;
+    }
+    if j < n {
+        add_combination_chunk::<1>(out, src, stride, terms, j);
+    }
+}
+
+/// Entries `j..j + W` of [`add_combination`].
+#[inline(always)]
+fn add_combination_chunk<const W: usize>(
+    out: &mut [f64],
+    src: &[f64],
+    stride: usize,
+    terms: &[(usize, f64)],
+    j: usize,
+) {
+    let chunk: &mut [f64; W] = (&mut out[j..j + W]).try_into().expect("chunk of W entries");
+    let mut acc = *chunk;
+    for &(k, b) in terms {
+        let o = k * stride + j;
+        let s: &[f64; W] = src[o..o + W].try_into().expect("chunk of W entries");
+        for t in 0..W {
+            acc[t] += b * s[t];
+        }
+    }
+    *chunk = acc;
+}
+
+/// `M⁻¹` (n × n, full symmetric) into `out` from the factorization `M = Lᵀ D L` left by
+/// [`ltdl_factor`] in `l`, `d`: the rows of `Y = L⁻ᵀ` (row k lives on the subtree of k),
+/// scaled by `D⁻¹`, then `X = L⁻¹ Y` root first (row k of X from the rows of its
+/// ancestors).
+pub(crate) fn ltdl_inverse(tree: &DofTree<'_>, l: &[f64], d: &[f64], out: &mut [f64], terms: &mut Vec<(usize, f64)>) {
+    let n = tree.n();
+    out.fill(0.0);
+    for k in 0..n {
+        out[k * n + k] = 1.0;
+    }
     for k in (0..n).rev() {
-        let hkk = h[k * n + k];
-        if !(hkk > 0.0 && hkk.is_finite()) {
+        let end = tree.subtree_end[k];
+        let (left, right) = out.split_at_mut(k * n);
+        let yk = &right[k..end];
+        for (&i, &lki) in tree.ancestors(k).iter().zip(&l[tree.anc_range(k)]) {
+            axpy(-lki, yk, &mut left[i * n + k..i * n + end]);
+        }
+    }
+    for k in 0..n {
+        let s = 1.0 / d[k];
+        out[k * n + k..k * n + tree.subtree_end[k]]
+            .iter_mut()
+            .for_each(|x| *x *= s);
+    }
+    for k in 0..n {
+        terms.clear();
+        terms.extend(
+            tree.ancestors(k)
+                .iter()
+                .zip(&l[tree.anc_range(k)])
+                .map(|(&i, &lki)| (i, -lki)),
+        );
+        let (left, right) = out.split_at_mut(k * n);
+        add_combination(&mut right[..n], left, n, terms);
+    }
+}
+
+/// `out = −S B` for a symmetric `S` and a `B` whose column `c` is zero outside the
+/// ancestors of dof `c` and the range `c..subtree_end[c]` (n × n, column-major): each
+/// output column combines only the columns of `S` selected by the nonzeros of `B`.
+pub(crate) fn minv_times_tree_sparse(
+    tree: &DofTree<'_>,
+    s: &[f64],
+    b: &[f64],
+    out: &mut [f64],
+    terms: &mut Vec<(usize, f64)>,
+) {
+    let n = tree.n();
+    for c in 0..n {
+        let col = &b[c * n..(c + 1) * n];
+        terms.clear();
+        terms.extend(tree.ancestors(c).iter().map(|&r| (r, -col[r])));
+        terms.extend((c..tree.subtree_end[c]).map(|r| (r, -col[r])));
+        let o = &mut out[c * n..(c + 1) * n];
+        o.fill(0.0);
+        add_combination(o, s, n, terms);
+    }
+}
+
+/// `M = Lᵀ D L` for the full symmetric `m` (n × n, column-major): `L` by compressed rows
+/// into `l` (row k: `L[k][a]` for the ancestors `a` of k), `D` into `d`. Leaves first,
+/// each row k updates the rows of its ancestors with contiguous AXPYs (the ancestors of
+/// the ancestor at position p are the row's suffix after p).
+pub(crate) fn ltdl_factor(tree: &DofTree<'_>, m: &[f64], l: &mut [f64], d: &mut [f64]) -> Result<()> {
+    let n = tree.n();
+    for k in 0..n {
+        d[k] = m[k * n + k];
+        for (x, &a) in l[tree.anc_range(k)].iter_mut().zip(tree.ancestors(k)) {
+            *x = m[a * n + k];
+        }
+    }
+    for k in (0..n).rev() {
+        let dk = d[k];
+        if !(dk > 0.0 && dk.is_finite()) {
             return Err(Error::NotPositiveDefinite {
                 what: "mass matrix".into(),
                 index: k,
-                value: hkk,
+                value: dk,
             });
         }
-        let mut i = parent[k];
-        while i != NONE {
-            let a = h[i * n + k] / hkk;
-            let mut j = i;
-            while j != NONE {
-                h[j * n + i] -= a * h[j * n + k];
-                j = parent[j];
-            }
-            h[i * n + k] = a;
-            i = parent[i];
+        let inv = 1.0 / dk;
+        let rk = tree.anc_range(k);
+        let (left, right) = l.split_at_mut(rk.start);
+        let row = &mut right[..rk.len()];
+        for (p, &i) in tree.ancestors(k).iter().enumerate() {
+            let w = row[p];
+            let a = w * inv;
+            d[i] -= a * w;
+            let ri = tree.anc_range(i);
+            axpy(-a, &row[p + 1..], &mut left[ri]);
+            row[p] = a;
         }
-        d[k] = hkk;
     }
     Ok(())
 }
 
 /// Solves `M X = B` in place for `X`, with `xt = Bᵀ` on entry and `Xᵀ` on return
-/// (column-major, n columns of length m).
-pub(crate) fn ltdl_solve_rows(n: usize, m: usize, parent: &[usize], l: &[f64], d: &[f64], xt: &mut [f64]) {
+/// (column-major, n columns of length m), from the factorization of [`ltdl_factor`].
+pub(crate) fn ltdl_solve_rows(tree: &DofTree<'_>, m: usize, l: &[f64], d: &[f64], xt: &mut [f64]) {
+    let n = tree.n();
     // Lᵀ y = b, leaves first.
     for k in (0..n).rev() {
         let (left, right) = xt.split_at_mut(k * m);
         let yk = &right[..m];
-        let mut i = parent[k];
-        while i != NONE {
-            let lki = l[i * n + k];
+        for (&i, &lki) in tree.ancestors(k).iter().zip(&l[tree.anc_range(k)]) {
             axpy(-lki, yk, &mut left[i * m..(i + 1) * m]);
-            i = parent[i];
         }
     }
     for k in 0..n {
@@ -59,11 +205,8 @@ pub(crate) fn ltdl_solve_rows(n: usize, m: usize, parent: &[usize], l: &[f64], d
     for k in 0..n {
         let (left, right) = xt.split_at_mut(k * m);
         let xk = &mut right[..m];
-        let mut i = parent[k];
-        while i != NONE {
-            let lki = l[i * n + k];
+        for (&i, &lki) in tree.ancestors(k).iter().zip(&l[tree.anc_range(k)]) {
             axpy(-lki, &left[i * m..(i + 1) * m], xk);
-            i = parent[i];
         }
     }
 }
@@ -119,31 +262,6 @@ pub(crate) fn cholesky_solve(n: usize, l: &[f64], x: &mut [f64]) {
             s -= l[i * n + k] * x[k];
         }
         x[i] = s / l[i * n + i];
-    }
-}
-
-/// Solves `X (L Lᵀ) = B` in place, `B` stored column-major with `n` columns of length m
-/// (i.e. the rows of `(L Lᵀ)⁻¹ Bᵀ` are the columns of the result).
-pub(crate) fn cholesky_solve_right(n: usize, m: usize, l: &[f64], x: &mut [f64]) {
-    // W Lᵀ = B: W[:, j] = (B[:, j] − Σ_{k<j} W[:, k] L[j][k]) / L[j][j].
-    for j in 0..n {
-        let (left, right) = x.split_at_mut(j * m);
-        let xj = &mut right[..m];
-        for k in 0..j {
-            axpy(-l[k * n + j], &left[k * m..(k + 1) * m], xj);
-        }
-        let s = 1.0 / l[j * n + j];
-        xj.iter_mut().for_each(|v| *v *= s);
-    }
-    // V L = W: V[:, j] = (W[:, j] − Σ_{k>j} V[:, k] L[k][j]) / L[j][j].
-    for j in (0..n).rev() {
-        let (left, right) = x.split_at_mut((j + 1) * m);
-        let xj = &mut left[j * m..];
-        for k in j + 1..n {
-            axpy(-l[j * n + k], &right[(k - j - 1) * m..(k - j) * m], xj);
-        }
-        let s = 1.0 / l[j * n + j];
-        xj.iter_mut().for_each(|v| *v *= s);
     }
 }
 

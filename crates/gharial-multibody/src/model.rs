@@ -3,6 +3,7 @@
 use crate::data::Data;
 use crate::error::{Error, Result};
 use crate::joint::{JointModel, JointType};
+use crate::linalg::DofTree;
 use crate::spatial::{Inertia, Motion, Se3, Vec3};
 
 /// Sentinel for "no parent degree of freedom".
@@ -184,12 +185,20 @@ pub struct Model {
     pub(crate) frames: Vec<Frame>,
     pub(crate) nq: usize,
     pub(crate) nv: usize,
-    /// Motion-subspace column of each degree of freedom, in its joint's frame.
-    pub(crate) s: Vec<Motion>,
     /// Parent degree of freedom (in the tree of dofs), or `NONE`.
     pub(crate) dof_parent: Vec<usize>,
     /// Joint of each degree of freedom.
     pub(crate) dof_joint: Vec<usize>,
+    /// End (exclusive) of a range `k..end` of dofs containing every descendant of dof `k`
+    /// (exactly its subtree when joints were added depth first, as the URDF loader does).
+    pub(crate) dof_subtree_end: Vec<usize>,
+    /// Ancestors of every dof, nearest first, concatenated; those of dof k are
+    /// `dof_anc[dof_anc_start[k]..dof_anc_start[k + 1]]`.
+    pub(crate) dof_anc: Vec<usize>,
+    pub(crate) dof_anc_start: Vec<usize>,
+    /// Hash of `dof_parent`, recorded by `Data` and `ContactData` to check that they are
+    /// used with a model of the same tree.
+    pub(crate) dof_tree_hash: u64,
     /// Lower position limits (nq).
     pub lower_position_limit: Vec<f64>,
     /// Upper position limits (nq).
@@ -241,9 +250,12 @@ impl Model {
             }],
             nq: 0,
             nv: 0,
-            s: Vec::new(),
             dof_parent: Vec::new(),
             dof_joint: Vec::new(),
+            dof_subtree_end: Vec::new(),
+            dof_anc: Vec::new(),
+            dof_anc_start: vec![0],
+            dof_tree_hash: 0,
             lower_position_limit: Vec::new(),
             upper_position_limit: Vec::new(),
             velocity_limit: Vec::new(),
@@ -317,11 +329,23 @@ impl Model {
         } else {
             self.joints[anc].idx_v + self.joints[anc].nv - 1
         };
-        let s = kind.subspace();
+        let mut a = prev;
+        while a != NONE {
+            self.dof_subtree_end[a] = self.nv + nv;
+            a = self.dof_parent[a];
+        }
         for k in 0..nv {
-            self.s.push(s[k]);
             self.dof_parent.push(prev);
             self.dof_joint.push(id);
+            self.dof_subtree_end.push(self.nv + nv);
+            if prev != NONE {
+                self.dof_anc.push(prev);
+                self.dof_anc
+                    .extend_from_within(self.dof_anc_start[prev]..self.dof_anc_start[prev + 1]);
+            }
+            self.dof_anc_start.push(self.dof_anc.len());
+            // FNV-1a step over the parent index (NONE included).
+            self.dof_tree_hash = (self.dof_tree_hash ^ prev as u64).wrapping_mul(0x0100_0000_01b3);
             prev = self.nv + k;
         }
         self.joints.push(jm);
@@ -468,6 +492,16 @@ impl Model {
     /// Allocates the workspace of every algorithm for this model.
     pub fn create_data(&self) -> Data {
         Data::new(self)
+    }
+
+    /// The tree of degrees of freedom, for the tree-sparse matrix kernels.
+    pub(crate) fn dof_tree(&self) -> DofTree<'_> {
+        DofTree {
+            parent: &self.dof_parent,
+            subtree_end: &self.dof_subtree_end,
+            anc_start: &self.dof_anc_start,
+            anc: &self.dof_anc,
+        }
     }
 
     /// Checks a frame id.

@@ -414,24 +414,30 @@ impl Inertia {
         }
     }
 
-    /// The inertia expressed in frame a, given in frame b and `aMb = x`.
+    /// The inertia expressed in frame a, given in frame b and `aMb = x = (R, p)`:
+    /// `h' = R h + m p` and, with `g = R h` and `u = g + m p / 2`,
+    /// `I' = R I Rᵀ − [p]×[u]× − [u]×[p]× = R I Rᵀ + 2 (u·p) 𝟙 − u pᵀ − p uᵀ`.
     #[inline]
     pub fn transformed(&self, x: &Se3) -> Inertia {
         let r = &x.rotation;
         let p = &x.translation;
         let g = r * self.first_moment;
-        let rot = r * self.rotational * r.transpose();
-        let gp = g.dot(p);
-        let pp = p.norm_squared();
-        let mut io = rot - (p * g.transpose() + g * p.transpose()) - self.mass * (p * p.transpose());
-        let diag = 2.0 * gp + self.mass * pp;
-        io[(0, 0)] += diag;
-        io[(1, 1)] += diag;
-        io[(2, 2)] += diag;
+        let u = g + p * (0.5 * self.mass);
+        let d = 2.0 * u.dot(p);
+        // R I Rᵀ, upper triangle only (I symmetric).
+        let a = r * self.rotational;
+        let e = |i: usize, j: usize| a[(i, 0)] * r[(j, 0)] + a[(i, 1)] * r[(j, 1)] + a[(i, 2)] * r[(j, 2)];
+        let s = |i: usize, j: usize| e(i, j) - (u[i] * p[j] + p[i] * u[j]);
+        let (xx, yy, zz) = (
+            e(0, 0) + d - 2.0 * u[0] * p[0],
+            e(1, 1) + d - 2.0 * u[1] * p[1],
+            e(2, 2) + d - 2.0 * u[2] * p[2],
+        );
+        let (xy, xz, yz) = (s(0, 1), s(0, 2), s(1, 2));
         Inertia {
             mass: self.mass,
             first_moment: g + p * self.mass,
-            rotational: io,
+            rotational: Mat3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz),
         }
     }
 }

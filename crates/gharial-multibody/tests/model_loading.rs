@@ -130,3 +130,26 @@ fn algorithms_validate_their_inputs() {
         Err(Error::NotPositiveDefinite { .. })
     ));
 }
+
+#[test]
+fn data_of_another_tree_is_rejected() {
+    // Same numbers of joints, dofs and frames, different trees: a chain and a fork.
+    let build = |fork: bool| {
+        let mut m = Model::new("tree");
+        let z = spatial::Se3::identity();
+        let kind = JointType::Revolute(Axis::Z);
+        let lim = || JointLimits::unbounded(&kind);
+        let j1 = m.add_joint(0, kind, z, "j1", lim()).unwrap();
+        let j2 = m.add_joint(j1, kind, z, "j2", lim()).unwrap();
+        m.add_joint(if fork { j1 } else { j2 }, kind, z, "j3", lim()).unwrap();
+        for j in 1..4 {
+            let y = spatial::Inertia::from_com(1.0, spatial::Vec3::new(0.1, 0.0, 0.0), spatial::Mat3::identity());
+            m.set_inertia(j, y).unwrap();
+        }
+        m
+    };
+    let (chain, fork) = (build(false), build(true));
+    let mut d = chain.create_data();
+    assert!(crba(&chain, &mut d, &[0.1, 0.2, 0.3]).is_ok());
+    assert!(matches!(crba(&fork, &mut d, &[0.1, 0.2, 0.3]), Err(Error::Invalid(_))));
+}
