@@ -194,14 +194,17 @@ pub fn rollout(problem: &Problem, us: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
     Ok(xs)
 }
 
-/// States `x_0..x_N` of a straight swing-up from hanging (`θ = π`) to upright (`θ = 0`)
-/// at constant speed, `θ_t = π (1 - t/N)`, `θ̇ = -π/(N dt)`, written by `state(θ, θ̇)`:
-/// a dynamically infeasible initial guess for the swing-up problems.
+/// States `x_0..x_N` of a straight swing-up from hanging (`θ = π`) to upright (`θ = 0`),
+/// `θ_t = π (1 - t/N)`, `θ̇_t = -π/(N dt)` except at rest at both ends, written by
+/// `state(θ, θ̇)`: a dynamically infeasible initial guess for the swing-up problems.
 pub(crate) fn swing_guess(n: usize, dt: f64, state: impl Fn(f64, f64) -> Vec<f64>) -> Vec<Vec<f64>> {
     let pi = std::f64::consts::PI;
     let omega = -pi / (n as f64 * dt);
     (0..=n)
-        .map(|t| state(pi * (1.0 - t as f64 / n as f64), omega))
+        .map(|t| {
+            let w = if t == 0 || t == n { 0.0 } else { omega };
+            state(pi * (1.0 - t as f64 / n as f64), w)
+        })
         .collect()
 }
 

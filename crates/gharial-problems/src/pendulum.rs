@@ -18,7 +18,8 @@
 //! ℓ_N = 0,   p(θ_N) = p*,   |τ| ≤ 20
 //! ```
 //! `x0 = (θ = π, θ̇ = 0)` (hanging). Initial guess: `τ = 0` and the dynamically
-//! infeasible states `θ_t = π (1 - t/N)`, `θ̇_t = -π/T` (a straight swing to the top).
+//! infeasible states `θ_t = π (1 - t/N)`, `θ̇_t = -π/T` (at rest at both ends): a
+//! straight swing to the top.
 //! From the rollout of a constant torque the pendulum stays near `θ = π`, where the
 //! Jacobian of the terminal constraint's z-row vanishes: the Newton model cannot see how
 //! to lift the tip (measured: no convergence in 300 iterations from the rollout of
@@ -34,7 +35,13 @@
 //! Hand-written (two nonzero entries); checked against the generic model with dual
 //! numbers and against finite differences in the tests.
 //!
-//! MEASURED_PENDULUM
+//! Measured with ProxDDP at the recommended settings, both rollouts (release build,
+//! best of 3 solves on the shared 2-core machine; `solve_all` example):
+//!
+//! | problem | rollout | status | iterations | AL iterations | final cost | KKT residual | time (ms) |
+//! |---|---|---|---|---|---|---|---|
+//! | `pendulum` | linear | converged | 247 | 3 | 0.955529757967 | 5.2e-7 | 558.12 |
+//! | `pendulum` | nonlinear | maximum iterations reached | 300 | 1 | 0.943081284811 | 3.5e-3 | 705.74 |
 
 use std::sync::Arc;
 
