@@ -1,9 +1,6 @@
 //! The modelling layer (functions, costs, dynamics, constraint sets) does not allocate
 //! after `create_data`, counted with a global allocator.
-#![allow(unsafe_code)]
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::sync::Arc;
 
 use faer::Mat;
@@ -25,39 +22,13 @@ use gharial::functions::{
 };
 use gharial::spaces::{Manifold, VectorSpace};
 
-/// Counts the allocations of the current thread (tests run on several threads).
-struct Counting;
-
-thread_local! {
-    static COUNT: Cell<usize> = const { Cell::new(0) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        COUNT.with(|c| c.set(c.get() + 1));
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        COUNT.with(|c| c.set(c.get() + 1));
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-}
+#[path = "support/counting_alloc.rs"]
+mod counting_alloc;
 
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
 
-fn allocations(mut f: impl FnMut()) -> usize {
-    // One warm-up call: thread-local caches of the matrix kernels are set up lazily.
-    f();
-    let before = COUNT.with(|c| c.get());
-    for _ in 0..5 {
-        f();
-    }
-    COUNT.with(|c| c.get()) - before
-}
+use counting_alloc::allocations;
 
 fn vals(n: usize, s: f64) -> Vec<f64> {
     (0..n).map(|i| s * (((i * 7) % 11) as f64 / 5.0 - 1.0)).collect()

@@ -138,6 +138,22 @@ fn exact_lq(lq: &Lq, x_target: Option<&[f64]>) -> LqProblem {
     }
 }
 
+/// A reachable terminal target: the end of a rollout with controls inside `[-umax/2, umax/2]`.
+fn reachable_target(lq: &Lq, umax: f64) -> Vec<f64> {
+    let mut target = lq.x0.clone();
+    for t in 0..lq.n {
+        let u: Vec<f64> = (0..lq.nu).map(|i| 0.5 * umax * ((t + i) as f64).sin()).collect();
+        target = (0..lq.nx)
+            .map(|i| {
+                lq.c[i]
+                    + (0..lq.nx).map(|j| lq.a[(i, j)] * target[j]).sum::<f64>()
+                    + (0..lq.nu).map(|j| lq.b[(i, j)] * u[j]).sum::<f64>()
+            })
+            .collect();
+    }
+    target
+}
+
 fn zero_guess(p: &Problem) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let n = p.horizon();
     let xs = (0..=n).map(|t| vec![0.0; p.space(t).nx()]).collect();
@@ -238,7 +254,7 @@ fn box_constrained_lq_satisfies_the_kkt_conditions_for_every_step_acceptance() {
 #[test]
 fn warm_start_from_a_converged_solution_takes_at_most_two_iterations() {
     let lq = random_lq(4, 2, 30, 11);
-    let target = vec![0.2, -0.1, 0.0, 0.3];
+    let target = reachable_target(&lq, 0.5);
     let p = ocp(&lq, Some(0.5), Some(&target));
     let (xs, us) = zero_guess(&p);
     let mut solver = ProxDdp::new(ProxDdpOptions::default());
@@ -372,26 +388,17 @@ fn clarabel_cost(lq: &Lq, umax: f64, x_target: Option<&[f64]>) -> f64 {
 fn box_constrained_lq_has_the_optimal_cost_of_an_independent_qp_solver() {
     for (seed, (nx, nu, n), umax) in [(21, (3, 2, 20), 0.2), (22, (4, 2, 40), 0.3), (23, (6, 3, 30), 0.1)] {
         let lq = random_lq(nx, nu, n, seed);
-        // A reachable terminal target: the end of a rollout with controls inside the box.
-        let mut target = lq.x0.clone();
-        for t in 0..n {
-            let u: Vec<f64> = (0..nu).map(|i| 0.5 * umax * ((t + i) as f64).sin()).collect();
-            target = (0..nx)
-                .map(|i| {
-                    lq.c[i]
-                        + (0..nx).map(|j| lq.a[(i, j)] * target[j]).sum::<f64>()
-                        + (0..nu).map(|j| lq.b[(i, j)] * u[j]).sum::<f64>()
-                })
-                .collect();
-        }
+        let target = reachable_target(&lq, umax);
         for x_target in [None, Some(target.as_slice())] {
             let reference = clarabel_cost(&lq, umax, x_target);
             let p = ocp(&lq, Some(umax), x_target);
             for rollout in [Rollout::Linear, Rollout::Nonlinear] {
                 let (xs, us) = zero_guess(&p);
+                // The nonlinear rollout's round-off floor is about eps |x| / mu (see above).
+                let tol = if rollout == Rollout::Linear { 1e-9 } else { 1e-8 };
                 let opts = ProxDdpOptions {
                     rollout,
-                    tol: 1e-9,
+                    tol,
                     ..Default::default()
                 };
                 let sol = solve(&p, opts, &xs, &us);
@@ -432,4 +439,356 @@ fn dynamically_infeasible_state_guess_converges() {
         let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
         assert!(kkt.max() < 1e-6, "{rollout:?}: {kkt:?}");
     }
+}
+
+#[test]
+fn general_initial_constraint_matches_the_dense_kkt_solution() {
+    // Only the first state coordinate is fixed (paper (65)): G0 = e_0ᵀ, g0 = -0.5.
+    use gharial::functions::LinearUnaryFunction;
+    use gharial::problem::InitialCondition;
+    let lq = random_lq(4, 2, 15, 41);
+    let g0 = Mat::from_fn(1, lq.nx, |_, j| if j == 0 { 1.0 } else { 0.0 });
+    let init = Arc::new(LinearUnaryFunction::new(g0.as_ref(), &[-0.5]).unwrap());
+    let base = ocp(&lq, None, None);
+    let p = Problem::with_initial(
+        InitialCondition::Constraint(init),
+        base.stages().to_vec(),
+        base.terminal_cost().clone(),
+    )
+    .unwrap();
+    let mut exact = exact_lq(&lq, None);
+    exact.G0 = g0;
+    exact.g0 = Col::from_fn(1, |_| -0.5);
+    let reference = dense::solve(&exact).unwrap();
+    for rollout in [Rollout::Linear, Rollout::Nonlinear] {
+        let (xs, us) = zero_guess(&p);
+        let opts = ProxDdpOptions {
+            rollout,
+            tol: 1e-9,
+            mu_init: 1e-6,
+            ..Default::default()
+        };
+        let sol = solve(&p, opts, &xs, &us);
+        assert_eq!(sol.status, Status::Converged, "{rollout:?}");
+        assert!(max_diff(&sol.xs, &reference.xs) < 1e-7, "{rollout:?}");
+        assert!(max_diff(&sol.us, &reference.us) < 1e-7, "{rollout:?}");
+        assert!((sol.xs[0][0] - 0.5).abs() < 1e-8);
+    }
+}
+
+#[test]
+fn implicit_dynamics_match_the_dense_kkt_solution() {
+    // Implicit Euler of ẋ = Ac x + Bc u + cc: f = dt (Ac y + Bc u + cc) - (y - x), so the
+    // exact LQ has A = I, B = dt Bc, E = dt Ac - I, f = dt cc.
+    use gharial::dynamics::{ImplicitEuler, LinearOde};
+    let (nx, nu, n, dt) = (3, 2, 20, 0.1);
+    let mut lq = random_lq(nx, nu, n, 51);
+    let ac = Mat::from_fn(nx, nx, |i, j| lq.a[(i, j)] - if i == j { 1.0 } else { 0.0 });
+    let ode = Arc::new(LinearOde::new(ac.as_ref(), lq.b.as_ref(), &lq.c).unwrap());
+    let dynamics = Dynamics::Implicit(Arc::new(ImplicitEuler::new(ode, dt).unwrap()));
+    let cost = Arc::new(QuadraticCost::new(lq.q.as_ref(), lq.s.as_ref(), lq.r.as_ref(), &lq.qv, &lq.rv).unwrap());
+    let stage = StageModel::new(cost, dynamics).unwrap();
+    let term = Arc::new(QuadraticCost::terminal(lq.qf.as_ref(), &lq.qfv).unwrap());
+    let p = Problem::new(&lq.x0, vec![stage; n], term).unwrap();
+    let mut exact = exact_lq(&lq, None);
+    for k in exact.knots.iter_mut().take(n) {
+        k.A = Mat::identity(nx, nx);
+        k.B = Mat::from_fn(nx, nu, |i, j| dt * lq.b[(i, j)]);
+        k.E = Mat::from_fn(nx, nx, |i, j| dt * ac[(i, j)] - if i == j { 1.0 } else { 0.0 });
+        k.f = Col::from_fn(nx, |i| dt * lq.c[i]);
+    }
+    lq.n = n;
+    let reference = dense::solve(&exact).unwrap();
+    for rollout in [Rollout::Linear, Rollout::Nonlinear] {
+        let (xs, us) = zero_guess(&p);
+        let opts = ProxDdpOptions {
+            rollout,
+            tol: 1e-9,
+            mu_init: 1e-6,
+            ..Default::default()
+        };
+        let sol = solve(&p, opts, &xs, &us);
+        assert_eq!(sol.status, Status::Converged, "{rollout:?}");
+        assert!(max_diff(&sol.xs, &reference.xs) < 1e-7, "{rollout:?}");
+        assert!(max_diff(&sol.us, &reference.us) < 1e-7, "{rollout:?}");
+        assert!(max_diff(&sol.lambdas, &reference.lambdas) < 1e-6, "{rollout:?}");
+    }
+}
+
+#[test]
+fn constraint_and_dynamics_scalings_do_not_change_the_solution() {
+    let lq = random_lq(4, 2, 25, 61);
+    let target = reachable_target(&lq, 0.3);
+    let base = ocp(&lq, Some(0.3), Some(&target));
+    let reference = {
+        let (xs, us) = zero_guess(&base);
+        solve(
+            &base,
+            ProxDdpOptions {
+                tol: 1e-9,
+                verbose: true,
+                ..Default::default()
+            },
+            &xs,
+            &us,
+        )
+    };
+    assert_eq!(reference.status, Status::Converged);
+    // Scale the box by 10 and the terminal constraint by 0.1, and the dynamics by 1e-3.
+    let mut p = base.clone();
+    for st in p.stages_mut() {
+        let c = st.constraints()[0].clone().with_scale(10.0);
+        *st = StageModel::new(st.cost.clone(), st.dynamics.clone())
+            .unwrap()
+            .with_constraint(c)
+            .unwrap();
+    }
+    let mut q = Problem::new(&lq.x0, p.stages().to_vec(), p.terminal_cost().clone()).unwrap();
+    q.add_terminal_constraint(base.terminal_constraints()[0].clone().with_scale(0.1))
+        .unwrap();
+    let (xs, us) = zero_guess(&q);
+    let opts = ProxDdpOptions {
+        tol: 1e-9,
+        dyn_al_scale: 1e-3,
+        ..Default::default()
+    };
+    let sol = solve(&q, opts, &xs, &us);
+    assert_eq!(sol.status, Status::Converged);
+    let dx: f64 = sol
+        .xs
+        .iter()
+        .zip(&reference.xs)
+        .flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p - q).abs()))
+        .fold(0.0, f64::max);
+    let du: f64 = sol
+        .us
+        .iter()
+        .zip(&reference.us)
+        .flat_map(|(a, b)| a.iter().zip(b).map(|(p, q)| (p - q).abs()))
+        .fold(0.0, f64::max);
+    assert!(dx < 1e-7 && du < 1e-7, "{dx:e} {du:e}");
+}
+
+#[test]
+fn invalid_options_and_inputs_give_errors() {
+    let lq = random_lq(3, 1, 5, 71);
+    let p = ocp(&lq, Some(0.5), None);
+    let (xs, us) = zero_guess(&p);
+    for (opts, name) in [
+        (
+            ProxDdpOptions {
+                tol: 0.0,
+                ..Default::default()
+            },
+            "tol",
+        ),
+        (
+            ProxDdpOptions {
+                mu_init: f64::NAN,
+                ..Default::default()
+            },
+            "mu_init",
+        ),
+        (
+            ProxDdpOptions {
+                mu_update_factor: 1.5,
+                ..Default::default()
+            },
+            "mu_update_factor",
+        ),
+        (
+            ProxDdpOptions {
+                max_iters: 0,
+                ..Default::default()
+            },
+            "max_iters",
+        ),
+        (
+            ProxDdpOptions {
+                num_threads: 0,
+                ..Default::default()
+            },
+            "num_threads",
+        ),
+    ] {
+        let e = ProxDdp::new(opts).setup(&p).err().unwrap();
+        assert!(e.to_string().contains(name), "{e}");
+    }
+    // Solve before setup, on a problem of other dimensions, with a bad guess.
+    let mut solver = ProxDdp::new(ProxDdpOptions::default());
+    assert!(solver.solve(&p, InitialGuess::primal(&xs, &us)).is_err());
+    solver.setup(&p).unwrap();
+    let other = ocp(&random_lq(3, 1, 6, 71), Some(0.5), None);
+    let (xo, uo) = zero_guess(&other);
+    assert!(solver.solve(&other, InitialGuess::primal(&xo, &uo)).is_err());
+    let mut bad = xs.clone();
+    bad[2][1] = f64::NAN;
+    let e = solver.solve(&p, InitialGuess::primal(&bad, &us)).err().unwrap();
+    assert!(e.to_string().contains("xs[2]"), "{e}");
+    let short = &us[..3];
+    assert!(solver.solve(&p, InitialGuess::primal(&xs, short)).is_err());
+}
+
+#[test]
+fn time_budget_and_callbacks_stop_the_solve_with_a_usable_iterate() {
+    let lq = random_lq(4, 2, 30, 81);
+    let p = ocp(&lq, Some(0.2), None);
+    let (xs, us) = zero_guess(&p);
+    let opts = ProxDdpOptions {
+        max_time: Some(std::time::Duration::ZERO),
+        ..Default::default()
+    };
+    let sol = solve(&p, opts, &xs, &us);
+    assert_eq!(sol.status, Status::TimeBudget);
+    assert!(sol.xs.iter().flatten().all(|v| v.is_finite()));
+
+    struct StopAfter(usize);
+    impl gharial::solvers::Callback for StopAfter {
+        fn on_iteration(&mut self, r: &gharial::solvers::IterationRecord) -> bool {
+            r.iter + 1 < self.0
+        }
+    }
+    let mut solver = ProxDdp::new(ProxDdpOptions::default());
+    solver.setup(&p).unwrap();
+    let sol = solver
+        .solve_with_callback(&p, InitialGuess::primal(&xs, &us), &mut StopAfter(2))
+        .unwrap();
+    assert_eq!(sol.iterations, 2);
+    assert_eq!(sol.history.len(), 2);
+    assert_eq!(sol.status, Status::MaxIterations);
+    // The stopped iterate warm-starts a full solve.
+    let warm = sol.clone();
+    let sol = solver.solve(&p, InitialGuess::from_solution(&warm)).unwrap();
+    assert_eq!(sol.status, Status::Converged);
+}
+
+#[test]
+fn diverging_problems_return_a_status_and_finite_values() {
+    // A cost unbounded below in u (R = -I): no minimiser exists.
+    let mut lq = random_lq(3, 2, 10, 91);
+    lq.r = Mat::from_fn(2, 2, |i, j| if i == j { -1.0 } else { 0.0 });
+    let p = ocp(&lq, None, None);
+    let (xs, us) = zero_guess(&p);
+    let sol = solve(
+        &p,
+        ProxDdpOptions {
+            max_iters: 30,
+            ..Default::default()
+        },
+        &xs,
+        &us,
+    );
+    assert_ne!(sol.status, Status::Converged);
+    assert!(
+        sol.xs.iter().chain(&sol.us).flatten().all(|v| v.is_finite()),
+        "{:?}",
+        sol.status
+    );
+    assert!(sol.cost.is_finite());
+
+    // A guess at which the model evaluates to NaN: reported, guess returned unchanged.
+    let lq = random_lq(3, 1, 5, 92);
+    let p = ocp(&lq, None, None);
+    let (mut xs, us) = zero_guess(&p);
+    xs[3][0] = 1e200;
+    let sol = solve(&p, ProxDdpOptions::default(), &xs, &us);
+    assert_eq!(sol.status, Status::NonFinite);
+    assert_eq!(sol.xs, xs);
+}
+
+/// `h(x) = x_0² + x_1² - r²` (stay in a disc), with exact second derivatives through
+/// hyper-dual numbers.
+struct Disc {
+    radius: f64,
+}
+
+impl gharial::functions::autodiff::AutoStageFn for Disc {
+    fn nx(&self) -> usize {
+        4
+    }
+    fn nu(&self) -> usize {
+        2
+    }
+    fn nr(&self) -> usize {
+        1
+    }
+    fn eval<D: gharial::functions::autodiff::ManifoldScalar>(&self, x: &[D], _u: &[D], out: &mut [D]) {
+        out[0] = x[0] * x[0] + x[1] * x[1] - D::from(self.radius * self.radius);
+    }
+}
+
+#[test]
+fn exact_and_gauss_newton_hessians_reach_the_same_kkt_point() {
+    // A planar double integrator steered towards (2, 1) while staying in the unit disc:
+    // the curvature of the active disc constraint enters the exact Hessian only.
+    use gharial::constraints::NegativeOrthant;
+    use gharial::functions::autodiff::AutoDiff;
+    use gharial::solvers::proxddp::HessianApprox;
+    let dt = 0.1;
+    let a = Mat::from_fn(4, 4, |i, j| {
+        if i == j {
+            1.0
+        } else if j == i + 2 {
+            dt
+        } else {
+            0.0
+        }
+    });
+    let b = Mat::from_fn(4, 2, |i, j| if i == j + 2 { dt } else { 0.0 });
+    let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(4));
+    let dynamics = Dynamics::Explicit(Arc::new(
+        LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &[0.0; 4]).unwrap(),
+    ));
+    let q = Mat::from_fn(4, 4, |i, j| if i == j && i < 2 { 1.0 } else { 0.0 });
+    let qv = [-1.2, -0.4, 0.0, 0.0];
+    let cost = Arc::new(
+        QuadraticCost::new(
+            q.as_ref(),
+            Mat::zeros(4, 2).as_ref(),
+            Mat::<f64>::identity(2, 2).as_ref(),
+            &qv,
+            &[0.0; 2],
+        )
+        .unwrap(),
+    );
+    let disc = Arc::new(AutoDiff::stage(space, Disc { radius: 1.0 }).unwrap());
+    let stage = StageModel::new(cost, dynamics)
+        .unwrap()
+        .with_constraint(StageConstraint::new("disc", disc, Arc::new(NegativeOrthant)))
+        .unwrap();
+    let term = Arc::new(QuadraticCost::terminal(q.as_ref(), &qv).unwrap());
+    let p = Problem::new(&[0.0, 0.0, 0.0, 0.0], vec![stage; 30], term).unwrap();
+    let (xs, us) = zero_guess(&p);
+    let mut sols = Vec::new();
+    for hessian in [HessianApprox::Exact, HessianApprox::GaussNewton] {
+        let opts = ProxDdpOptions {
+            hessian,
+            tol: 1e-8,
+            ..Default::default()
+        };
+        let sol = solve(&p, opts, &xs, &us);
+        assert_eq!(sol.status, Status::Converged, "{hessian:?}");
+        let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+        assert!(kkt.max() < 1e-7, "{hessian:?}: {kkt:?}");
+        // The disc is active at the end of the horizon (x_N itself is not constrained).
+        let end = &sol.xs[29];
+        assert!((end[0] * end[0] + end[1] * end[1] - 1.0).abs() < 1e-6, "{end:?}");
+        sols.push(sol);
+    }
+    let dx = max_diff(
+        &sols[0].xs,
+        &sols[1]
+            .xs
+            .iter()
+            .map(|v| Col::from_fn(v.len(), |i| v[i]))
+            .collect::<Vec<_>>(),
+    );
+    assert!(dx < 1e-6, "{dx:e}");
+    // Newton with the constraint curvature converges faster than Gauss-Newton here.
+    assert!(
+        sols[0].iterations < sols[1].iterations,
+        "exact {} vs Gauss-Newton {}",
+        sols[0].iterations,
+        sols[1].iterations
+    );
 }

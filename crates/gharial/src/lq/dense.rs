@@ -174,14 +174,15 @@ impl KktResiduals {
 
 /// The KKT residuals of `sol` for `problem` (the residuals of the peer benchmarks,
 /// generalised to any `E` and to the `mu` terms of the dynamics and the initial
-/// constraint), from [`LqVectors::set_kkt_residual`]. Dimensions must match.
-pub fn kkt_residuals(problem: &LqProblem, sol: &LqSolution) -> KktResiduals {
+/// constraint), from [`LqVectors::set_kkt_residual`].
+pub fn kkt_residuals(problem: &LqProblem, sol: &LqSolution) -> Result<KktResiduals, LqError> {
+    problem.check_shapes()?;
     let mut r = LqVectors::new(problem);
-    r.set_kkt_residual(problem, sol);
+    r.set_kkt_residual(problem, sol)?;
     let inf = |v: &[Col<f64>]| v.iter().map(|c| linalg::norm_inf(linalg::slice(c))).fold(0.0, f64::max);
-    KktResiduals {
+    Ok(KktResiduals {
         dynamics: inf(&r.f).max(linalg::norm_inf(linalg::slice(&r.g0))),
         constraints: inf(&r.d),
         dual: inf(&r.q).max(inf(&r.r)),
-    }
+    })
 }

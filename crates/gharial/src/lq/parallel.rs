@@ -1,65 +1,73 @@
-//! The parallel proximal Riccati solver: the horizon is split into legs solved on
-//! threads, each parameterised by its boundary co-state, then a condensed system over the
-//! legs' boundaries is solved, then the legs' forward passes run on threads again.
-//!
-//! # Legs
-//!
-//! Leg `j` covers knots `s_j..=e_j`; for every leg but the last, the boundary co-state
-//! `θ_j = λ_b` of the dynamics of knot `e_j` (into `x_b`, `b = e_j + 1`, the first state of
-//! the next leg) is an unknown parameter. The terms of the Lagrangian that belong to leg
-//! `j` are its knots' terms plus `θᵀ(A x_e + B u_e + f) - ½ mu_dyn |θ|²`; `x_b` and the
-//! term `θᵀE x_b` belong to the next leg's side of the boundary. For fixed `θ` and a given
-//! first state `x_s`, the leg's stationary value is the quadratic
-//! ```text
-//! W_j(x_s, θ) = ½ x_sᵀ P_s x_s + x_sᵀ Γ_s θ + ½ θᵀ Ω_s θ + p_sᵀ x_s + ω_sᵀ θ + const.
-//! ```
-//! It is computed by the serial recursion of [`crate::lq`] started from the leg-end value
-//! `V(x') = -(Eᵀθ)ᵀ x'` (that is `P' = 0`, `p' = 0` and a `θ`-block `Γ_{e+1} = -E_eᵀ`,
-//! `Ω_{e+1} = 0`, `ω_{e+1} = 0`), carrying the `θ` columns along:
-//! ```text
-//! Γ̃ = (I + P'G)⁻¹ Γ'                      Γ_t = Tᵀ Γ̃,  T = Ã + B̃K
-//! Ω_t = Ω' - Γ'ᵀ G Γ̃ - (B̃ᵀΓ̃)ᵀ H_uu (B̃ᵀΓ̃),  H_uu = [I 0] K_stage⁻¹ [I; 0]
-//! ω_t = ω' + Γ̃ᵀ (B̃k + f̃) - Γ'ᵀ G p̃
-//! ```
-//! (`Γ_t = C_tᵀΓ'` with the state gain `C_t` of (50b): the co-state sensitivity is carried
-//! back by the closed loop.) The last leg has no parameter: it is the serial recursion.
-//!
-//! # Condensed system
-//!
-//! With `V_b` the value at the next leg's first state (`P_b`, `p_b`), the boundary
-//! conditions are stationarity in `x_b` and the boundary dynamics row, by the envelope
-//! theorem `∂W_j/∂θ + E x_b = 0`:
-//! ```text
-//! [P_b  Eᵀ ] [x_b]     [p_b      ]   [0   ]
-//! [E    Ω_s] [θ  ] = - [ω_s      ] - [Γ_sᵀ] x_s
-//! ```
-//! solved from the last boundary to the first (a Riccati recursion over the legs, with a
-//! Bunch-Kaufman factorization of size `2 nx` per boundary); each step gives the true value
-//! at `x_s`, `P̂_s = P_s + Γ_s G_θ`, `p̂_s = p_s + Γ_s g_θ`, which is the `P_b` of the
-//! previous boundary; the first one feeds the initial stage. The forward pass solves the
-//! initial stage, walks the boundaries forward (`x_b`, `θ`), then on threads recomputes
-//! each leg's vector part with `p' = -Eᵀθ` and rolls the leg out from its `x_s`.
-//!
-//! The solution equals the serial solver's up to rounding. The per-knot gains of a leg's
-//! last knots are those of the leg (conditional on `θ`), not the serial ones: use the
-//! serial solver when the gains themselves are needed (nonlinear rollouts).
+//! The parallel proximal Riccati solver (see [`ParallelRiccatiSolver`]).
 
 use faer::prelude::ReborrowMut;
 use faer::{Accum, Col, Mat};
 use rayon::{ThreadPool, ThreadPoolBuilder};
 
 use super::riccati::{InitialStage, Pass, check_primal_reg, rollout, sweep};
-use super::stage::RiccatiStage;
-use super::{KnotDims, LqError, LqProblem, LqSolution, LqVectors, check_same_dims};
+use super::stage::{ExtraGains, RiccatiStage, StageScratch};
+use super::{KnotDims, LqError, LqProblem, LqSolution, LqVectors, check_regularisation, check_same_dims};
 use crate::linalg::{self, BunchKaufman, FactorError, col_of, col_of_mut, matmul, matvec, matvec_t, slice, slice_mut};
 
 /// Relative cost of a knot of a parameterised leg with respect to a plain knot, used to
 /// balance the legs' lengths (the parameter adds `Tᵀ Γ̃`, `H_uu` and the `Ω` update).
 const PARAM_COST: f64 = 1.6;
 
-/// The proximal Riccati solver with the horizon split into legs solved in parallel
-/// (module docs of `lq::parallel` in the source; same interface and solution as
-/// [`RiccatiSolver`](super::RiccatiSolver)).
+/// The proximal Riccati solver with the horizon split into legs solved on the threads of
+/// a dedicated rayon pool; the same interface and solution as
+/// [`RiccatiSolver`](super::RiccatiSolver).
+///
+/// # Legs
+///
+/// Leg `j` covers knots `s_j..=e_j`; for every leg but the last, the boundary co-state
+/// `θ_j = λ_b` of the dynamics of knot `e_j` (into `x_b`, `b = e_j + 1`, the first state of
+/// the next leg) is an unknown parameter. The terms of the Lagrangian that belong to leg
+/// `j` are its knots' terms plus `θᵀ(A x_e + B u_e + f) - ½ mu_dyn |θ|²`; `x_b` and the
+/// term `θᵀE x_b` belong to the next leg's side of the boundary. For fixed `θ` and a given
+/// first state `x_s`, the leg's stationary value is the quadratic
+/// ```text
+/// W_j(x_s, θ) = ½ x_sᵀ P_s x_s + x_sᵀ Γ_s θ + ½ θᵀ Ω_s θ + p_sᵀ x_s + ω_sᵀ θ + const.
+/// ```
+/// It is computed by the serial recursion of [`crate::lq`] started from the leg-end value
+/// `V(x') = -(Eᵀθ)ᵀ x'` (that is `P' = 0`, `p' = 0` and a `θ`-block `Γ_{e+1} = -E_eᵀ`,
+/// `Ω_{e+1} = 0`, `ω_{e+1} = 0`), carrying the `θ` columns along:
+/// ```text
+/// Γ̃ = (I + P'G)⁻¹ Γ'                      Γ_t = Tᵀ Γ̃,  T = Ã + B̃K
+/// Ω_t = Ω' - Γ'ᵀ G Γ̃ - (B̃ᵀΓ̃)ᵀ H_uu (B̃ᵀΓ̃),  H_uu = [I 0] K_stage⁻¹ [I; 0]
+/// ω_t = ω' + Γ̃ᵀ (B̃k + f̃) - Γ'ᵀ G p̃
+/// ```
+/// (`Γ_t = C_tᵀΓ'` with the state gain `C_t` of (50b): the co-state sensitivity is carried
+/// back by the closed loop.) The last leg has no parameter: it is the serial recursion.
+///
+/// # Condensed system
+///
+/// With `V_b` the value at the next leg's first state (`P_b`, `p_b`), the boundary
+/// conditions are stationarity in `x_b` and the boundary dynamics row, by the envelope
+/// theorem `∂W_j/∂θ + E x_b = 0`:
+/// ```text
+/// [P_b  Eᵀ ] [x_b]     [p_b      ]   [0   ]
+/// [E    Ω_s] [θ  ] = - [ω_s      ] - [Γ_sᵀ] x_s
+/// ```
+/// solved from the last boundary to the first (a Riccati recursion over the legs, with a
+/// Bunch-Kaufman factorization of size `2 nx` per boundary); each step gives the true value
+/// at `x_s`, `P̂_s = P_s + Γ_s G_θ`, `p̂_s = p_s + Γ_s g_θ`, which is the `P_b` of the
+/// previous boundary; the first one feeds the initial stage. The forward pass solves the
+/// initial stage, walks the boundaries forward (`x_b`, `θ`), then on threads recomputes
+/// each leg's vector part with `p' = -Eᵀθ` and rolls the leg out from its `x_s`.
+///
+/// The solution equals the serial solver's up to rounding. The per-knot gains of a leg's
+/// last knots are those of the leg (conditional on `θ`), not the serial ones: use the
+/// serial solver when the gains themselves are needed (nonlinear rollouts).
+///
+/// # Cost, accuracy, allocation
+///
+/// A parameterised knot costs about 1.6 plain ones (`Tᵀ Γ̃`, `H_uu`, the `Ω` update), so
+/// the last leg is made longer; with 2 threads the work is about 1.23 times the serial
+/// solver's, for an ideal speed-up of about 1.6. The condensed system inherits the
+/// `1/mu` scale of the value function: without refinement the solution agrees with the
+/// serial one to about `ε/mu`, with `refinement_steps` as well as the serial one does. The
+/// solver allocates nothing itself; entering the pool goes through rayon's job injector,
+/// which allocates a small block every 63 entries.
 pub struct ParallelRiccatiSolver {
     pool: ThreadPool,
     dims: Vec<KnotDims>,
@@ -88,6 +96,7 @@ impl std::fmt::Debug for ParallelRiccatiSolver {
 struct Leg {
     start: usize,
     stages: Vec<RiccatiStage>,
+    scratch: StageScratch,
     param: Option<LegParam>,
     result: Result<(), LqError>,
 }
@@ -167,10 +176,16 @@ impl ParallelRiccatiSolver {
         for (j, &s) in starts.iter().enumerate() {
             let end = starts.get(j + 1).copied().unwrap_or(n_knots);
             let ntheta = if end < n_knots { dims[end].nx } else { 0 };
+            // Parameterised legs need the closed loop T = Ã + B̃K.
+            let extra = if end < n_knots {
+                ExtraGains::ClosedLoop
+            } else {
+                ExtraGains::None
+            };
             let stages = (s..end)
                 .map(|t| {
                     let d = dims[t];
-                    RiccatiStage::new(t, d.nx, d.nu, d.nc, d.nx_next, false, d.nx_next.max(ntheta) + 1)
+                    RiccatiStage::new(t, d.nx, d.nu, d.nc, d.nx_next, extra, d.nx_next.max(ntheta) + 1)
                 })
                 .collect();
             let param = (end < n_knots).then(|| {
@@ -200,6 +215,7 @@ impl ParallelRiccatiSolver {
             legs.push(Leg {
                 start: s,
                 stages,
+                scratch: StageScratch::new(&dims[s..end]),
                 param,
                 result: Ok(()),
             });
@@ -246,6 +262,7 @@ impl ParallelRiccatiSolver {
         self.factored = false;
         check_same_dims(problem, &self.dims, self.nc0)?;
         check_primal_reg(primal_reg)?;
+        check_regularisation(problem)?;
         self.legs_backward(problem, None, Pass::Full { primal_reg })?;
         self.condensed_matrices(problem)?;
         self.condensed_vectors();
@@ -260,6 +277,7 @@ impl ParallelRiccatiSolver {
             return Err(LqError::NotFactored);
         }
         check_same_dims(problem, &self.dims, self.nc0)?;
+        check_regularisation(problem)?;
         self.legs_backward(problem, None, Pass::Vectors)?;
         self.condensed_vectors();
         Ok(())
@@ -277,10 +295,10 @@ impl ParallelRiccatiSolver {
         if let Some((steps, mut residual, mut delta)) = self.refinement.take() {
             let mut res = Ok(());
             for _ in 0..steps {
-                residual.set_kkt_residual(problem, sol);
                 self.save_vector_parts();
-                res = self
-                    .legs_backward(problem, Some(&residual), Pass::Vectors)
+                res = residual
+                    .set_kkt_residual(problem, sol)
+                    .and_then(|()| self.legs_backward(problem, Some(&residual), Pass::Vectors))
                     .and_then(|()| {
                         self.condensed_vectors();
                         self.solve_forward(problem, Some(&residual), &mut delta)
@@ -321,9 +339,9 @@ impl ParallelRiccatiSolver {
             let nt = tail_P.nrows();
             let nxs = leg.stages[0].dims().0;
             let mut k = bd.kkt.as_mut();
-            k.rb_mut().submatrix_mut(0, 0, nt, nt).copy_from(tail_P);
-            k.rb_mut().submatrix_mut(nt, 0, nt, nt).copy_from(&e_knot.E);
-            k.rb_mut().submatrix_mut(nt, nt, nt, nt).copy_from(&param.omega);
+            linalg::copy(k.rb_mut().submatrix_mut(0, 0, nt, nt), tail_P);
+            linalg::copy(k.rb_mut().submatrix_mut(nt, 0, nt, nt), e_knot.E.as_ref());
+            linalg::copy(k.rb_mut().submatrix_mut(nt, nt, nt, nt), param.omega.as_ref());
             match bd.bk.factor(bd.kkt.as_ref(), 0.0) {
                 Ok(inertia) if inertia.zero == 0 => {}
                 Err(FactorError::NonFinite) => {
@@ -342,9 +360,7 @@ impl ParallelRiccatiSolver {
             // Feedback columns -[0; Γ_sᵀ].
             let mut g = bd.gains.as_mut().submatrix_mut(0, 1, 2 * nt, nxs);
             g.rb_mut().submatrix_mut(0, 0, nt, nxs).fill(0.0);
-            g.rb_mut()
-                .submatrix_mut(nt, 0, nt, nxs)
-                .copy_from(param.gamma[0].transpose());
+            linalg::copy_transposed(g.rb_mut().submatrix_mut(nt, 0, nt, nxs), param.gamma[0].as_ref());
             for jj in 0..nxs {
                 for i in nt..2 * nt {
                     g[(i, jj)] = -g[(i, jj)];
@@ -352,7 +368,7 @@ impl ParallelRiccatiSolver {
             }
             bd.bk.solve_in_place(g);
             // P̂_s = P_s + Γ_s G_θ.
-            bd.hat_P.copy_from(leg.stages[0].P());
+            linalg::copy(bd.hat_P.as_mut(), leg.stages[0].P());
             matmul(
                 bd.hat_P.as_mut(),
                 Accum::Add,
@@ -417,8 +433,13 @@ impl ParallelRiccatiSolver {
                 r.map_or(slice(&problem.g0), |r| slice(&r.g0)),
             ),
         };
-        self.initial
-            .solve(g0, p0, slice_mut(&mut sol.xs[0]), slice_mut(&mut sol.lambdas[0]));
+        self.initial.solve(
+            problem,
+            g0,
+            p0,
+            slice_mut(&mut sol.xs[0]),
+            slice_mut(&mut sol.lambdas[0]),
+        )?;
         for (j, bd) in self.boundaries.iter().enumerate() {
             // [x_b; θ] = g + G x_s.
             let nt = bd.gains.nrows() / 2;
@@ -489,7 +510,15 @@ impl Leg {
             param.tail_p.fill(0.0);
         }
         let tail = self.param.as_ref().map(|p| (p.zero_P.as_ref(), slice(&p.tail_p)));
-        sweep(&mut self.stages, problem, self.start, rhs, tail, pass)?;
+        sweep(
+            &mut self.stages,
+            &mut self.scratch,
+            problem,
+            self.start,
+            rhs,
+            tail,
+            pass,
+        )?;
         if let Some(param) = &mut self.param {
             param.propagate(&mut self.stages, problem, self.start, pass);
         }
@@ -505,7 +534,7 @@ impl LegParam {
         let nt = self.zero_P.nrows();
         if full {
             let e = &problem.knots[start + n - 1].E;
-            self.gamma[n].copy_from(e.transpose());
+            linalg::copy_transposed(self.gamma[n].as_mut(), e.as_ref());
             for j in 0..nt {
                 for i in 0..nt {
                     self.gamma[n][(i, j)] = -self.gamma[n][(i, j)];
@@ -522,7 +551,7 @@ impl LegParam {
             let gp = gamma_rest[0].as_ref();
             // Γ̃ = (I + P'G)⁻¹ Γ'.
             if full && mu > 0.0 {
-                self.gamma_tilde[i].copy_from(gp);
+                linalg::copy(self.gamma_tilde[i].as_mut(), gp);
                 st.prox_solve_in_place(self.gamma_tilde[i].as_mut());
             }
             let gt = if mu > 0.0 { self.gamma_tilde[i].as_ref() } else { gp };
@@ -562,7 +591,7 @@ impl LegParam {
                 }
                 // Ω -= (B̃ᵀΓ̃)ᵀ H_uu (B̃ᵀΓ̃), H_uu from K⁻¹[I; 0].
                 if nu > 0 {
-                    let bt = st.abf().submatrix(0, nx, ny, nu);
+                    let bt = st.b_tilde(&problem.knots[start + i]);
                     let mut bg = self.bg.as_mut().submatrix_mut(0, 0, nu, nt);
                     matmul(bg.rb_mut(), Accum::Replace, bt.transpose(), gt, 1.0);
                     let mut kinv = self.kinv.as_mut().submatrix_mut(0, 0, nu + nc, nu);
@@ -651,9 +680,18 @@ fn forward_legs(
         match &mut leg.param {
             Some(param) => {
                 let tail = Some((param.zero_P.as_ref(), slice(&param.tail_p)));
-                sweep(&mut leg.stages, problem, leg.start, rhs, tail, Pass::Vectors)?;
+                sweep(
+                    &mut leg.stages,
+                    &mut leg.scratch,
+                    problem,
+                    leg.start,
+                    rhs,
+                    tail,
+                    Pass::Vectors,
+                )?;
                 rollout(
                     &mut leg.stages,
+                    &problem.knots[leg.start..leg.start + n],
                     tail,
                     xs,
                     us,
@@ -665,6 +703,7 @@ fn forward_legs(
             // The last leg's vector part does not depend on θ: it is the backward pass's.
             None => rollout(
                 &mut leg.stages,
+                &problem.knots[leg.start..leg.start + n],
                 None,
                 xs,
                 us,

@@ -39,9 +39,10 @@ impl SplitMix64 {
         a + (b - a) * u
     }
 
-    /// A uniform integer in `lo..=hi`.
+    /// A uniform integer in `lo..=hi` (the bounds in either order).
     pub fn int(&mut self, lo: usize, hi: usize) -> usize {
-        lo + (self.next_u64() % ((hi - lo + 1) as u64)) as usize
+        let (lo, hi) = (lo.min(hi), lo.max(hi));
+        lo + (self.next_u64() % ((hi - lo) as u64 + 1)) as usize
     }
 
     /// `10^U(log10 lo, log10 hi)`.
@@ -188,8 +189,7 @@ pub struct VariedOptions {
     pub mu_dyn: f64,
     /// Range of the constraint regularisations, drawn log-uniformly per row.
     pub mu_c: (f64, f64),
-    /// Up to two rows per knot (at most `nu` and only with a control) get `mu_c = 0`,
-    /// with full-rank `D` rows.
+    /// Up to two rows per knot (fewer than `nu`) get `mu_c = 0`, with full-rank `D` rows.
     pub hard_rows: bool,
     /// Rows of the initial constraint: `None` for `G0 = I`, `Some(0)` for a free `x_0`,
     /// `Some(m)` for a random `m x nx_0` block (`m ≤ nx_0`).
@@ -274,7 +274,13 @@ pub fn varied_problem(rng: &mut SplitMix64, opts: &VariedOptions) -> LqProblem {
             k.mu_dyn = opts.mu_dyn;
         }
         // Constraint rows: hard rows first, then the (possibly rank-deficient) others.
-        let n_hard = if opts.hard_rows { nc.min(nu).min(2) } else { 0 };
+        // Hard rows leave at least one control free: with all controls fixed by constraints
+        // the closed loop can be unstable and the value function grow without bound.
+        let n_hard = if opts.hard_rows {
+            nc.min(nu.saturating_sub(1)).min(2)
+        } else {
+            0
+        };
         let sc = 1.0 / (n as f64).sqrt();
         let mut cd = rand_mat(rng, nc, n, sc);
         if opts.rank_deficient && nc > n_hard {

@@ -3,9 +3,12 @@
 use faer::prelude::ReborrowMut;
 use faer::{Col, Mat, MatRef};
 
-use super::stage::RiccatiStage;
-use super::{KnotDims, KnotVectors, LqError, LqKnot, LqProblem, LqSolution, LqVectors, blame, check_same_dims};
-use crate::linalg::{BunchKaufman, FactorError, Inertia, slice, slice_mut};
+use super::stage::{ExtraGains, RiccatiStage, StageScratch};
+use super::{
+    KnotDims, KnotVectors, LqError, LqKnot, LqProblem, LqSolution, LqVectors, blame, check_regularisation,
+    check_same_dims,
+};
+use crate::linalg::{self, BunchKaufman, FactorError, Inertia, slice, slice_mut};
 
 /// Options of [`RiccatiSolver`].
 #[derive(Debug, Clone, Copy, Default)]
@@ -26,6 +29,13 @@ pub struct RiccatiOptions {
 
 /// The proximal Riccati solver of the ProxDDP paper (module docs of [`crate::lq`]).
 ///
+/// [`new`](Self::new) allocates everything for the problem's dimensions; then
+/// [`backward`](Self::backward), [`backward_vectors`](Self::backward_vectors) and
+/// [`forward`](Self::forward) allocate nothing. After a backward pass, [`stage`](Self::stage)
+/// gives each knot's gains, Q-function and value function. With small `mu` set
+/// [`RiccatiOptions::refinement_steps`] to 1 or 2 when the multipliers matter (module
+/// docs, "Accuracy").
+///
 /// ```
 /// use gharial::lq::{LqSolution, RiccatiSolver, random};
 /// let problem = random::peers_problem(4, 2, 2, 10, 42, 1e-8).problem;
@@ -33,7 +43,7 @@ pub struct RiccatiOptions {
 /// let mut sol = LqSolution::new(&problem);
 /// solver.backward(&problem, 0.0).unwrap();
 /// solver.forward(&problem, &mut sol).unwrap();
-/// let res = gharial::lq::dense::kkt_residuals(&problem, &sol);
+/// let res = gharial::lq::dense::kkt_residuals(&problem, &sol).unwrap();
 /// assert!(res.max() < 1e-6);
 /// ```
 #[derive(Debug)]
@@ -41,6 +51,7 @@ pub struct RiccatiSolver {
     dims: Vec<KnotDims>,
     nc0: usize,
     stages: Vec<RiccatiStage>,
+    scratch: StageScratch,
     initial: InitialStage,
     refinement: Option<Refinement>,
     factored: bool,
@@ -64,10 +75,15 @@ impl RiccatiSolver {
     pub fn with_options(problem: &LqProblem, options: RiccatiOptions) -> Result<Self, LqError> {
         problem.check_shapes()?;
         let dims = problem.dims();
+        let extra = if options.rollout_gains {
+            ExtraGains::Rollout
+        } else {
+            ExtraGains::None
+        };
         let stages = dims
             .iter()
             .enumerate()
-            .map(|(t, d)| RiccatiStage::new(t, d.nx, d.nu, d.nc, d.nx_next, options.rollout_gains, 0))
+            .map(|(t, d)| RiccatiStage::new(t, d.nx, d.nu, d.nc, d.nx_next, extra, 0))
             .collect();
         let refinement = (options.refinement_steps > 0).then(|| Refinement {
             steps: options.refinement_steps,
@@ -76,6 +92,7 @@ impl RiccatiSolver {
         });
         Ok(Self {
             initial: InitialStage::new(dims[0].nx, problem.nc0()),
+            scratch: StageScratch::new(&dims),
             refinement,
             nc0: problem.nc0(),
             dims,
@@ -90,7 +107,16 @@ impl RiccatiSolver {
         self.factored = false;
         check_same_dims(problem, &self.dims, self.nc0)?;
         check_primal_reg(primal_reg)?;
-        sweep(&mut self.stages, problem, 0, None, None, Pass::Full { primal_reg })?;
+        check_regularisation(problem)?;
+        sweep(
+            &mut self.stages,
+            &mut self.scratch,
+            problem,
+            0,
+            None,
+            None,
+            Pass::Full { primal_reg },
+        )?;
         self.initial.factor(problem, self.stages[0].P())?;
         self.factored = true;
         Ok(())
@@ -104,7 +130,16 @@ impl RiccatiSolver {
             return Err(LqError::NotFactored);
         }
         check_same_dims(problem, &self.dims, self.nc0)?;
-        sweep(&mut self.stages, problem, 0, None, None, Pass::Vectors)
+        check_regularisation(problem)?;
+        sweep(
+            &mut self.stages,
+            &mut self.scratch,
+            problem,
+            0,
+            None,
+            None,
+            Pass::Vectors,
+        )
     }
 
     /// Backward pass with a custom control law: at each knot (from the last) the solver
@@ -119,15 +154,16 @@ impl RiccatiSolver {
     {
         self.factored = false;
         check_same_dims(problem, &self.dims, self.nc0)?;
+        check_regularisation(problem)?;
         let n = self.stages.len();
         for t in (0..n).rev() {
             let (head, rest) = self.stages.split_at_mut(t + 1);
             let st = &mut head[t];
             let next = rest.first().map(|s| (s.P(), s.p()));
             let knot = &problem.knots[t];
-            st.q_function(knot, next.map(|n| n.0))
+            st.q_function(knot, next.map(|n| n.0), &mut self.scratch)
                 .map_err(|e| st.blame(problem, e))?;
-            st.q_function_vectors(knot, next);
+            st.q_function_vectors(knot, KnotVectors::of(knot), next);
             law(knot, st, next).map_err(|e| st.blame(problem, e))?;
         }
         self.initial.factor(problem, self.stages[0].P())?;
@@ -144,24 +180,34 @@ impl RiccatiSolver {
         check_same_dims(problem, &self.dims, self.nc0)?;
         sol.check_dims(problem)?;
         self.initial.solve(
+            problem,
             slice(&problem.g0),
             self.stages[0].p(),
             slice_mut(&mut sol.xs[0]),
             slice_mut(&mut sol.lambdas[0]),
-        );
-        rollout_all(&mut self.stages, sol)?;
+        )?;
+        rollout_all(&mut self.stages, problem, sol)?;
         if let Some(r) = &mut self.refinement {
             for _ in 0..r.steps {
-                r.residual.set_kkt_residual(problem, sol);
+                r.residual.set_kkt_residual(problem, sol)?;
                 self.stages.iter_mut().for_each(RiccatiStage::save_vector_part);
-                sweep(&mut self.stages, problem, 0, Some(&r.residual), None, Pass::Vectors)?;
+                sweep(
+                    &mut self.stages,
+                    &mut self.scratch,
+                    problem,
+                    0,
+                    Some(&r.residual),
+                    None,
+                    Pass::Vectors,
+                )?;
                 self.initial.solve(
+                    problem,
                     slice(&r.residual.g0),
                     self.stages[0].p(),
                     slice_mut(&mut r.delta.xs[0]),
                     slice_mut(&mut r.delta.lambdas[0]),
-                );
-                rollout_all(&mut self.stages, &mut r.delta)?;
+                )?;
+                rollout_all(&mut self.stages, problem, &mut r.delta)?;
                 sol.add(&r.delta);
                 self.stages.iter_mut().for_each(RiccatiStage::add_saved_vector_part);
             }
@@ -209,6 +255,7 @@ pub(crate) enum Pass {
 /// them (`None` when it is the problem's last knot).
 pub(crate) fn sweep(
     stages: &mut [RiccatiStage],
+    scratch: &mut StageScratch,
     problem: &LqProblem,
     offset: usize,
     rhs: Option<&LqVectors>,
@@ -230,14 +277,14 @@ pub(crate) fn sweep(
         };
         let res = match pass {
             Pass::Full { primal_reg } => st
-                .q_function(knot, next.map(|n| n.0))
+                .q_function(knot, next.map(|n| n.0), scratch)
                 .and_then(|()| {
-                    st.q_function_vectors_with(v, next);
-                    st.solve_kkt(knot, next.map(|n| n.0), primal_reg)
+                    st.q_function_vectors(knot, v, next);
+                    st.solve_kkt_with_feedforward(knot, next.map(|n| n.0), primal_reg, v.d)
                 })
-                .and_then(|()| st.solve_kkt_vectors_with(knot, v.d, next)),
+                .and_then(|()| st.solve_kkt_vectors_solved(knot, next)),
             Pass::Vectors => {
-                st.q_function_vectors_with(v, next);
+                st.q_function_vectors(knot, v, next);
                 st.solve_kkt_vectors_with(knot, v.d, next)
             }
         };
@@ -246,12 +293,13 @@ pub(crate) fn sweep(
     Ok(())
 }
 
-/// Forward rollout over consecutive knots `stages[i]`, from the state already in
+/// Forward rollout over consecutive knots `stages[i] <-> knots[i]`, from the state already in
 /// `xs[0]`: writes `xs[1..]`, `us`, `nus` and `lambdas[i]` (the co-state after stage `i`)
 /// for all stages but the last, whose next state and co-state go to `last` (empty slices
 /// at the problem's last knot). `tail` is the value function after the last stage.
 pub(crate) fn rollout(
     stages: &mut [RiccatiStage],
+    knots: &[LqKnot],
     tail: Option<(MatRef<'_, f64>, &[f64])>,
     xs: &mut [Col<f64>],
     us: &mut [Col<f64>],
@@ -275,6 +323,7 @@ pub(crate) fn rollout(
             (&mut *last_x, &mut *last_lambda)
         };
         st.forward_step(
+            &knots[i],
             slice(&xs_head[i]),
             slice_mut(&mut us[i]),
             slice_mut(&mut nus[i]),
@@ -293,9 +342,14 @@ pub(crate) fn rollout(
 }
 
 /// [`rollout`] over a whole problem's knots into `sol`, from `sol.xs[0]`.
-pub(crate) fn rollout_all(stages: &mut [RiccatiStage], sol: &mut LqSolution) -> Result<(), LqError> {
+pub(crate) fn rollout_all(
+    stages: &mut [RiccatiStage],
+    problem: &LqProblem,
+    sol: &mut LqSolution,
+) -> Result<(), LqError> {
     rollout(
         stages,
+        &problem.knots,
         None,
         &mut sol.xs,
         &mut sol.us,
@@ -331,8 +385,8 @@ impl InitialStage {
     pub(crate) fn factor(&mut self, problem: &LqProblem, P0: MatRef<'_, f64>) -> Result<(), LqError> {
         let (nx, nc0) = (self.nx, self.nc0);
         let mut k = self.kkt.as_mut();
-        k.rb_mut().submatrix_mut(0, 0, nx, nx).copy_from(P0);
-        k.rb_mut().submatrix_mut(nx, 0, nc0, nx).copy_from(&problem.G0);
+        linalg::copy(k.rb_mut().submatrix_mut(0, 0, nx, nx), P0);
+        linalg::copy(k.rb_mut().submatrix_mut(nx, 0, nc0, nx), problem.G0.as_ref());
         for i in 0..nc0 {
             k[(nx + i, nx + i)] = -problem.mu0;
         }
@@ -364,8 +418,16 @@ impl InitialStage {
         }
     }
 
-    /// Solves for `x_0` and `λ_0` given the offset `g0` and the value gradient `p0` of knot 0.
-    pub(crate) fn solve(&mut self, g0: &[f64], p0: &[f64], x0: &mut [f64], lambda0: &mut [f64]) {
+    /// Solves for `x_0` and `λ_0` given the offset `g0` and the value gradient `p0` of
+    /// knot 0; a non-finite result is blamed on the problem's data if possible.
+    pub(crate) fn solve(
+        &mut self,
+        problem: &LqProblem,
+        g0: &[f64],
+        p0: &[f64],
+        x0: &mut [f64],
+        lambda0: &mut [f64],
+    ) -> Result<(), LqError> {
         let nx = self.nx;
         let r = slice_mut(&mut self.rhs);
         for i in 0..nx {
@@ -378,5 +440,17 @@ impl InitialStage {
         let r = slice(&self.rhs);
         x0.copy_from_slice(&r[..nx]);
         lambda0.copy_from_slice(&r[nx..]);
+        if r.iter().sum::<f64>().is_finite() {
+            Ok(())
+        } else {
+            Err(blame(
+                problem,
+                0,
+                LqError::NonFinite {
+                    knot: 0,
+                    field: "initial state",
+                },
+            ))
+        }
     }
 }

@@ -1,22 +1,65 @@
 //! One knot of the proximal Riccati recursion: Q-function, stage KKT solve, value update
 //! and forward step (module docs of [`crate::lq`], steps 1-5).
+//!
+//! Memory traffic matters as much as flops here (a 36:12:32 knot holds about 50 kB of
+//! data): when `E = -I` the knot's `A`, `B`, `f` are used in place, the stage KKT matrix is
+//! assembled directly in its factorization's storage, and the products that are not kept
+//! (`P̃[Ã B̃]`, `I + P'G`) live in a [`StageScratch`] shared by all knots.
 
 use faer::prelude::ReborrowMut;
 use faer::{Accum, Col, Mat, MatMut, MatRef};
 
-use super::{KnotVectors, LqError, LqKnot, blame, is_minus_identity};
+use super::{KnotDims, KnotVectors, LqError, LqKnot, blame, is_minus_identity};
 use crate::linalg::{
     self, BunchKaufman, FactorError, Inertia, Ldlt, Llt, Lu, col_of, col_of_mut, matmul, matmul_lower, matvec,
     matvec_t, slice, slice_mut, sum_is_finite,
 };
 
+/// Which gains beyond `k, K, ζ, Z` a stage computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum ExtraGains {
+    /// None.
+    None,
+    /// The closed loop `z = t0 + T x` (the parallel solver's parameter recursion).
+    ClosedLoop,
+    /// The closed loop and the rollout gains of `x_{t+1}` and `λ_{t+1}` (50b-c).
+    Rollout,
+}
+
+/// Knots with `nx + nu` up to this copy `A` and `B` side by side for the products of the
+/// Q-function (two calls instead of five: the calls' fixed cost matters more than the copy).
+const SMALL_AB: usize = 24;
+
+/// Scratch shared by the knots of a sweep: `P̃[Ã B̃]`, `[A B]` and `I + P'G`.
+#[derive(Debug)]
+pub(crate) struct StageScratch {
+    pab: Mat<f64>,
+    ab: Mat<f64>,
+    m: Mat<f64>,
+}
+
+impl StageScratch {
+    /// Scratch for knots of the given dimensions.
+    pub(crate) fn new<'a>(dims: impl IntoIterator<Item = &'a KnotDims>) -> Self {
+        let (ny, n) = dims
+            .into_iter()
+            .fold((0, 0), |(ny, n), d| (ny.max(d.nx_next), n.max(d.nx + d.nu)));
+        Self {
+            pab: Mat::zeros(ny, n),
+            ab: Mat::zeros(ny, n.min(SMALL_AB)),
+            m: Mat::zeros(ny, ny),
+        }
+    }
+}
+
 /// Workspace and results of one knot of the Riccati recursion.
 ///
-/// All storage is allocated in [`new`](Self::new); the methods allocate nothing. The
-/// usual order per knot (backward in time) is [`q_function`](Self::q_function),
-/// [`q_function_vectors`](Self::q_function_vectors), [`solve_kkt`](Self::solve_kkt),
-/// [`solve_kkt_vectors`](Self::solve_kkt_vectors); a solver with its own control law
-/// replaces the last two by [`value_from_gains`](Self::value_from_gains).
+/// All storage is allocated when the solver is built; the methods allocate nothing. Per
+/// knot (backward in time) the solver computes the Q-function, then the stage solve
+/// ([`solve_kkt`](Self::solve_kkt), [`solve_kkt_vectors`](Self::solve_kkt_vectors)); a
+/// solver with its own control law replaces the stage solve by
+/// [`value_from_gains`](Self::value_from_gains) (see
+/// [`RiccatiSolver::backward_with`](super::RiccatiSolver::backward_with)).
 #[derive(Debug)]
 pub struct RiccatiStage {
     index: usize,
@@ -24,31 +67,29 @@ pub struct RiccatiStage {
     nu: usize,
     nc: usize,
     ny: usize,
-    rollout_gains: bool,
-    // Step 1: [Ã B̃ f̃] and the factorization of E (general E only).
+    extra: ExtraGains,
+    // Step 1: [Ã B̃] and the factorization of E (general E only), f̃.
     e_minus_identity: bool,
     lu_e: Lu,
-    abf: Mat<f64>,
+    ab_tilde: Mat<f64>,
+    f_tilde: Col<f64>,
     // Step 2: proximal value, with M = I + P'G.
     mu_dyn: f64,
     g: Mat<f64>,
-    m: Mat<f64>,
     prox: ProxFactor,
     ptilde: Mat<f64>,
     ptilde_vec: Col<f64>,
     v: Col<f64>,
-    pab: Mat<f64>,
     // Step 3: Q-function [Q_xx Q_xu; Q_ux Q_uu] and [Q_x; Q_u].
     qmat: Mat<f64>,
     qvec: Col<f64>,
-    // Step 4: stage KKT and gains [k K; ζ Z].
-    kkt: Mat<f64>,
-    kkt_factor: KktFactor,
+    // Step 4: stage KKT factorization and gains [k K; ζ Z].
+    kkt: KktFactor,
     gains: Mat<f64>,
     // Step 5: value function.
     P: Mat<f64>,
     p: Col<f64>,
-    // Rollout gains: [t0 | T] of z, [y0 | Y] of λ̃, [c | C] of x_{t+1}, [ξ | Ξ] of λ_{t+1}.
+    // Extra gains: [t0 | T] of z, [y0 | Y] of λ̃, [c | C] of x_{t+1}, [ξ | Ξ] of λ_{t+1}.
     zg: Mat<f64>,
     lg: Mat<f64>,
     xg: Mat<f64>,
@@ -61,15 +102,36 @@ pub struct RiccatiStage {
     saved: Vec<f64>,
 }
 
+/// `(Ã, B̃)`: the knot's `A`, `B` when `E = -I`, else `-E⁻¹A`, `-E⁻¹B`.
+fn ab_of<'a>(e_minus_identity: bool, ab_tilde: &'a Mat<f64>, knot: &'a LqKnot) -> (MatRef<'a, f64>, MatRef<'a, f64>) {
+    if e_minus_identity {
+        (knot.A.as_ref(), knot.B.as_ref())
+    } else {
+        let (ny, nx, nu) = (knot.nx_next, knot.nx, knot.nu);
+        (
+            ab_tilde.as_ref().submatrix(0, 0, ny, nx),
+            ab_tilde.as_ref().submatrix(0, nx, ny, nu),
+        )
+    }
+}
+
 impl RiccatiStage {
     /// Allocates the workspace of knot `index` with dimensions `nx, nu, nc` and next
-    /// state dimension `ny` (0 at the last knot). With `rollout_gains`, the backward pass
-    /// also computes the gains of `x_{t+1}` and `λ_{t+1}` (50b-c). `max_rhs` is the largest
-    /// number of right-hand sides the proximal system `I + P'G` will be solved with
-    /// (at least `ny + 1`).
-    pub fn new(index: usize, nx: usize, nu: usize, nc: usize, ny: usize, rollout_gains: bool, max_rhs: usize) -> Self {
+    /// state dimension `ny` (0 at the last knot), computing the `extra` gains. `max_rhs` is
+    /// the largest number of right-hand sides the proximal system `I + P'G` will be solved
+    /// with (at least `ny + 1`).
+    pub(crate) fn new(
+        index: usize,
+        nx: usize,
+        nu: usize,
+        nc: usize,
+        ny: usize,
+        extra: ExtraGains,
+        max_rhs: usize,
+    ) -> Self {
         let nk = nu + nc;
-        let ng = if rollout_gains { ny } else { 0 };
+        let ng = if extra == ExtraGains::Rollout { ny } else { 0 };
+        let nz = if extra == ExtraGains::None { 0 } else { ny };
         let max_rhs = max_rhs.max(ny + 1);
         Self {
             index,
@@ -77,13 +139,13 @@ impl RiccatiStage {
             nu,
             nc,
             ny,
-            rollout_gains,
+            extra,
             e_minus_identity: true,
-            lu_e: Lu::new(ny, (nx + nu + 1).max(ny)),
-            abf: Mat::zeros(ny, nx + nu + 1),
+            lu_e: Lu::new(ny, (nx + nu).max(ny).max(1)),
+            ab_tilde: Mat::zeros(ny, nx + nu),
+            f_tilde: Col::zeros(ny),
             mu_dyn: 0.0,
             g: Mat::zeros(ny, ny),
-            m: Mat::zeros(ny, ny),
             prox: ProxFactor {
                 llt: Llt::new(ny),
                 lu: Lu::new(ny, max_rhs),
@@ -92,11 +154,9 @@ impl RiccatiStage {
             ptilde: Mat::zeros(ny, ny),
             ptilde_vec: Col::zeros(ny),
             v: Col::zeros(ny),
-            pab: Mat::zeros(ny, nx + nu),
             qmat: Mat::zeros(nx + nu, nx + nu),
             qvec: Col::zeros(nx + nu),
-            kkt: Mat::zeros(nk, nk),
-            kkt_factor: KktFactor {
+            kkt: KktFactor {
                 ldlt: Ldlt::new(nk),
                 bk: BunchKaufman::with_max_rhs(nk, (1 + nx).max(nu)),
                 use_bk: false,
@@ -104,14 +164,14 @@ impl RiccatiStage {
             gains: Mat::zeros(nk, 1 + nx),
             P: Mat::zeros(nx, nx),
             p: Col::zeros(nx),
-            zg: Mat::zeros(ny, 1 + nx),
+            zg: Mat::zeros(nz, 1 + nx),
             lg: Mat::zeros(ng, 1 + nx),
             xg: Mat::zeros(ng, 1 + nx),
             lamg: Mat::zeros(ng, 1 + nx),
             w_ux: Mat::zeros(nu, nx),
             w_u: Col::zeros(nu),
             w_y: Col::zeros(ny),
-            saved: vec![0.0; 2 * nx + 2 * nu + nc + 4 * ny + 3 * ng],
+            saved: vec![0.0; 2 * nx + 2 * nu + nc + 3 * ny + nz + 3 * ng],
         }
     }
 
@@ -134,86 +194,136 @@ impl RiccatiStage {
 
     /// Matrix part of the Q-function (steps 1-3): `Q_xx, Q_xu, Q_uu` from the knot and the
     /// next value Hessian `P_next` (`None` at the last knot).
-    pub fn q_function(&mut self, knot: &LqKnot, P_next: Option<MatRef<'_, f64>>) -> Result<(), LqError> {
+    pub(crate) fn q_function(
+        &mut self,
+        knot: &LqKnot,
+        P_next: Option<MatRef<'_, f64>>,
+        scratch: &mut StageScratch,
+    ) -> Result<(), LqError> {
         let (nx, nu, ny) = (self.nx, self.nu, self.ny);
-        let n = nx + nu;
-        // Cost Hessian, lower triangle.
         {
             let mut h = self.qmat.as_mut();
-            h.rb_mut().submatrix_mut(0, 0, nx, nx).copy_from(&knot.Q);
-            h.rb_mut().submatrix_mut(nx, 0, nu, nx).copy_from(knot.S.transpose());
-            h.rb_mut().submatrix_mut(nx, nx, nu, nu).copy_from(&knot.R);
+            linalg::copy(h.rb_mut().submatrix_mut(0, 0, nx, nx), knot.Q.as_ref());
+            linalg::copy_transposed(h.rb_mut().submatrix_mut(nx, 0, nu, nx), knot.S.as_ref());
+            linalg::copy(h.rb_mut().submatrix_mut(nx, nx, nu, nu), knot.R.as_ref());
         }
         self.mu_dyn = knot.mu_dyn;
         if ny > 0 {
             let P_next = P_next.expect("a knot with dynamics has a next value function");
-            // Step 1: [Ã B̃] = -E⁻¹[A B].
-            self.abf.as_mut().submatrix_mut(0, 0, ny, nx).copy_from(&knot.A);
-            self.abf.as_mut().submatrix_mut(0, nx, ny, nu).copy_from(&knot.B);
+            // Step 1: [Ã B̃] = -E⁻¹[A B] unless E = -I.
             self.e_minus_identity = is_minus_identity(knot.E.as_ref());
             if !self.e_minus_identity {
-                self.lu_e
-                    .factor(knot.E.as_ref())
-                    .map_err(|_| self.singular("dynamics matrix E"))?;
-                let mut ab = self.abf.as_mut().submatrix_mut(0, 0, ny, n);
+                self.lu_e.factor(knot.E.as_ref()).map_err(|e| match e {
+                    FactorError::NonFinite => LqError::NonFinite {
+                        knot: self.index,
+                        field: "E",
+                    },
+                    FactorError::Singular { .. } => self.singular("dynamics matrix E"),
+                })?;
+                let mut ab = self.ab_tilde.as_mut();
+                linalg::copy(ab.rb_mut().submatrix_mut(0, 0, ny, nx), knot.A.as_ref());
+                linalg::copy(ab.rb_mut().submatrix_mut(0, nx, ny, nu), knot.B.as_ref());
                 self.lu_e.solve_in_place(ab.rb_mut());
-                negate(ab);
+                linalg::negate(ab);
             }
             // Step 2: P̃ = (I + P'G)⁻¹ P'.
             if self.mu_dyn > 0.0 {
-                self.factor_prox(P_next)?;
-                self.ptilde.copy_from(P_next);
+                self.factor_prox(P_next, scratch.m.as_mut().submatrix_mut(0, 0, ny, ny))?;
+                linalg::copy(self.ptilde.as_mut(), P_next);
                 self.prox.solve_in_place(self.ptilde.as_mut());
                 linalg::symmetrize(self.ptilde.as_mut());
             }
-            // Step 3: Q += [Ã B̃]ᵀ P̃ [Ã B̃] (lower triangle).
-            let ab = self.abf.as_ref().submatrix(0, 0, ny, n);
+            // Step 3: Q += [Ã B̃]ᵀ P̃ [Ã B̃] (lower triangle): two products on a contiguous
+            // [Ã B̃] (the knot's A and B copied side by side when small: fewer calls), five
+            // on the knot's A and B in place when large (no copy).
             let pt = if self.mu_dyn > 0.0 {
                 self.ptilde.as_ref()
             } else {
                 P_next
             };
-            matmul(self.pab.as_mut(), Accum::Replace, pt, ab, 1.0);
-            matmul_lower(self.qmat.as_mut(), Accum::Add, ab.transpose(), self.pab.as_ref(), 1.0);
+            let n = nx + nu;
+            let contiguous = if !self.e_minus_identity {
+                Some(self.ab_tilde.as_ref())
+            } else if n <= SMALL_AB {
+                let mut ab = scratch.ab.as_mut().submatrix_mut(0, 0, ny, n);
+                linalg::copy(ab.rb_mut().subcols_mut(0, nx), knot.A.as_ref());
+                linalg::copy(ab.rb_mut().subcols_mut(nx, nu), knot.B.as_ref());
+                Some(scratch.ab.as_ref().submatrix(0, 0, ny, n))
+            } else {
+                None
+            };
+            let mut w = scratch.pab.as_mut().submatrix_mut(0, 0, ny, n);
+            let mut q = self.qmat.as_mut();
+            if let Some(ab) = contiguous {
+                matmul(w.rb_mut(), Accum::Replace, pt, ab, 1.0);
+                matmul_lower(q, Accum::Add, ab.transpose(), w.as_ref(), 1.0);
+            } else {
+                let (a, b) = (knot.A.as_ref(), knot.B.as_ref());
+                matmul(w.rb_mut().subcols_mut(0, nx), Accum::Replace, pt, a, 1.0);
+                matmul_lower(
+                    q.rb_mut().submatrix_mut(0, 0, nx, nx),
+                    Accum::Add,
+                    a.transpose(),
+                    w.as_ref().subcols(0, nx),
+                    1.0,
+                );
+                if nu > 0 {
+                    matmul(w.rb_mut().subcols_mut(nx, nu), Accum::Replace, pt, b, 1.0);
+                    matmul(
+                        q.rb_mut().submatrix_mut(nx, 0, nu, nx),
+                        Accum::Add,
+                        b.transpose(),
+                        w.as_ref().subcols(0, nx),
+                        1.0,
+                    );
+                    matmul_lower(
+                        q.rb_mut().submatrix_mut(nx, nx, nu, nu),
+                        Accum::Add,
+                        b.transpose(),
+                        w.as_ref().subcols(nx, nu),
+                        1.0,
+                    );
+                }
+            }
         }
         linalg::symmetrize_from_lower(self.qmat.as_mut());
         Ok(())
     }
 
     /// Factors `M = I + P'G` (Cholesky when `E = -I` and `M` is positive definite, LU
-    /// otherwise), computing `G` first for a general `E`.
-    fn factor_prox(&mut self, P_next: MatRef<'_, f64>) -> Result<(), LqError> {
+    /// otherwise), computing `G` first for a general `E`; `m` is scratch.
+    fn factor_prox(&mut self, P_next: MatRef<'_, f64>, mut m: MatMut<'_, f64>) -> Result<(), LqError> {
         let ny = self.ny;
         let mu = self.mu_dyn;
         if self.e_minus_identity {
             // M = I + mu P' is symmetric.
             for j in 0..ny {
                 for i in 0..ny {
-                    self.m[(i, j)] = mu * P_next[(i, j)] + if i == j { 1.0 } else { 0.0 };
+                    m[(i, j)] = mu * P_next[(i, j)] + if i == j { 1.0 } else { 0.0 };
                 }
             }
-            self.prox.is_llt = self.prox.llt.factor(self.m.as_ref()).is_ok();
+            self.prox.is_llt = self.prox.llt.factor(m.as_ref()).is_ok();
             if self.prox.is_llt {
                 return Ok(());
             }
         } else {
             // G = mu E⁻¹E⁻ᵀ, from E⁻¹ computed in `m`.
-            self.m.fill(0.0);
+            m.fill(0.0);
             for i in 0..ny {
-                self.m[(i, i)] = 1.0;
+                m[(i, i)] = 1.0;
             }
-            self.lu_e.solve_in_place(self.m.as_mut());
-            matmul(self.g.as_mut(), Accum::Replace, self.m.as_ref(), self.m.transpose(), mu);
+            self.lu_e.solve_in_place(m.rb_mut());
+            matmul(self.g.as_mut(), Accum::Replace, m.as_ref(), m.as_ref().transpose(), mu);
             linalg::symmetrize(self.g.as_mut());
             for j in 0..ny {
                 for i in 0..ny {
-                    self.m[(i, j)] = if i == j { 1.0 } else { 0.0 };
+                    m[(i, j)] = if i == j { 1.0 } else { 0.0 };
                 }
             }
-            matmul(self.m.as_mut(), Accum::Add, P_next, self.g.as_ref(), 1.0);
+            matmul(m.rb_mut(), Accum::Add, P_next, self.g.as_ref(), 1.0);
         }
         self.prox.is_llt = false;
-        self.prox.lu.factor(self.m.as_ref()).map_err(|e| match e {
+        self.prox.lu.factor(m.as_ref()).map_err(|e| match e {
             FactorError::NonFinite => LqError::NonFinite {
                 knot: self.index,
                 field: "next value function",
@@ -222,21 +332,21 @@ impl RiccatiStage {
         })
     }
 
-    /// Solves `(I + P'G) X = B` in place with the factorization of the last
-    /// [`q_function`](Self::q_function) (only when `mu_dyn > 0`).
+    /// Solves `(I + P'G) X = B` in place with the factorization of the last Q-function
+    /// (only when `mu_dyn > 0`).
     pub(crate) fn prox_solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
         self.prox.solve_in_place(rhs);
     }
 
-    /// Vector part of the Q-function: `Q_x, Q_u` from the knot's `q, r, f` and the next
-    /// value function (`None` at the last knot). Needs [`q_function`](Self::q_function) first.
-    pub fn q_function_vectors(&mut self, knot: &LqKnot, next: Option<(MatRef<'_, f64>, &[f64])>) {
-        self.q_function_vectors_with(KnotVectors::of(knot), next);
-    }
-
-    /// [`q_function_vectors`](Self::q_function_vectors) with `q, r, f` taken from `v`.
-    pub(crate) fn q_function_vectors_with(&mut self, v: KnotVectors<'_>, next: Option<(MatRef<'_, f64>, &[f64])>) {
-        let (nx, nu, ny) = (self.nx, self.nu, self.ny);
+    /// Vector part of the Q-function: `Q_x, Q_u` from the vectors `q, r, f` and the next
+    /// value function (`None` at the last knot).
+    pub(crate) fn q_function_vectors(
+        &mut self,
+        knot: &LqKnot,
+        v: KnotVectors<'_>,
+        next: Option<(MatRef<'_, f64>, &[f64])>,
+    ) {
+        let (nx, ny) = (self.nx, self.ny);
         let qv = slice_mut(&mut self.qvec);
         qv[..nx].copy_from_slice(v.q);
         qv[nx..].copy_from_slice(v.r);
@@ -245,15 +355,11 @@ impl RiccatiStage {
         }
         let (P_next, p_next) = next.expect("a knot with dynamics has a next value function");
         // f̃ = -E⁻¹ f.
-        let n = nx + nu;
-        {
-            let ft = col_of_mut(&mut self.abf, n);
-            ft.copy_from_slice(v.f);
-        }
+        slice_mut(&mut self.f_tilde).copy_from_slice(v.f);
         if !self.e_minus_identity {
-            let mut ft = self.abf.as_mut().submatrix_mut(0, n, ny, 1);
+            let mut ft = self.f_tilde.as_mut().as_mat_mut();
             self.lu_e.solve_in_place(ft.rb_mut());
-            negate(ft);
+            linalg::negate(ft);
         }
         // p̃ = (I + P'G)⁻¹ p', v = P̃ f̃ + p̃.
         let pt_vec: &[f64] = if self.mu_dyn > 0.0 {
@@ -263,50 +369,124 @@ impl RiccatiStage {
         } else {
             p_next
         };
-        let v = slice_mut(&mut self.v);
-        v.copy_from_slice(pt_vec);
+        let vv = slice_mut(&mut self.v);
+        vv.copy_from_slice(pt_vec);
         let pt = if self.mu_dyn > 0.0 {
             self.ptilde.as_ref()
         } else {
             P_next
         };
-        matvec(v, Accum::Add, pt, col_of(&self.abf, n), 1.0);
+        matvec(vv, Accum::Add, pt, slice(&self.f_tilde), 1.0);
         // [Q_x; Q_u] += [Ã B̃]ᵀ v.
-        let ab = self.abf.as_ref().submatrix(0, 0, ny, n);
-        matvec_t(slice_mut(&mut self.qvec), Accum::Add, ab, slice(&self.v), 1.0);
+        let (a, b) = ab_of(self.e_minus_identity, &self.ab_tilde, knot);
+        let qv = slice_mut(&mut self.qvec);
+        let (qx, qu) = qv.split_at_mut(nx);
+        matvec_t(qx, Accum::Add, a, slice(&self.v), 1.0);
+        matvec_t(qu, Accum::Add, b, slice(&self.v), 1.0);
     }
 
     /// Matrix part of the stage solve (steps 4-5): factors the stage KKT system with the
     /// primal regularisation `primal_reg`, computes the feedback gains `K`, `Z`, the value
-    /// Hessian `P` and (if enabled) the rollout feedback gains.
+    /// Hessian `P` and (if enabled) the feedback parts of the extra gains. `P_next` is the
+    /// next value Hessian (`None` at the last knot). Needs the Q-function.
     pub fn solve_kkt(
         &mut self,
         knot: &LqKnot,
         P_next: Option<MatRef<'_, f64>>,
         primal_reg: f64,
     ) -> Result<(), LqError> {
+        self.check_knot(knot)?;
+        self.check_next(P_next, None)?;
+        self.solve_kkt_impl(knot, P_next, primal_reg, None)
+    }
+
+    /// Checks that `knot` has this stage's dimensions (for the public stage methods).
+    fn check_knot(&self, knot: &LqKnot) -> Result<(), LqError> {
+        knot.check_shapes(self.index)?;
+        if (knot.nx, knot.nu, knot.nc, knot.nx_next) != (self.nx, self.nu, self.nc, self.ny) {
+            return Err(LqError::Dimension {
+                knot: self.index,
+                field: "knot dimensions (nx + nu + nc + nx_next)",
+                expected: (self.nx + self.nu + self.nc + self.ny, 1),
+                got: (knot.nx + knot.nu + knot.nc + knot.nx_next, 1),
+            });
+        }
+        Ok(())
+    }
+
+    /// Checks the next value function given to the public stage methods: present exactly
+    /// when the knot has dynamics, of size `nx_next`.
+    fn check_next(&self, P_next: Option<MatRef<'_, f64>>, p_next: Option<&[f64]>) -> Result<(), LqError> {
+        let ny = self.ny;
+        let shape = P_next.map_or((0, 0), |P| (P.nrows(), P.ncols()));
+        if (ny > 0 || P_next.is_some()) && shape != (ny, ny) {
+            return Err(LqError::Dimension {
+                knot: self.index,
+                field: "next value Hessian",
+                expected: (ny, ny),
+                got: shape,
+            });
+        }
+        match p_next {
+            Some(p) if p.len() != ny => Err(LqError::Dimension {
+                knot: self.index,
+                field: "next value gradient",
+                expected: (ny, 1),
+                got: (p.len(), 1),
+            }),
+            _ => Ok(()),
+        }
+    }
+
+    /// [`solve_kkt`](Self::solve_kkt), also solving for the feedforward column `[k; ζ]`
+    /// with constraint offset `d` in the same solve (finish with
+    /// [`solve_kkt_vectors_solved`](Self::solve_kkt_vectors_solved)).
+    pub(crate) fn solve_kkt_with_feedforward(
+        &mut self,
+        knot: &LqKnot,
+        P_next: Option<MatRef<'_, f64>>,
+        primal_reg: f64,
+        d: &[f64],
+    ) -> Result<(), LqError> {
+        self.solve_kkt_impl(knot, P_next, primal_reg, Some(d))
+    }
+
+    fn solve_kkt_impl(
+        &mut self,
+        knot: &LqKnot,
+        P_next: Option<MatRef<'_, f64>>,
+        primal_reg: f64,
+        d: Option<&[f64]>,
+    ) -> Result<(), LqError> {
         let (nx, nu, nc) = (self.nx, self.nu, self.nc);
         let nk = nu + nc;
         if nk > 0 {
+            let f = &mut self.kkt;
+            f.use_bk = (0..nc).any(|i| knot.mu_c[i] == 0.0);
             {
-                let mut k = self.kkt.as_mut();
-                k.rb_mut()
-                    .submatrix_mut(0, 0, nu, nu)
-                    .copy_from(self.qmat.as_ref().submatrix(nx, nx, nu, nu));
+                // Lower triangle of [[Q_uu + ρI, ·], [D, -diag(mu_c)]], in the factor's storage.
+                let mut k = if f.use_bk {
+                    f.bk.matrix_mut()
+                } else {
+                    f.ldlt.matrix_mut()
+                };
+                linalg::copy(
+                    k.rb_mut().submatrix_mut(0, 0, nu, nu),
+                    self.qmat.as_ref().submatrix(nx, nx, nu, nu),
+                );
                 for i in 0..nu {
                     k[(i, i)] += primal_reg;
                 }
-                k.rb_mut().submatrix_mut(nu, 0, nc, nu).copy_from(&knot.D);
+                linalg::copy(k.rb_mut().submatrix_mut(nu, 0, nc, nu), knot.D.as_ref());
+                k.rb_mut().submatrix_mut(nu, nu, nc, nc).fill(0.0);
                 for i in 0..nc {
                     k[(nu + i, nu + i)] = -knot.mu_c[i];
                 }
             }
-            let f = &mut self.kkt_factor;
-            f.use_bk = (0..nc).any(|i| knot.mu_c[i] == 0.0);
             let res = if f.use_bk {
-                f.bk.factor(self.kkt.as_ref(), 0.0)
+                f.bk.factor_filled(0.0)
             } else {
-                f.ldlt.factor(self.kkt.as_ref())
+                f.ldlt.factor_filled()
             };
             let expected = Inertia {
                 positive: nu,
@@ -344,25 +524,40 @@ impl RiccatiStage {
             }
             // Right-hand side -[Q_ux; C], solved in place into [K; Z].
             let mut rhs = self.gains.as_mut().submatrix_mut(0, 1, nk, nx);
-            rhs.rb_mut()
-                .submatrix_mut(0, 0, nu, nx)
-                .copy_from(self.qmat.as_ref().submatrix(nx, 0, nu, nx));
-            rhs.rb_mut().submatrix_mut(nu, 0, nc, nx).copy_from(&knot.C);
-            negate(rhs.rb_mut());
-            self.kkt_factor.solve_in_place(rhs);
+            linalg::copy(
+                rhs.rb_mut().submatrix_mut(0, 0, nu, nx),
+                self.qmat.as_ref().submatrix(nx, 0, nu, nx),
+            );
+            linalg::copy(rhs.rb_mut().submatrix_mut(nu, 0, nc, nx), knot.C.as_ref());
+            linalg::negate(rhs.rb_mut());
+            match d {
+                Some(d) => {
+                    self.fill_feedforward_rhs(d);
+                    self.kkt.solve_in_place(self.gains.as_mut());
+                }
+                None => self.kkt.solve_in_place(rhs),
+            }
         }
-        // P = Q_xx + Q_xu K + Cᵀ Z (symmetric: lower triangle, then mirrored).
-        self.P.copy_from(self.qmat.as_ref().submatrix(0, 0, nx, nx));
+        // P = Q_xx + [Q_xu Cᵀ][K; Z] (47b), the Schur complement of the stage KKT matrix.
+        // (The equivalent sum of semidefinite terms [I; K]ᵀH[I; K] + Zᵀdiag(mu_c)Z is not
+        // used: it agrees with the gains only to the accuracy of the KKT solve, about ε/mu
+        // relative, which the forward pass's co-states P x + p would inherit.) Lower
+        // triangle, then mirrored.
+        linalg::copy(self.P.as_mut(), self.qmat.as_ref().submatrix(0, 0, nx, nx));
         if nk > 0 {
             let fb = self.gains.as_ref().submatrix(0, 1, nk, nx);
-            matmul_lower(
-                self.P.as_mut(),
-                Accum::Add,
-                self.qmat.as_ref().submatrix(0, nx, nx, nu),
-                fb.subrows(0, nu),
-                1.0,
-            );
-            matmul_lower(self.P.as_mut(), Accum::Add, knot.C.transpose(), fb.subrows(nu, nc), 1.0);
+            if nu > 0 {
+                matmul_lower(
+                    self.P.as_mut(),
+                    Accum::Add,
+                    self.qmat.as_ref().submatrix(0, nx, nx, nu),
+                    fb.subrows(0, nu),
+                    1.0,
+                );
+            }
+            if nc > 0 {
+                matmul_lower(self.P.as_mut(), Accum::Add, knot.C.transpose(), fb.subrows(nu, nc), 1.0);
+            }
         }
         linalg::symmetrize_from_lower(self.P.as_mut());
         if !sum_is_finite(self.P.as_ref()) {
@@ -371,35 +566,30 @@ impl RiccatiStage {
                 field: "value Hessian P",
             });
         }
-        if self.ny > 0 {
-            self.feedback_rollout_gains(P_next.expect("a knot with dynamics has a next value function"));
+        if self.ny > 0 && self.extra != ExtraGains::None {
+            self.feedback_extra_gains(knot, P_next.expect("a knot with dynamics has a next value function"));
         }
         Ok(())
     }
 
     /// Solves the factored stage KKT system in place.
     pub(crate) fn kkt_solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
-        self.kkt_factor.solve_in_place(rhs);
+        self.kkt.solve_in_place(rhs);
     }
 
     /// `T = Ã + B̃K` (feedback of `z`), and with rollout gains `Y = P̃T`, `C = T - GY`,
     /// `Ξ = -E⁻ᵀY`.
-    fn feedback_rollout_gains(&mut self, P_next: MatRef<'_, f64>) {
+    fn feedback_extra_gains(&mut self, knot: &LqKnot, P_next: MatRef<'_, f64>) {
         let (nx, nu, ny) = (self.nx, self.nu, self.ny);
+        let (a, b) = ab_of(self.e_minus_identity, &self.ab_tilde, knot);
         {
             let mut t = self.zg.as_mut().submatrix_mut(0, 1, ny, nx);
-            t.copy_from(self.abf.as_ref().submatrix(0, 0, ny, nx));
+            linalg::copy(t.rb_mut(), a);
             if nu > 0 {
-                matmul(
-                    t,
-                    Accum::Add,
-                    self.abf.as_ref().submatrix(0, nx, ny, nu),
-                    self.gains.as_ref().submatrix(0, 1, nu, nx),
-                    1.0,
-                );
+                matmul(t, Accum::Add, b, self.gains.as_ref().submatrix(0, 1, nu, nx), 1.0);
             }
         }
-        if !self.rollout_gains {
+        if self.extra != ExtraGains::Rollout {
             return;
         }
         let pt = if self.mu_dyn > 0.0 {
@@ -411,19 +601,23 @@ impl RiccatiStage {
         matmul(self.lg.as_mut().submatrix_mut(0, 1, ny, nx), Accum::Replace, pt, t, 1.0);
         let y = self.lg.as_ref().submatrix(0, 1, ny, nx);
         let mut c = self.xg.as_mut().submatrix_mut(0, 1, ny, nx);
-        c.copy_from(t);
+        linalg::copy(c.rb_mut(), t);
         sub_g_times(self.mu_dyn, self.e_minus_identity, self.g.as_ref(), c, y);
         let mut xi = self.lamg.as_mut().submatrix_mut(0, 1, ny, nx);
-        xi.copy_from(y);
+        linalg::copy(xi.rb_mut(), y);
         if !self.e_minus_identity {
             self.lu_e.solve_transpose_in_place(xi.rb_mut());
-            negate(xi);
+            linalg::negate(xi);
         }
     }
 
     /// Vector part of the stage solve: feedforward `k`, `ζ`, value gradient `p` and the
-    /// rollout feedforward terms, reusing the factorization of [`solve_kkt`](Self::solve_kkt).
+    /// feedforward parts of the extra gains, reusing the factorization of
+    /// [`solve_kkt`](Self::solve_kkt). `next` is the next value function (`None` at the
+    /// last knot).
     pub fn solve_kkt_vectors(&mut self, knot: &LqKnot, next: Option<(MatRef<'_, f64>, &[f64])>) -> Result<(), LqError> {
+        self.check_knot(knot)?;
+        self.check_next(next.map(|n| n.0), next.map(|n| n.1))?;
         self.solve_kkt_vectors_with(knot, KnotVectors::of(knot).d, next)
     }
 
@@ -434,18 +628,34 @@ impl RiccatiStage {
         d: &[f64],
         next: Option<(MatRef<'_, f64>, &[f64])>,
     ) -> Result<(), LqError> {
+        if self.nu + self.nc > 0 {
+            self.fill_feedforward_rhs(d);
+            self.kkt.solve_in_place(self.gains.as_mut().subcols_mut(0, 1));
+        }
+        self.solve_kkt_vectors_solved(knot, next)
+    }
+
+    /// `-[Q_u; d]` in the feedforward column.
+    fn fill_feedforward_rhs(&mut self, d: &[f64]) {
+        let (nx, nu) = (self.nx, self.nu);
+        let g0 = col_of_mut(&mut self.gains, 0);
+        for i in 0..nu {
+            g0[i] = -self.qvec[nx + i];
+        }
+        for (g, di) in g0[nu..].iter_mut().zip(d) {
+            *g = -di;
+        }
+    }
+
+    /// The vector part after the feedforward column was solved for: `p` and the
+    /// feedforward parts of the extra gains.
+    pub(crate) fn solve_kkt_vectors_solved(
+        &mut self,
+        knot: &LqKnot,
+        next: Option<(MatRef<'_, f64>, &[f64])>,
+    ) -> Result<(), LqError> {
         let (nx, nu, nc) = (self.nx, self.nu, self.nc);
         let nk = nu + nc;
-        if nk > 0 {
-            let g0 = col_of_mut(&mut self.gains, 0);
-            for i in 0..nu {
-                g0[i] = -self.qvec[nx + i];
-            }
-            for i in 0..nc {
-                g0[nu + i] = -d[i];
-            }
-            self.kkt_factor.solve_in_place(self.gains.as_mut().subcols_mut(0, 1));
-        }
         // p = Q_x + Q_xu k + Cᵀ ζ.
         let p = slice_mut(&mut self.p);
         p.copy_from_slice(&slice(&self.qvec)[..nx]);
@@ -466,28 +676,23 @@ impl RiccatiStage {
                 field: "value gradient p",
             });
         }
-        if self.ny > 0 {
+        if self.ny > 0 && self.extra != ExtraGains::None {
             let (P_next, p_next) = next.expect("a knot with dynamics has a next value function");
-            self.feedforward_rollout_gains(P_next, p_next);
+            self.feedforward_extra_gains(knot, P_next, p_next);
         }
         Ok(())
     }
 
     /// `t0 = B̃k + f̃`, and with rollout gains `y0 = P̃t0 + p̃`, `c = t0 - Gy0`, `ξ = -E⁻ᵀy0`.
-    fn feedforward_rollout_gains(&mut self, P_next: MatRef<'_, f64>, p_next: &[f64]) {
-        let (nx, nu, ny) = (self.nx, self.nu, self.ny);
+    fn feedforward_extra_gains(&mut self, knot: &LqKnot, P_next: MatRef<'_, f64>, p_next: &[f64]) {
+        let nu = self.nu;
+        let (_, b) = ab_of(self.e_minus_identity, &self.ab_tilde, knot);
         {
             let t0 = col_of_mut(&mut self.zg, 0);
-            t0.copy_from_slice(col_of(&self.abf, nx + nu));
-            matvec(
-                t0,
-                Accum::Add,
-                self.abf.as_ref().submatrix(0, nx, ny, nu),
-                &col_of(&self.gains, 0)[..nu],
-                1.0,
-            );
+            t0.copy_from_slice(slice(&self.f_tilde));
+            matvec(t0, Accum::Add, b, &col_of(&self.gains, 0)[..nu], 1.0);
         }
-        if !self.rollout_gains {
+        if self.extra != ExtraGains::Rollout {
             return;
         }
         let pt_vec: &[f64] = if self.mu_dyn > 0.0 {
@@ -517,14 +722,14 @@ impl RiccatiStage {
         if !self.e_minus_identity {
             let mut xi = self.lamg.as_mut().subcols_mut(0, 1);
             self.lu_e.solve_transpose_in_place(xi.rb_mut());
-            negate(xi);
+            linalg::negate(xi);
         }
     }
 
     /// Value update from arbitrary control gains `u = k + K x` (for solvers with their own
     /// control law, e.g. box-DDP): `P = Q_xx + KᵀQ_uu K + Q_xu K + KᵀQ_ux`,
     /// `p = Q_x + KᵀQ_uu k + Q_xu k + KᵀQ_u`. The gains are stored as this knot's control
-    /// gains (the multiplier gains are left untouched). Needs the Q-function (both parts).
+    /// gains (the multiplier gains are left untouched). Needs the Q-function.
     pub fn value_from_gains(&mut self, k: &[f64], K: MatRef<'_, f64>) -> Result<(), LqError> {
         let (nx, nu) = (self.nx, self.nu);
         if k.len() != nu {
@@ -551,9 +756,9 @@ impl RiccatiStage {
             q.submatrix(nx, nx, nu, nu),
         );
         // W = Q_uu K + Q_ux, P = Q_xx + KᵀW + Q_xu K.
-        self.w_ux.copy_from(q_ux);
+        linalg::copy(self.w_ux.as_mut(), q_ux);
         matmul(self.w_ux.as_mut(), Accum::Add, q_uu, K, 1.0);
-        self.P.copy_from(q_xx);
+        linalg::copy(self.P.as_mut(), q_xx);
         matmul(self.P.as_mut(), Accum::Add, K.transpose(), self.w_ux.as_ref(), 1.0);
         matmul(self.P.as_mut(), Accum::Add, q_xu, K, 1.0);
         linalg::symmetrize(self.P.as_mut());
@@ -567,7 +772,7 @@ impl RiccatiStage {
         matvec_t(p, Accum::Add, K, slice(&self.w_u), 1.0);
         matvec(p, Accum::Add, q_xu, k, 1.0);
         col_of_mut(&mut self.gains, 0)[..nu].copy_from_slice(k);
-        self.gains.as_mut().submatrix_mut(0, 1, nu, nx).copy_from(K);
+        linalg::copy(self.gains.as_mut().submatrix_mut(0, 1, nu, nx), K);
         if !sum_is_finite(self.P.as_ref()) || !p.iter().sum::<f64>().is_finite() {
             return Err(LqError::NonFinite {
                 knot: self.index,
@@ -580,8 +785,9 @@ impl RiccatiStage {
     /// Forward step (50): from `x`, writes `u = k + K x`, `ν = ζ + Z x` and, at a knot with
     /// dynamics, `x_{t+1} = z - Gλ̃` and `λ_{t+1} = -E⁻ᵀλ̃` with `z = Ãx + B̃u + f̃`,
     /// `λ̃ = P̃z + p̃` (`next` is the next value function, unused at the last knot).
-    pub fn forward_step(
+    pub(crate) fn forward_step(
         &mut self,
+        knot: &LqKnot,
         x: &[f64],
         u: &mut [f64],
         nu_out: &mut [f64],
@@ -603,9 +809,10 @@ impl RiccatiStage {
         }
         let (P_next, p_next) = next.expect("a knot with dynamics has a next value function");
         // z = Ã x + B̃ u + f̃ (in x_next).
-        x_next.copy_from_slice(col_of(&self.abf, nx + nu));
-        matvec(x_next, Accum::Add, self.abf.as_ref().submatrix(0, 0, ny, nx), x, 1.0);
-        matvec(x_next, Accum::Add, self.abf.as_ref().submatrix(0, nx, ny, nu), u, 1.0);
+        let (a, b) = ab_of(self.e_minus_identity, &self.ab_tilde, knot);
+        x_next.copy_from_slice(slice(&self.f_tilde));
+        matvec(x_next, Accum::Add, a, x, 1.0);
+        matvec(x_next, Accum::Add, b, u, 1.0);
         // λ̃ = P̃ z + p̃ (in lambda_next).
         let (pt, pt_vec) = if self.mu_dyn > 0.0 {
             (self.ptilde.as_ref(), slice(&self.ptilde_vec))
@@ -636,10 +843,9 @@ impl RiccatiStage {
 
     /// Every quantity of the vector part, in a fixed order.
     fn vector_part_mut(&mut self) -> [&mut [f64]; 10] {
-        let n = self.nx + self.nu;
         [
             slice_mut(&mut self.qvec),
-            col_of_mut(&mut self.abf, n),
+            slice_mut(&mut self.f_tilde),
             slice_mut(&mut self.ptilde_vec),
             slice_mut(&mut self.v),
             col_of_mut(&mut self.gains, 0),
@@ -739,13 +945,13 @@ impl RiccatiStage {
 
     /// Gains `(c, C)` of the next state `x_{t+1} = c + C x_t` (50b), if enabled.
     pub fn x_next_gains(&self) -> Option<(&[f64], MatRef<'_, f64>)> {
-        self.rollout_gains
+        (self.extra == ExtraGains::Rollout)
             .then(|| (col_of(&self.xg, 0), self.xg.as_ref().submatrix(0, 1, self.ny, self.nx)))
     }
 
     /// Gains `(ξ, Ξ)` of the next co-state `λ_{t+1} = ξ + Ξ x_t` (50c), if enabled.
     pub fn lambda_next_gains(&self) -> Option<(&[f64], MatRef<'_, f64>)> {
-        self.rollout_gains.then(|| {
+        (self.extra == ExtraGains::Rollout).then(|| {
             (
                 col_of(&self.lamg, 0),
                 self.lamg.as_ref().submatrix(0, 1, self.ny, self.nx),
@@ -753,14 +959,14 @@ impl RiccatiStage {
         })
     }
 
-    /// Whether `E` was exactly `-I` at the last [`q_function`](Self::q_function).
+    /// Whether `E` was exactly `-I` at the last Q-function.
     pub fn e_is_minus_identity(&self) -> bool {
         self.e_minus_identity
     }
 
-    /// `[Ã B̃ f̃]` (`ny x (nx + nu + 1)`).
-    pub(crate) fn abf(&self) -> MatRef<'_, f64> {
-        self.abf.as_ref()
+    /// `B̃` (the knot's `B` when `E = -I`).
+    pub(crate) fn b_tilde<'a>(&'a self, knot: &'a LqKnot) -> MatRef<'a, f64> {
+        ab_of(self.e_minus_identity, &self.ab_tilde, knot).1
     }
 
     /// `[t0 | T]`: the closed-loop `z = Ã x + B̃ u + f̃ = t0 + T x`.
@@ -852,13 +1058,5 @@ fn sub_g_times(
         }
     } else {
         matmul(dst, Accum::Add, g, src, -1.0);
-    }
-}
-
-fn negate(mut m: MatMut<'_, f64>) {
-    for j in 0..m.ncols() {
-        for i in 0..m.nrows() {
-            m[(i, j)] = -m[(i, j)];
-        }
     }
 }

@@ -255,6 +255,16 @@ impl ProblemData {
         })
     }
 
+    /// Data of the constraints of knot `t`: the path constraints for `t < N`, the
+    /// terminal constraints for `t = N`.
+    pub fn constraint_data(&self, t: usize) -> &[StageFunctionData] {
+        if t < self.stages.len() {
+            &self.stages[t].constraints
+        } else {
+            &self.terminal_constraints
+        }
+    }
+
     /// Number of threads used for stage-wise work.
     pub fn num_threads(&self) -> usize {
         self.pool.as_ref().map_or(1, |p| p.current_num_threads())

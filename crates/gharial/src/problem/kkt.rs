@@ -100,12 +100,7 @@ pub fn kkt_residuals(
         if t < n {
             res.dynamics = res.dynamics.max(norm_inf(data.stages[t].dyn_value()));
         }
-        let (cs, datas) = if t < n {
-            (problem.stages()[t].constraints(), &data.stages[t].constraints)
-        } else {
-            (problem.terminal_constraints(), &data.terminal_constraints)
-        };
-        constraint_residuals(cs, datas, &nus[t], &mut res);
+        constraint_residuals(problem.constraints(t), data.constraint_data(t), &nus[t], &mut res);
     }
     Ok(res)
 }

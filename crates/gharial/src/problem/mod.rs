@@ -64,11 +64,15 @@ impl StageConstraint {
 
     fn validate(&self, what: &str, space: &dyn Manifold, nu: usize) -> Result<()> {
         let w = format!("{what} constraint `{}`", self.name);
-        check_dim(format!("{w}: state size nx"), space.nx(), self.func.nx())?;
-        check_dim(format!("{w}: state tangent size ndx"), space.ndx(), self.func.ndx())?;
-        check_dim(format!("{w}: control size nu"), nu, self.func.nu())?;
+        check_dim(format_args!("{w}: state size nx"), space.nx(), self.func.nx())?;
+        check_dim(
+            format_args!("{w}: state tangent size ndx"),
+            space.ndx(),
+            self.func.ndx(),
+        )?;
+        check_dim(format_args!("{w}: control size nu"), nu, self.func.nu())?;
         if let Some(d) = self.set.dim() {
-            check_dim(format!("{w}: set dimension"), self.func.nr(), d)?;
+            check_dim(format_args!("{w}: set dimension"), self.func.nr(), d)?;
         }
         if !(self.scale.is_finite() && self.scale > 0.0) {
             return Err(Error::InvalidModel(format!(
@@ -193,12 +197,12 @@ impl Problem {
         for t in 0..stages.len() - 1 {
             let (a, b) = (stages[t].space_next(), stages[t + 1].space());
             check_dim(
-                format!("stage {t}: next-state size nx vs stage {}", t + 1),
+                format_args!("stage {t}: next-state size nx vs stage {}", t + 1),
                 b.nx(),
                 a.nx(),
             )?;
             check_dim(
-                format!("stage {t}: next-state tangent size ndx vs stage {}", t + 1),
+                format_args!("stage {t}: next-state tangent size ndx vs stage {}", t + 1),
                 b.ndx(),
                 a.ndx(),
             )?;
@@ -322,6 +326,16 @@ impl Problem {
         &self.terminal_constraints
     }
 
+    /// The constraints of knot `t`: the path constraints of stage `t` for `t < N`, the
+    /// terminal constraints for `t = N`.
+    pub fn constraints(&self, t: usize) -> &[StageConstraint] {
+        if t < self.stages.len() {
+            self.stages[t].constraints()
+        } else {
+            &self.terminal_constraints
+        }
+    }
+
     /// Space of state `x_t`, `t = 0..=N`.
     pub fn space(&self, t: usize) -> &Arc<dyn Manifold> {
         if t < self.stages.len() {
@@ -347,8 +361,8 @@ impl Problem {
         check_dim("number of controls us (N)", n, us.len())?;
         for (t, x) in xs.iter().enumerate() {
             let s = self.space(t);
-            check_dim(format!("xs[{t}] size"), s.nx(), x.len())?;
-            check_finite(format!("xs[{t}]"), x)?;
+            check_dim(format_args!("xs[{t}] size"), s.nx(), x.len())?;
+            check_finite(format_args!("xs[{t}]"), x)?;
             if !s.is_valid(x) {
                 return Err(Error::InvalidModel(format!(
                     "xs[{t}] is not a valid point of its state space"
@@ -356,8 +370,8 @@ impl Problem {
             }
         }
         for (t, u) in us.iter().enumerate() {
-            check_dim(format!("us[{t}] size"), self.nu(t), u.len())?;
-            check_finite(format!("us[{t}]"), u)?;
+            check_dim(format_args!("us[{t}] size"), self.nu(t), u.len())?;
+            check_finite(format_args!("us[{t}]"), u)?;
         }
         Ok(())
     }

@@ -6,6 +6,11 @@
 //! margins: for every `j`, `θ ≤ (1 - γ_θ) θ_j` **or** `φ ≤ φ_j - γ_φ θ_j`.
 //! Adding a pair removes the stored pairs it dominates (`φ ≤ φ_j` and `θ ≤ θ_j`), so the
 //! filter stays a Pareto front.
+//!
+//! As in IPOPT's switching rule, a step that decreases the merit function enough for the
+//! Armijo condition (an "f-type" step) is accepted without consulting the filter and
+//! leaves it unchanged: close to a solution the infeasibility no longer changes while the
+//! merit still decreases by amounts far below the filter's margins.
 
 use super::linesearch::{LinesearchOptions, LinesearchResult};
 
@@ -74,19 +79,34 @@ impl Filter {
         self.entries.push((phi, theta));
     }
 
-    /// Backtracking search for a step acceptable to the filter; `trial(α)` returns
-    /// `(φ(α), θ(α))`. The accepted trial is added to the filter, which therefore holds
-    /// the iterates it accepted: the starting point of a search sequence (an empty
-    /// filter) is not an entry, so the first step is taken whole when it is finite,
-    /// and every later step must not be dominated by an earlier iterate.
-    pub fn search(&mut self, mut trial: impl FnMut(f64) -> (f64, f64), opts: &LinesearchOptions) -> LinesearchResult {
+    /// Backtracking search for an acceptable step: the full step first, then
+    /// `alpha_model` (a model minimiser, when given and in `(0, 1)`), then halving.
+    /// `trial(α)` returns `(φ(α), θ(α))`; `phi0`, `dphi0` are the merit and its slope at
+    /// `α = 0`. A trial is accepted when it satisfies the Armijo condition on `φ` (the
+    /// filter is left unchanged) or is acceptable to the filter (it is then added). The
+    /// starting point of a search sequence (an empty filter) is not an entry, so the
+    /// first step is taken whole when it is finite.
+    pub fn search(
+        &mut self,
+        mut trial: impl FnMut(f64) -> (f64, f64),
+        phi0: f64,
+        dphi0: f64,
+        alpha_model: Option<f64>,
+        opts: &LinesearchOptions,
+    ) -> LinesearchResult {
         let mut alpha = 1.0;
+        let mut model = alpha_model.filter(|&a| a > opts.alpha_min && a < 1.0);
+        let slope = dphi0.min(0.0);
         let mut trials = 0;
         loop {
             let (phi, theta) = trial(alpha);
             trials += 1;
-            if self.is_acceptable(phi, theta) {
-                self.add(phi, theta);
+            let armijo = phi.is_finite() && theta.is_finite() && phi <= phi0 + opts.c1 * alpha * slope && slope < 0.0;
+            let filter = !armijo && self.is_acceptable(phi, theta);
+            if armijo || filter {
+                if filter {
+                    self.add(phi, theta);
+                }
                 return LinesearchResult {
                     alpha,
                     phi,
@@ -102,7 +122,10 @@ impl Filter {
                     trials,
                 };
             }
-            alpha = (alpha * opts.contraction_max).max(opts.alpha_min);
+            alpha = match model.take() {
+                Some(a) => a,
+                None => (alpha * opts.contraction_max).max(opts.alpha_min),
+            };
         }
     }
 }
@@ -134,6 +157,17 @@ mod tests {
     }
 
     #[test]
+    fn sufficient_merit_decrease_is_accepted_without_the_filter() {
+        let mut f = Filter::new(8, 1e-5, 1e-5);
+        f.add(1.0, 1.0);
+        // Dominated by (1, 1) with margins, but an Armijo decrease of the merit from
+        // φ(0) = 1.0 + 1e-12 along slope -1e-9: accepted, the filter is unchanged.
+        let r = f.search(|_| (1.0, 1.0), 1.0 + 1e-12, -1e-9, None, &LinesearchOptions::default());
+        assert!(r.accepted && r.alpha == 1.0);
+        assert_eq!(f.entries(), &[(1.0, 1.0)]);
+    }
+
+    #[test]
     fn capacity_drops_the_most_infeasible_pair() {
         let mut f = Filter::new(2, 0.0, 0.0);
         f.add(1.0, 3.0);
@@ -147,23 +181,37 @@ mod tests {
     fn search_backtracks_until_acceptable() {
         let mut f = Filter::new(8, 1e-5, 1e-5);
         // Empty filter: the full step is taken.
-        let r = f.search(|_| (5.0, 5.0), &LinesearchOptions::default());
+        let r = f.search(|_| (5.0, 5.0), 0.0, 0.0, None, &LinesearchOptions::default());
         assert!(r.accepted && r.alpha == 1.0);
         assert_eq!(f.entries(), &[(5.0, 5.0)]);
         // Trials are better than (5, 5) only for α ≤ 0.25.
         let r = f.search(
             |a| if a > 0.25 { (6.0, 6.0) } else { (0.5, 0.5) },
+            0.0,
+            0.0,
+            None,
             &LinesearchOptions::default(),
         );
         assert!(r.accepted);
         assert_eq!(r.alpha, 0.25);
         assert_eq!(f.entries(), &[(0.5, 0.5)]);
+        // A model step is tried right after the full step.
+        let mut g = Filter::new(8, 1e-5, 1e-5);
+        g.add(1.0, 1.0);
+        let r = g.search(
+            |a| if a == 0.3 { (0.1, 0.1) } else { (9.0, 9.0) },
+            0.0,
+            0.0,
+            Some(0.3),
+            &LinesearchOptions::default(),
+        );
+        assert!(r.accepted && r.alpha == 0.3 && r.trials == 2);
         // A trial equal to a stored pair is rejected until the trial limit.
         let opts = LinesearchOptions {
             max_trials: 3,
             ..Default::default()
         };
-        let r = f.search(|_| (0.5, 0.5), &opts);
+        let r = f.search(|_| (0.5, 0.5), 0.0, 0.0, None, &opts);
         assert!(!r.accepted);
         assert_eq!(r.trials, 3);
     }

@@ -119,7 +119,9 @@ fn next_alpha(opts: &LinesearchOptions, phi0: f64, dphi0: f64, cur: (f64, f64), 
     if cand.is_finite() { cand.clamp(lo, hi) } else { hi }
 }
 
-/// Backtracking Armijo line search starting at `α = 1`.
+/// Backtracking Armijo line search: the full step `α = 1` first, then `alpha_model`
+/// (the minimiser of a model of the merit function, when given and in `(0, 1)`), then
+/// safeguarded interpolation.
 ///
 /// `phi(α)` evaluates the merit at the trial point (a non-finite value rejects the
 /// trial); `phi0`, `dphi0` are the merit and its directional derivative at `α = 0`;
@@ -130,10 +132,12 @@ pub fn armijo(
     phi0: f64,
     dphi0: f64,
     reference: f64,
+    alpha_model: Option<f64>,
     opts: &LinesearchOptions,
 ) -> LinesearchResult {
     let slope = dphi0.min(0.0);
     let mut alpha = 1.0;
+    let mut model = alpha_model.filter(|&a| a > opts.alpha_min && a < 1.0);
     let mut prev: Option<(f64, f64)> = None;
     let mut trials = 0;
     loop {
@@ -155,7 +159,10 @@ pub fn armijo(
                 trials,
             };
         }
-        let next = next_alpha(opts, phi0, slope, (alpha, p), prev).max(opts.alpha_min);
+        let next = match model.take() {
+            Some(a) => a,
+            None => next_alpha(opts, phi0, slope, (alpha, p), prev).max(opts.alpha_min),
+        };
         prev = Some((alpha, p));
         alpha = next;
     }
@@ -210,7 +217,14 @@ mod tests {
     #[test]
     fn accepts_full_step_on_a_quadratic_with_newton_direction() {
         // φ(α) = (1 - α)², φ'(0) = -2: the Newton step α = 1 is exact.
-        let r = armijo(|a| (1.0 - a) * (1.0 - a), 1.0, -2.0, 1.0, &LinesearchOptions::default());
+        let r = armijo(
+            |a| (1.0 - a) * (1.0 - a),
+            1.0,
+            -2.0,
+            1.0,
+            None,
+            &LinesearchOptions::default(),
+        );
         assert!(r.accepted);
         assert_eq!((r.alpha, r.trials), (1.0, 1));
     }
@@ -220,16 +234,25 @@ mod tests {
         // φ(α) = (α - 0.3)² with φ'(0) = -0.6: the quadratic model is exact, so the
         // first interpolated trial is the minimiser 0.3.
         let f = |a: f64| (a - 0.3) * (a - 0.3);
-        let r = armijo(f, f(0.0), -0.6, f(0.0), &LinesearchOptions::default());
+        let r = armijo(f, f(0.0), -0.6, f(0.0), None, &LinesearchOptions::default());
         assert!(r.accepted);
         assert_eq!(r.trials, 2);
         assert!((r.alpha - 0.3).abs() < 1e-15);
         // Cubic: φ(α) = α³ - α, φ'(0) = -1; α = 1 gives φ = 0 > c1·(-1), rejected;
         // the interpolation then proposes values in [0.1, 0.5] that are accepted.
         let g = |a: f64| a * a * a - a;
-        let r = armijo(g, 0.0, -1.0, 0.0, &LinesearchOptions::default());
+        let r = armijo(g, 0.0, -1.0, 0.0, None, &LinesearchOptions::default());
         assert!(r.accepted && r.alpha <= 0.5 && r.alpha >= 0.1, "{r:?}");
         assert!(g(r.alpha) <= -(1e-4 * r.alpha));
+    }
+
+    #[test]
+    fn the_model_step_is_tried_after_the_full_step() {
+        // φ(α) = (α - 0.37)²: the full step fails, the model minimiser is accepted at once.
+        let f = |a: f64| (a - 0.37) * (a - 0.37);
+        let r = armijo(f, f(0.0), -0.74, f(0.0), Some(0.37), &LinesearchOptions::default());
+        assert!(r.accepted);
+        assert_eq!((r.alpha, r.trials), (0.37, 2));
     }
 
     #[test]
@@ -239,6 +262,7 @@ mod tests {
             0.0,
             -1.0,
             0.0,
+            None,
             &LinesearchOptions::default(),
         );
         assert!(r.accepted && r.alpha <= 0.3);
@@ -246,7 +270,7 @@ mod tests {
             max_trials: 5,
             ..Default::default()
         };
-        let r = armijo(|a| a, 0.0, 1.0, 0.0, &opts);
+        let r = armijo(|a| a, 0.0, 1.0, 0.0, None, &opts);
         assert!(!r.accepted);
         assert_eq!(r.trials, 5);
     }

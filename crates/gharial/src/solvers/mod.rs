@@ -38,6 +38,9 @@ pub enum Status {
     RegularizationFailure,
     /// The wall-time budget was exhausted; the best iterate so far is returned.
     TimeBudget,
+    /// Newton steps no longer reduce the residuals: they are at the round-off floor of
+    /// the arithmetic (for ProxDDP, about `ε |x| / mu`), above the requested tolerance.
+    Stalled,
 }
 
 impl Status {
@@ -57,6 +60,7 @@ impl fmt::Display for Status {
             Status::NonFinite => "non-finite values",
             Status::RegularizationFailure => "regularization failure",
             Status::TimeBudget => "time budget exhausted",
+            Status::Stalled => "stalled at round-off level",
         };
         f.write_str(s)
     }
@@ -208,24 +212,24 @@ impl<'a> InitialGuess<'a> {
             check_dim("lambdas[0] size (initial constraint rows)", problem.nc0(), l[0].len())?;
             for t in 0..n {
                 check_dim(
-                    format!("lambdas[{}] size", t + 1),
+                    format_args!("lambdas[{}] size", t + 1),
                     problem.space(t + 1).ndx(),
                     l[t + 1].len(),
                 )?;
             }
             for (t, v) in l.iter().enumerate() {
-                check_finite(format!("lambdas[{t}]"), v)?;
+                check_finite(format_args!("lambdas[{t}]"), v)?;
             }
         }
         if let Some(v) = self.nus {
             check_dim("number of path multipliers nus (N + 1)", n + 1, v.len())?;
             for (t, s) in problem.stages().iter().enumerate() {
-                check_dim(format!("nus[{t}] size"), s.nc(), v[t].len())?;
+                check_dim(format_args!("nus[{t}] size"), s.nc(), v[t].len())?;
             }
             let ncn: usize = problem.terminal_constraints().iter().map(|c| c.nr()).sum();
-            check_dim(format!("nus[{n}] size (terminal constraints)"), ncn, v[n].len())?;
+            check_dim(format_args!("nus[{n}] size (terminal constraints)"), ncn, v[n].len())?;
             for (t, s) in v.iter().enumerate() {
-                check_finite(format!("nus[{t}]"), s)?;
+                check_finite(format_args!("nus[{t}]"), s)?;
             }
         }
         Ok(())

@@ -54,21 +54,22 @@ impl std::fmt::Debug for ProxDdp {
     }
 }
 
-/// Dimensions `(nx, ndx, nu, nc)` of every knot, to check that `solve` gets the problem
-/// `setup` was made for.
-fn signature(problem: &Problem) -> Vec<(usize, usize, usize, usize)> {
+/// Dimensions `(nx, ndx, nu, nc)` of every knot, then `(nc0, 0, 0, 0)`, to check that
+/// `solve` gets a problem of the dimensions `setup` was made for.
+fn knot_signature(problem: &Problem) -> impl Iterator<Item = (usize, usize, usize, usize)> + '_ {
     let n = problem.horizon();
-    let mut s: Vec<_> = (0..n)
-        .map(|t| {
+    (0..=n + 1).map(move |t| {
+        if t < n {
             let st = &problem.stages()[t];
             (st.space().nx(), st.space().ndx(), st.nu(), st.nc())
-        })
-        .collect();
-    let sp = problem.space(n);
-    let ncn = problem.terminal_constraints().iter().map(|c| c.nr()).sum();
-    s.push((sp.nx(), sp.ndx(), 0, ncn));
-    s.push((problem.nc0(), 0, 0, 0));
-    s
+        } else if t == n {
+            let sp = problem.space(n);
+            let ncn = problem.terminal_constraints().iter().map(|c| c.nr()).sum();
+            (sp.nx(), sp.ndx(), 0, ncn)
+        } else {
+            (problem.nc0(), 0, 0, 0)
+        }
+    })
 }
 
 impl ProxDdp {
@@ -91,7 +92,7 @@ impl ProxDdp {
         self.options.validate()?;
         self.ws = Some(Box::new(Workspace::new(problem, &self.options)?));
         self.solution = Solution::new(problem, self.options.max_iters + 1);
-        self.signature = signature(problem);
+        self.signature = knot_signature(problem).collect();
         self.filter = Filter::new(self.options.max_iters + 1, 1e-5, 1e-5);
         Ok(())
     }
@@ -133,7 +134,7 @@ impl ProxDdp {
         if self.ws.is_none() {
             return Err(Error::InvalidModel("ProxDdp::solve called before setup".into()));
         }
-        if signature(problem) != self.signature {
+        if !knot_signature(problem).eq(self.signature.iter().copied()) {
             return Err(Error::InvalidModel(
                 "ProxDdp::solve: the problem's dimensions differ from those given to setup".into(),
             ));
@@ -167,6 +168,9 @@ impl ProxDdp {
         // solved as accurately as the arithmetic allows and the outer loop takes over.
         let mut stalled = false;
         let mut roundoff_inner = f64::INFINITY;
+        // Consecutive outer updates forced by stalls, and the residual before them.
+        let mut stall_updates = 0;
+        let mut stall_err = f64::INFINITY;
         sol.history.clear();
         if opts.verbose {
             print_header();
@@ -195,10 +199,38 @@ impl ProxDdp {
                 break;
             }
             if res.inner <= omega || stalled {
+                if stalled {
+                    let err = res.prim.max(res.dual);
+                    if err < 0.5 * stall_err {
+                        stall_err = err;
+                        stall_updates = 0;
+                    }
+                    stall_updates += 1;
+                    if stall_updates > 3 {
+                        status = Status::Stalled;
+                        break;
+                    }
+                } else {
+                    stall_updates = 0;
+                    stall_err = f64::INFINITY;
+                }
                 stalled = false;
                 // Outer update of Algorithm 2 (lines 9-24).
                 al_iter += 1;
-                if res.prim <= eta {
+                let success = res.prim <= eta;
+                if opts.verbose {
+                    eprintln!(
+                        "  outer {al_iter}: prim_err {:.3e} {} eta {eta:.3e} -> {}",
+                        res.prim,
+                        if success { "<=" } else { ">" },
+                        if success {
+                            "multipliers accepted"
+                        } else {
+                            "mu decreased"
+                        }
+                    );
+                }
+                if success {
                     ws.accept_multipliers();
                     omega *= mu.powf(opts.bcl_alpha_omega);
                     eta *= mu.powf(opts.bcl_alpha_eta);
@@ -249,7 +281,8 @@ impl ProxDdp {
                     status = Status::NonFinite;
                     break 'outer;
                 }
-                let d = ws.merit_slope(problem, opts.merit, mu, mu_d);
+                ws.prepare_model(problem);
+                let d = ws.model_slope(problem, opts.merit, mu, mu_d, 0.0);
                 if !d.is_finite() {
                     status = Status::NonFinite;
                     break 'outer;
@@ -276,6 +309,8 @@ impl ProxDdp {
             } else {
                 roundoff_inner = f64::INFINITY;
             }
+            let alpha_model =
+                (!roundoff).then(|| ws.model_step(problem, opts.merit, mu, mu_d, opts.linesearch.alpha_min));
             let mut trial = |alpha: f64| -> (f64, f64) {
                 let ok = match opts.rollout {
                     Rollout::Linear => {
@@ -303,10 +338,10 @@ impl ProxDdp {
                         trials: 1,
                     }
                 }
-                StepAcceptance::Filter => filter.search(&mut trial, &opts.linesearch),
+                StepAcceptance::Filter => filter.search(&mut trial, phi0, dphi0, alpha_model, &opts.linesearch),
                 StepAcceptance::Linesearch | StepAcceptance::NonmonotoneLinesearch => {
                     let reference = nonmonotone.reference(phi0);
-                    armijo(|a| trial(a).0, phi0, dphi0, reference, &opts.linesearch)
+                    armijo(|a| trial(a).0, phi0, dphi0, reference, alpha_model, &opts.linesearch)
                 }
             };
             let record = IterationRecord {

@@ -20,11 +20,13 @@ pub enum Rollout {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum StepAcceptance {
     /// Armijo backtracking on the merit function.
-    #[default]
     Linesearch,
     /// Armijo backtracking against the Zhang-Hager average of past merit values.
     NonmonotoneLinesearch,
-    /// Filter on (merit, primal infeasibility).
+    /// Filter on (merit, primal infeasibility) (the default): the first step of each
+    /// subproblem is taken whole, so that semi-smooth Newton steps can cross the kinks
+    /// of the augmented Lagrangian where constraints become active.
+    #[default]
     Filter,
 }
 
@@ -83,7 +85,7 @@ pub struct ProxDdpOptions {
     pub max_al_iters: usize,
     /// Forward pass (default linear).
     pub rollout: Rollout,
-    /// Step acceptance (default Armijo line search).
+    /// Step acceptance (default: filter).
     pub step_acceptance: StepAcceptance,
     /// Merit function (default primal-dual).
     pub merit: Merit,
@@ -133,7 +135,7 @@ impl Default for ProxDdpOptions {
             max_iters: 300,
             max_al_iters: 100,
             rollout: Rollout::Linear,
-            step_acceptance: StepAcceptance::Linesearch,
+            step_acceptance: StepAcceptance::Filter,
             merit: Merit::PrimalDual,
             hessian: HessianApprox::GaussNewton,
             linesearch: LinesearchOptions::default(),

@@ -9,7 +9,7 @@ use crate::dynamics::Dynamics;
 use crate::error::Result;
 use crate::linalg::{Lu, matvec, norm_inf, slice, slice_mut};
 use crate::lq::{LqKnot, LqProblem, LqSolution, RiccatiOptions, RiccatiSolver};
-use crate::problem::{DynamicsData, Problem, ProblemData, StageConstraint};
+use crate::problem::{DynamicsData, Problem, ProblemData};
 use crate::solvers::InitialGuess;
 
 /// A primal-dual point `(xs, us, λs, νs)`.
@@ -45,15 +45,6 @@ impl Point {
         for (a, b) in self.nus.iter_mut().zip(&o.nus) {
             a.copy_from_slice(b);
         }
-    }
-}
-
-/// The constraints of knot `t` (`t < N`: path constraints; `t = N`: terminal ones).
-fn knot_constraints(problem: &Problem, t: usize) -> &[StageConstraint] {
-    if t < problem.horizon() {
-        problem.stages()[t].constraints()
-    } else {
-        problem.terminal_constraints()
     }
 }
 
@@ -95,6 +86,13 @@ pub(super) struct Workspace {
     dxbuf: Vec<Vec<f64>>,
     /// Scratch of state representation size per knot.
     ybuf: Vec<Vec<f64>>,
+    /// Linearised changes `J δz` of the initial, dynamics and constraint residuals along
+    /// the step, and the cost slope and curvature (the local model of the merit).
+    lin_init: Vec<f64>,
+    lin_dyn: Vec<Vec<f64>>,
+    lin_cons: Vec<Vec<f64>>,
+    cost_slope: f64,
+    cost_curv: f64,
     tbuf: Vec<Vec<f64>>,
     /// Implicit-dynamics Newton solves of the nonlinear rollout, per stage.
     implicit_lu: Vec<Option<Lu>>,
@@ -109,7 +107,7 @@ impl Workspace {
         let n = problem.horizon();
         let cur = Point::new(problem);
         let ncs: Vec<usize> = (0..=n)
-            .map(|t| knot_constraints(problem, t).iter().map(|c| c.nr()).sum())
+            .map(|t| problem.constraints(t).iter().map(|c| c.nr()).sum())
             .collect();
         let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
         let mut knots = Vec::with_capacity(n + 1);
@@ -157,6 +155,11 @@ impl Workspace {
             gu: (0..n).map(|t| vec![0.0; problem.nu(t)]).collect(),
             dxbuf: vecs(&ndxs),
             ybuf: (0..=n).map(|t| vec![0.0; problem.space(t).nx()]).collect(),
+            lin_init: vec![0.0; nc0],
+            lin_dyn: (1..=n).map(|t| vec![0.0; ndxs[t]]).collect(),
+            lin_cons: vecs(&nus_sizes),
+            cost_slope: 0.0,
+            cost_curv: 0.0,
             tbuf: vecs(&ndxs),
             implicit_lu,
             lq,
@@ -257,12 +260,8 @@ impl Workspace {
         // Constraints: z = h + mu_i ν_e, ν⁺ = (z - proj_C(z)) / mu_i; the primal measure
         // (53) is |[h + mu ν_e]_- - h| = mu_i |ν_e - ν⁺|.
         for t in 0..=n {
-            let cs = knot_constraints(problem, t);
-            let datas = if t < n {
-                &self.data.stages[t].constraints
-            } else {
-                &self.data.terminal_constraints
-            };
+            let cs = problem.constraints(t);
+            let datas = self.data.constraint_data(t);
             let mut off = 0;
             for (c, d) in cs.iter().zip(datas) {
                 let nr = c.nr();
@@ -303,7 +302,7 @@ impl Workspace {
         // whose normal-cone Jacobian is a projector (equality, orthant, box) this is
         // J_N ν, the active multipliers of (46).
         for t in 0..=n {
-            let cs = knot_constraints(problem, t);
+            let cs = problem.constraints(t);
             let mut off = 0;
             for c in cs {
                 let nr = c.nr();
@@ -352,12 +351,8 @@ impl Workspace {
                 knot.Q.copy_from(&self.data.terminal_cost.lxx);
             }
             // Constraint rows: C = J_N h_x, D = J_N h_u, d = mu_i (ν⁺ - ν), mu_c = mu_i.
-            let cs = knot_constraints(problem, t);
-            let datas = if t < n {
-                &self.data.stages[t].constraints
-            } else {
-                &self.data.terminal_constraints
-            };
+            let cs = problem.constraints(t);
+            let datas = self.data.constraint_data(t);
             let mut off = 0;
             for (c, d) in cs.iter().zip(datas) {
                 let nr = c.nr();
@@ -420,94 +415,143 @@ impl Workspace {
         }
     }
 
-    /// Directional derivative of the merit function along the step (`dφ(0)`).
-    pub fn merit_slope(&mut self, problem: &Problem, merit: Merit, mu: f64, mu_d: f64) -> f64 {
+    /// Prepares the local model of the merit function along the step `d = (δz, δλ, δν)`:
+    /// the cost slope `∇J·δz` and curvature `δzᵀ ∇²J δz`, and the linearised changes
+    /// `J δz` of the initial, dynamics and constraint residuals. The model keeps every
+    /// term of the merit function but replaces each residual by its linearisation, so
+    /// along the line it is a convex piecewise quadratic in `α` whose kinks are where
+    /// constraints change activity.
+    pub fn prepare_model(&mut self, problem: &Problem) {
         let n = problem.horizon();
         let st = &self.step;
-        let mut d = 0.0;
-        // Cost gradient.
-        for t in 0..n {
-            let c = &self.data.stages[t].cost;
-            d += dot(c.lx(), slice(&st.xs[t])) + dot(c.lu(), slice(&st.us[t]));
-        }
-        d += dot(self.data.terminal_cost.lx(), slice(&st.xs[n]));
-        // Dynamics and initial condition: multiplier λ° = 2λ⁺ - λ (primal-dual) or λ⁺
-        // (primal), times the linearised change J δz; plus (mu/2)(λ - λ°)ᵀδλ.
-        let lam_o = |lp: f64, l: f64| match merit {
-            Merit::PrimalDual => 2.0 * lp - l,
-            Merit::Primal => lp,
-        };
-        {
-            let jd = &mut self.tbuf[0];
-            matvec(jd, Accum::Replace, self.data.init.jx.as_ref(), slice(&st.xs[0]), 1.0);
-            for i in 0..jd.len().min(self.lams_p[0].len()) {
-                let lo = lam_o(self.lams_p[0][i], self.cur.lams[0][i]);
-                d += lo * jd[i];
-                if merit == Merit::PrimalDual {
-                    d += 0.5 * mu_d * (self.cur.lams[0][i] - lo) * st.lambdas[0][i];
-                }
+        let mut slope = 0.0;
+        let mut curv = 0.0;
+        for t in 0..=n {
+            let (c, with_u) = if t < n {
+                (&self.data.stages[t].cost, true)
+            } else {
+                (&self.data.terminal_cost, false)
+            };
+            let dx = slice(&st.xs[t]);
+            slope += dot(c.lx(), dx);
+            let hx = &mut self.tbuf[t];
+            matvec(hx, Accum::Replace, c.lxx.as_ref(), dx, 1.0);
+            if with_u {
+                let du = slice(&st.us[t]);
+                slope += dot(c.lu(), du);
+                matvec(hx, Accum::Add, c.lxu.as_ref(), du, 2.0);
+                let hu = &mut self.gu[t];
+                matvec(hu, Accum::Replace, c.luu.as_ref(), du, 1.0);
+                curv += dot(hu, du);
             }
+            curv += dot(hx, dx);
         }
+        self.cost_slope = slope;
+        self.cost_curv = curv;
+        matvec(
+            &mut self.lin_init,
+            Accum::Replace,
+            self.data.init.jx.as_ref(),
+            slice(&st.xs[0]),
+            1.0,
+        );
         for t in 0..n {
             let sd = &self.data.stages[t];
-            let jd = &mut self.tbuf[t + 1];
-            matvec(jd, Accum::Replace, sd.dyn_jx.as_ref(), slice(&st.xs[t]), 1.0);
-            matvec(jd, Accum::Add, sd.dyn_ju.as_ref(), slice(&st.us[t]), 1.0);
-            matvec(jd, Accum::Add, sd.dyn_jy.as_ref(), slice(&st.xs[t + 1]), 1.0);
-            for i in 0..jd.len() {
-                let lo = lam_o(self.lams_p[t + 1][i], self.cur.lams[t + 1][i]);
-                d += lo * jd[i];
-                if merit == Merit::PrimalDual {
-                    d += 0.5 * mu_d * (self.cur.lams[t + 1][i] - lo) * st.lambdas[t + 1][i];
+            let a = &mut self.lin_dyn[t];
+            matvec(a, Accum::Replace, sd.dyn_jx.as_ref(), slice(&st.xs[t]), 1.0);
+            matvec(a, Accum::Add, sd.dyn_ju.as_ref(), slice(&st.us[t]), 1.0);
+            matvec(a, Accum::Add, sd.dyn_jy.as_ref(), slice(&st.xs[t + 1]), 1.0);
+        }
+        for t in 0..=n {
+            let datas = self.data.constraint_data(t);
+            let mut off = 0;
+            for cd in datas {
+                let nr = cd.value.nrows();
+                let b = &mut self.lin_cons[t][off..off + nr];
+                matvec(b, Accum::Replace, cd.jx.as_ref(), slice(&st.xs[t]), 1.0);
+                if t < n {
+                    matvec(b, Accum::Add, cd.ju.as_ref(), slice(&st.us[t]), 1.0);
                 }
+                off += nr;
             }
         }
-        // Constraints: ν° = (2/mu_i) N(h + mu_i(ν_e - ν/2)) (primal-dual) or ν⁺ (primal).
+    }
+
+    /// Derivative at `α` of the local model of the merit function along the step (see
+    /// [`Workspace::prepare_model`]); at `α = 0` it is the exact directional derivative
+    /// `dφ(0)` of the merit function.
+    pub fn model_slope(&mut self, problem: &Problem, merit: Merit, mu: f64, mu_d: f64, alpha: f64) -> f64 {
+        let n = problem.horizon();
+        let st = &self.step;
+        let mut d = self.cost_slope + alpha * self.cost_curv;
+        // An equality row with residual f, linearised change a, multiplier l and step dl:
+        // primal-dual (17): (1/mu)(f + αa + mu(λ_e - l(α)/2))² + (mu/4) l(α)²;
+        // primal (35): (1/2mu)(f + αa + mu λ_e)².
+        let eq_slope = |f: f64, a: f64, le: f64, l: f64, dl: f64| match merit {
+            Merit::PrimalDual => {
+                let la = l + alpha * dl;
+                let r = f + alpha * a + mu_d * (le - 0.5 * la);
+                2.0 / mu_d * r * (a - 0.5 * mu_d * dl) + 0.5 * mu_d * la * dl
+            }
+            Merit::Primal => (f + alpha * a + mu_d * le) * a / mu_d,
+        };
+        let init = self.data.init.value();
+        for i in 0..init.len() {
+            d += eq_slope(
+                init[i],
+                self.lin_init[i],
+                self.lams_e[0][i],
+                self.cur.lams[0][i],
+                st.lambdas[0][i],
+            );
+        }
+        for t in 0..n {
+            let f = self.data.stages[t].dyn_value();
+            let a = &self.lin_dyn[t];
+            for i in 0..f.len() {
+                d += eq_slope(
+                    f[i],
+                    a[i],
+                    self.lams_e[t + 1][i],
+                    self.cur.lams[t + 1][i],
+                    st.lambdas[t + 1][i],
+                );
+            }
+        }
+        // Constraints: with w(α) the shifted, linearised residual, the merit term is
+        // 2 e(w) + (mu/4)|ν(α)|² (primal-dual) or e(w) (primal), e the Moreau envelope
+        // of the set, whose gradient is N(w) / mu with N the normal-cone projection.
         for t in 0..=n {
-            let cs = knot_constraints(problem, t);
-            let datas = if t < n {
-                &self.data.stages[t].constraints
-            } else {
-                &self.data.terminal_constraints
-            };
+            let cs = problem.constraints(t);
+            let datas = self.data.constraint_data(t);
             let mut off = 0;
             for (c, cd) in cs.iter().zip(datas) {
                 let nr = c.nr();
                 let mu_i = c.scale * mu;
                 let h = cd.value();
+                let b = &self.lin_cons[t][off..off + nr];
+                let z = &mut self.zbuf[t][off..off + nr];
                 let w = &mut self.wbuf[t][off..off + nr];
                 match merit {
                     Merit::PrimalDual => {
-                        let z = &mut self.zbuf[t][off..off + nr];
                         for i in 0..nr {
-                            z[i] = h[i] + mu_i * (self.nus_e[t][off + i] - 0.5 * self.cur.nus[t][off + i]);
+                            let nu_a = self.cur.nus[t][off + i] + alpha * st.nus[t][off + i];
+                            z[i] = h[i] + alpha * b[i] + mu_i * (self.nus_e[t][off + i] - 0.5 * nu_a);
                         }
                         c.set.normal_cone_project(z, mu_i, w);
-                        for wi in w.iter_mut() {
-                            *wi *= 2.0 / mu_i;
-                        }
                         for i in 0..nr {
-                            d += 0.5 * mu_i * (self.cur.nus[t][off + i] - w[i]) * st.nus[t][off + i];
+                            let dnu = st.nus[t][off + i];
+                            let nu_a = self.cur.nus[t][off + i] + alpha * dnu;
+                            d += 2.0 / mu_i * w[i] * (b[i] - 0.5 * mu_i * dnu) + 0.5 * mu_i * nu_a * dnu;
                         }
                     }
-                    Merit::Primal => w.copy_from_slice(&self.nus_p[t][off..off + nr]),
-                }
-                // ν°ᵀ (h_x δx + h_u δu)
-                for j in 0..cd.jx.ncols() {
-                    let dxj = st.xs[t][j];
-                    if dxj != 0.0 {
+                    Merit::Primal => {
                         for i in 0..nr {
-                            d += w[i] * cd.jx[(i, j)] * dxj;
+                            z[i] = h[i] + alpha * b[i] + mu_i * self.nus_e[t][off + i];
                         }
-                    }
-                }
-                if t < n {
-                    for j in 0..cd.ju.ncols() {
-                        let duj = st.us[t][j];
-                        if duj != 0.0 {
-                            for i in 0..nr {
-                                d += w[i] * cd.ju[(i, j)] * duj;
-                            }
+                        c.set.normal_cone_project(z, mu_i, w);
+                        for i in 0..nr {
+                            d += w[i] * b[i] / mu_i;
                         }
                     }
                 }
@@ -515,6 +559,26 @@ impl Workspace {
             }
         }
         d
+    }
+
+    /// Step length minimising the local model of the merit function on `(0, 1]`
+    /// (bisection on its nondecreasing derivative): it lands where the constraints that
+    /// the step activates stop the decrease, which a backtracking search from `α = 1`
+    /// approaches only geometrically. `dphi0 = model_slope(0)` must be negative.
+    pub fn model_step(&mut self, problem: &Problem, merit: Merit, mu: f64, mu_d: f64, alpha_min: f64) -> f64 {
+        if self.model_slope(problem, merit, mu, mu_d, 1.0) <= 0.0 {
+            return 1.0;
+        }
+        let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+        while hi - lo > 1e-3 * hi.max(alpha_min) {
+            let mid = 0.5 * (lo + hi);
+            if self.model_slope(problem, merit, mu, mu_d, mid) <= 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        hi.max(alpha_min)
     }
 
     /// Merit function and infeasibility at the trial point, whose values have just been
@@ -546,12 +610,8 @@ impl Workspace {
             }
         }
         for t in 0..=n {
-            let cs = knot_constraints(problem, t);
-            let datas = if t < n {
-                &self.data.stages[t].constraints
-            } else {
-                &self.data.terminal_constraints
-            };
+            let cs = problem.constraints(t);
+            let datas = self.data.constraint_data(t);
             let mut off = 0;
             for (c, cd) in cs.iter().zip(datas) {
                 let nr = c.nr();

@@ -1,0 +1,180 @@
+//! `gharial bench riccati`: timing of the LQ solvers on the peers' random problems.
+
+use std::time::Instant;
+
+use gharial::lq::dense::kkt_residuals;
+use gharial::lq::random::peers_problem;
+use gharial::lq::{LqProblem, LqSolution, ParallelRiccatiSolver, RiccatiOptions, RiccatiSolver};
+
+/// Settings of the Riccati benchmark.
+pub struct RiccatiBench {
+    /// `nx:nu:nc` of the main series.
+    pub dims: (usize, usize, usize),
+    /// Horizons of the main series.
+    pub horizons: Vec<usize>,
+    /// Extra cases `nx:nu:nc:N`.
+    pub extra: Vec<(usize, usize, usize, usize)>,
+    /// Thread counts of the parallel solver (1 = serial solver).
+    pub threads: Vec<usize>,
+    /// Constraint regularisation.
+    pub mu: f64,
+    /// Generator seed.
+    pub seed: u64,
+    /// Time budget per case and solver, seconds.
+    pub budget: f64,
+    /// Passes over the case list (the budget is split between them).
+    pub rounds: usize,
+    /// Refinement steps.
+    pub refine: usize,
+}
+
+enum Solver {
+    Serial(RiccatiSolver),
+    Parallel(ParallelRiccatiSolver),
+}
+
+impl Solver {
+    fn backward(&mut self, p: &LqProblem) {
+        match self {
+            Solver::Serial(s) => s.backward(p, 0.0),
+            Solver::Parallel(s) => s.backward(p, 0.0),
+        }
+        .expect("backward pass")
+    }
+
+    fn forward(&mut self, p: &LqProblem, sol: &mut LqSolution) {
+        match self {
+            Solver::Serial(s) => s.forward(p, sol),
+            Solver::Parallel(s) => s.forward(p, sol),
+        }
+        .expect("forward pass")
+    }
+}
+
+struct Run {
+    problem: LqProblem,
+    n: usize,
+    dims: (usize, usize, usize),
+    threads: usize,
+    legs: usize,
+    solver: Solver,
+    sol: LqSolution,
+    tb: Vec<f64>,
+    tf: Vec<f64>,
+    tt: Vec<f64>,
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s[s.len() / 2]
+}
+
+fn min(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
+/// Runs the benchmark and prints one table per thread count.
+pub fn run(b: &RiccatiBench) {
+    let mut cases: Vec<(usize, usize, usize, usize)> =
+        b.horizons.iter().map(|&n| (b.dims.0, b.dims.1, b.dims.2, n)).collect();
+    cases.extend(b.extra.iter().copied());
+    let mut runs = Vec::new();
+    for &(nx, nu, nc, n) in &cases {
+        let problem = peers_problem(nx, nu, nc, n, b.seed, b.mu).problem;
+        for &threads in &b.threads {
+            let (solver, legs) = if threads <= 1 {
+                let opts = RiccatiOptions {
+                    refinement_steps: b.refine,
+                    ..Default::default()
+                };
+                (
+                    Solver::Serial(RiccatiSolver::with_options(&problem, opts).expect("solver")),
+                    1,
+                )
+            } else {
+                let s = ParallelRiccatiSolver::new(&problem, threads, b.refine).expect("solver");
+                let legs = s.num_legs();
+                (Solver::Parallel(s), legs)
+            };
+            let sol = LqSolution::new(&problem);
+            runs.push(Run {
+                problem: problem.clone(),
+                n,
+                dims: (nx, nu, nc),
+                threads,
+                legs,
+                solver,
+                sol,
+                tb: Vec::new(),
+                tf: Vec::new(),
+                tt: Vec::new(),
+            });
+        }
+    }
+    let per_round = b.budget / b.rounds.max(1) as f64;
+    for round in 0..b.rounds.max(1) {
+        let order: Vec<usize> = if round % 2 == 0 {
+            (0..runs.len()).collect()
+        } else {
+            (0..runs.len()).rev().collect()
+        };
+        for i in order {
+            let r = &mut runs[i];
+            for _ in 0..if round == 0 { 3 } else { 1 } {
+                r.solver.backward(&r.problem);
+                r.solver.forward(&r.problem, &mut r.sol);
+            }
+            let start = Instant::now();
+            let mut reps = 0;
+            while reps < 3 || start.elapsed().as_secs_f64() < per_round {
+                let t0 = Instant::now();
+                r.solver.backward(&r.problem);
+                let t1 = Instant::now();
+                r.solver.forward(&r.problem, &mut r.sol);
+                let t2 = Instant::now();
+                r.tb.push((t1 - t0).as_secs_f64() * 1e6);
+                r.tf.push((t2 - t1).as_secs_f64() * 1e6);
+                r.tt.push((t2 - t0).as_secs_f64() * 1e6);
+                reps += 1;
+            }
+        }
+    }
+    println!(
+        "Riccati backward + forward on the peers' random LQ problems (seed {}, mu = {:e}, refinement steps {}); \
+         median over repetitions (min in parentheses), µs",
+        b.seed, b.mu, b.refine
+    );
+    for &threads in &b.threads {
+        println!();
+        if threads <= 1 {
+            println!("serial RiccatiSolver");
+        } else {
+            println!("ParallelRiccatiSolver, {threads} threads");
+        }
+        println!("| nx | nu | nc | N | legs | backward | forward | total | per stage | reps | KKT dyn / cstr / dual |");
+        println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
+        for r in runs.iter().filter(|r| r.threads == threads) {
+            let res = kkt_residuals(&r.problem, &r.sol).expect("dimensions match");
+            let (tt, tmin) = (median(&r.tt), min(&r.tt));
+            println!(
+                "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} ({:.1}) | {:.2} ({:.2}) | {} | {:.1e} / {:.1e} / {:.1e} |",
+                r.dims.0,
+                r.dims.1,
+                r.dims.2,
+                r.n,
+                r.legs,
+                median(&r.tb),
+                median(&r.tf),
+                tt,
+                tmin,
+                tt / r.n as f64,
+                tmin / r.n as f64,
+                r.tt.len(),
+                res.dynamics,
+                res.constraints,
+                res.dual
+            );
+        }
+    }
+}

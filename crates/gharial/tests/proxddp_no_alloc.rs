@@ -1,0 +1,152 @@
+//! `ProxDdp::solve` allocates nothing after `setup`, counted with a global allocator, for
+//! every rollout and step acceptance, on a nonlinear problem with path and terminal
+//! constraints.
+
+#[path = "support/counting_alloc.rs"]
+mod counting_alloc;
+
+use std::sync::Arc;
+
+use gharial::constraints::{BoxConstraint, EqualityConstraintSet, NegativeOrthant};
+use gharial::costs::{QuadraticControlCost, QuadraticStateCost};
+use gharial::dynamics::{Dynamics, ExplicitRungeKutta, ImplicitEuler, Ode, OdeData};
+use gharial::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary};
+use gharial::problem::{Problem, StageConstraint, StageModel};
+use gharial::solvers::InitialGuess;
+use gharial::solvers::proxddp::{HessianApprox, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
+use gharial::spaces::{Manifold, VectorSpace};
+
+#[global_allocator]
+static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
+
+/// A damped pendulum `θ'' = -sin θ - 0.1 θ' + u`.
+struct Pendulum {
+    space: Arc<dyn Manifold>,
+}
+
+impl Ode for Pendulum {
+    fn space(&self) -> &Arc<dyn Manifold> {
+        &self.space
+    }
+    fn nu(&self) -> usize {
+        1
+    }
+    fn evaluate(&self, x: &[f64], u: &[f64], d: &mut OdeData) {
+        let xd = d.xdot_mut();
+        xd[0] = x[1];
+        xd[1] = -x[0].sin() - 0.1 * x[1] + u[0];
+    }
+    fn jacobians(&self, x: &[f64], _u: &[f64], d: &mut OdeData) {
+        d.jx.fill(0.0);
+        d.jx[(0, 1)] = 1.0;
+        d.jx[(1, 0)] = -x[0].cos();
+        d.jx[(1, 1)] = -0.1;
+        d.ju.fill(0.0);
+        d.ju[(1, 0)] = 1.0;
+    }
+}
+
+/// `h(x) = θ - 4` (an inequality `θ ≤ 4` on the state).
+struct AngleBound;
+
+impl StageFunction for AngleBound {
+    fn nx(&self) -> usize {
+        2
+    }
+    fn ndx(&self) -> usize {
+        2
+    }
+    fn nu(&self) -> usize {
+        1
+    }
+    fn nr(&self) -> usize {
+        1
+    }
+    fn evaluate(&self, x: &[f64], _u: &[f64], d: &mut StageFunctionData) {
+        d.value[0] = x[0] - 4.0;
+    }
+    fn jacobians(&self, _x: &[f64], _u: &[f64], d: &mut StageFunctionData) {
+        d.jx.fill(0.0);
+        d.jx[(0, 0)] = 1.0;
+        d.ju.fill(0.0);
+    }
+}
+
+fn problem(implicit: bool) -> Problem {
+    let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(2));
+    let ode: Arc<dyn Ode> = Arc::new(Pendulum { space: space.clone() });
+    let dynamics = if implicit {
+        Dynamics::Implicit(Arc::new(ImplicitEuler::new(ode, 0.05).unwrap()))
+    } else {
+        Dynamics::Explicit(Arc::new(ExplicitRungeKutta::rk4(ode, 0.05).unwrap()))
+    };
+    let target = [std::f64::consts::PI, 0.0];
+    let cost = Arc::new(QuadraticStateCost::diagonal(space.clone(), &target, &[0.01, 0.01], 1).unwrap());
+    let ucost = Arc::new(QuadraticControlCost::diagonal(space.as_ref(), &[0.0], &[0.1]).unwrap());
+    let stack = gharial::costs::CostStack::new(space.as_ref(), 1)
+        .with("x", cost, 1.0)
+        .unwrap()
+        .with("u", ucost, 1.0)
+        .unwrap();
+    let stage = StageModel::new(Arc::new(stack), dynamics)
+        .unwrap()
+        .with_constraint(StageConstraint::new(
+            "u_box",
+            Arc::new(ControlError::new(space.as_ref(), &[0.0]).unwrap()),
+            Arc::new(BoxConstraint::new(&[-1.5], &[1.5]).unwrap()),
+        ))
+        .unwrap()
+        .with_constraint(StageConstraint::new(
+            "angle",
+            Arc::new(AngleBound),
+            Arc::new(NegativeOrthant),
+        ))
+        .unwrap();
+    let term = Arc::new(QuadraticStateCost::diagonal(space.clone(), &target, &[1.0, 1.0], 0).unwrap());
+    let mut p = Problem::new(&[0.0, 0.0], vec![stage; 30], term).unwrap();
+    let f = Arc::new(Unary::new(Arc::new(StateError::new(space, &target).unwrap()), 0));
+    p.add_terminal_constraint(StageConstraint::new("x_N", f, Arc::new(EqualityConstraintSet)))
+        .unwrap();
+    p
+}
+
+#[test]
+fn solve_does_not_allocate_after_setup() {
+    for implicit in [false, true] {
+        let p = problem(implicit);
+        let n = p.horizon();
+        let xs: Vec<Vec<f64>> = (0..=n)
+            .map(|t| vec![std::f64::consts::PI * t as f64 / n as f64, 0.0])
+            .collect();
+        let us = vec![vec![0.0]; n];
+        for rollout in [Rollout::Linear, Rollout::Nonlinear] {
+            for step_acceptance in [
+                StepAcceptance::Linesearch,
+                StepAcceptance::NonmonotoneLinesearch,
+                StepAcceptance::Filter,
+            ] {
+                for hessian in [HessianApprox::GaussNewton, HessianApprox::Exact] {
+                    let opts = ProxDdpOptions {
+                        rollout,
+                        step_acceptance,
+                        hessian,
+                        max_iters: 20,
+                        ..Default::default()
+                    };
+                    let mut solver = ProxDdp::new(opts);
+                    solver.setup(&p).unwrap();
+                    let mut iterations = 0;
+                    let count = counting_alloc::allocations(|| {
+                        let sol = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap();
+                        iterations = sol.iterations;
+                    });
+                    assert!(iterations > 3, "the solves must do real work");
+                    assert_eq!(
+                        count, 0,
+                        "implicit {implicit} {rollout:?} {step_acceptance:?} {hessian:?}"
+                    );
+                }
+            }
+        }
+    }
+}
