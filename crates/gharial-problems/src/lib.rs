@@ -1,0 +1,219 @@
+//! # gharial-problems
+//!
+//! A catalogue of named, parameterised trajectory optimization problems for gharial:
+//! the examples of the ProxDDP paper (Jallet et al., 2023, section V) and the LQR family
+//! of the peer benchmark harness. Each problem comes with its initial guess, its time
+//! step and the ProxDDP settings recommended for it (those of the paper where it gives
+//! them).
+//!
+//! ```
+//! use gharial::solvers::InitialGuess;
+//! use gharial::solvers::proxddp::ProxDdp;
+//!
+//! let ex = gharial_problems::build("lqr-bounds-term").unwrap();
+//! let mut solver = ProxDdp::new(ex.proxddp.clone());
+//! solver.setup(&ex.problem).unwrap();
+//! let sol = solver.solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0)).unwrap();
+//! assert!(sol.status.converged());
+//! ```
+//!
+//! | name | module | state | N | dt |
+//! |---|---|---|---|---|
+//! | `lqr`, `lqr-bounds`, `lqr-term`, `lqr-bounds-term` | [`lqr`] | R³ | 20 | — |
+//! | `clqr` | [`lqr`] | R⁴ | 100 | — |
+//! | `pendulum` | [`pendulum`] | SO(2) × R | 200 | 10 ms |
+//! | `cartpole` | [`cartpole`] | R² × R² | 500 | 10 ms |
+//! | `acrobot`, `acrobot-bounds` | [`acrobot`] | SO(2)² × R² | 200 | 5 ms |
+//! | `se2-car` | [`se2_car`] | SE(2) | 40 | 50 ms |
+//! | `quadrotor`, `quadrotor-slalom` | [`quadrotor`] | SE(3) × R⁶ | 60 | 33 ms |
+//! | `peers-lqr`, `peers-lqr-box`, `peers-lqr-box-term` | [`peers`] | R⁸ | 100 | — |
+//!
+//! Every module documents its model, its numbers and the results measured with
+//! ProxDDP.
+
+pub mod acrobot;
+pub mod cartpole;
+pub mod lqr;
+pub mod peers;
+pub mod pendulum;
+pub mod quadrotor;
+pub mod se2_car;
+
+use gharial::problem::{Problem, ProblemData};
+use gharial::solvers::proxddp::ProxDdpOptions;
+use gharial::{Error, Result};
+
+/// A catalogue entry: the name accepted by [`build`] and a one-line summary.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ProblemInfo {
+    /// Name accepted by [`build`].
+    pub name: &'static str,
+    /// One-line summary.
+    pub summary: &'static str,
+}
+
+/// A built example: the problem, an initial guess and the recommended solver settings.
+#[derive(Clone)]
+pub struct Example {
+    /// Catalogue name.
+    pub name: &'static str,
+    /// The optimal control problem.
+    pub problem: Problem,
+    /// Initial state guess `x_0..x_N` (the rollout of `us0` unless documented otherwise).
+    pub xs0: Vec<Vec<f64>>,
+    /// Initial control guess `u_0..u_{N-1}`.
+    pub us0: Vec<Vec<f64>>,
+    /// Time step of the discretisation (`None` for discrete-time problems).
+    pub dt: Option<f64>,
+    /// Recommended ProxDDP settings (the paper's where it gives them).
+    pub proxddp: ProxDdpOptions,
+    /// A few lines describing the problem.
+    pub description: &'static str,
+}
+
+impl std::fmt::Debug for Example {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Example")
+            .field("name", &self.name)
+            .field("horizon", &self.problem.horizon())
+            .field("dt", &self.dt)
+            .field("proxddp", &self.proxddp)
+            .finish_non_exhaustive()
+    }
+}
+
+static CATALOGUE: &[ProblemInfo] = &[
+    ProblemInfo {
+        name: "lqr",
+        summary: "3-state / 3-control LQR of the ProxDDP paper (Fig. 3), N = 20, unconstrained",
+    },
+    ProblemInfo {
+        name: "lqr-bounds",
+        summary: "paper LQR with control bounds |u|_inf <= 0.15",
+    },
+    ProblemInfo {
+        name: "lqr-term",
+        summary: "paper LQR with the terminal equality x_N = (0.1, 0.1, 0.1)",
+    },
+    ProblemInfo {
+        name: "lqr-bounds-term",
+        summary: "paper LQR with control bounds and terminal equality (Fig. 3)",
+    },
+    ProblemInfo {
+        name: "clqr",
+        summary: "random seeded 4-state / 2-control LQR, N = 100, |u|_inf <= 0.3",
+    },
+    ProblemInfo {
+        name: "pendulum",
+        summary: "pendulum swing-up on SO(2) x R, dt = 10 ms, torque limits +-20, terminal tip constraint (Fig. 4)",
+    },
+    ProblemInfo {
+        name: "cartpole",
+        summary: "cart-pole swing-up, dt = 10 ms, T = 5 s, force limits +-6, terminal tip position (0, 1) (Fig. 5)",
+    },
+    ProblemInfo {
+        name: "acrobot",
+        summary: "acrobot swing-up on SO(2)^2 x R^2, RK2, dt = 5 ms, terminal state constraint (Fig. 6)",
+    },
+    ProblemInfo {
+        name: "acrobot-bounds",
+        summary: "acrobot swing-up with torque limits and a quadratic terminal cost (Fig. 7)",
+    },
+    ProblemInfo {
+        name: "se2-car",
+        summary: "kinematic car on SE(2), N = 40, dt = 0.05, parking at the origin",
+    },
+    ProblemInfo {
+        name: "quadrotor",
+        summary: "quadrotor on SE(3) x R^6 through two waypoints with thrust limits (Fig. 10)",
+    },
+    ProblemInfo {
+        name: "quadrotor-slalom",
+        summary: "quadrotor slaloming between two cylinders, linear rollout (Fig. 11)",
+    },
+    ProblemInfo {
+        name: "peers-lqr",
+        summary: "peer-harness LQR family: nx = 8, nu = 4, N = 100, seed 42, unconstrained",
+    },
+    ProblemInfo {
+        name: "peers-lqr-box",
+        summary: "peer-harness LQR with control bounds |u|_inf <= 0.05",
+    },
+    ProblemInfo {
+        name: "peers-lqr-box-term",
+        summary: "peer-harness LQR with control bounds and x_N = 0",
+    },
+];
+
+/// Every problem [`build`] knows, in catalogue order.
+pub fn catalogue() -> &'static [ProblemInfo] {
+    CATALOGUE
+}
+
+/// Builds the example called `name` (see [`catalogue`]).
+///
+/// # Errors
+/// If `name` is not in the catalogue (the message lists the valid names), or a model
+/// fails to build (a bug: every catalogue entry is tested).
+pub fn build(name: &str) -> Result<Example> {
+    match name {
+        "lqr" => lqr::paper(lqr::LqrVariant::Plain),
+        "lqr-bounds" => lqr::paper(lqr::LqrVariant::Bounds),
+        "lqr-term" => lqr::paper(lqr::LqrVariant::Terminal),
+        "lqr-bounds-term" => lqr::paper(lqr::LqrVariant::BoundsTerminal),
+        "clqr" => lqr::clqr(),
+        "pendulum" => pendulum::build(),
+        "cartpole" => cartpole::build(),
+        "acrobot" => acrobot::build(acrobot::AcrobotVariant::TerminalConstraint),
+        "acrobot-bounds" => acrobot::build(acrobot::AcrobotVariant::Bounds),
+        "se2-car" => se2_car::build(),
+        "quadrotor" => quadrotor::build(quadrotor::QuadrotorVariant::ThrustLimits),
+        "quadrotor-slalom" => quadrotor::build(quadrotor::QuadrotorVariant::Slalom),
+        "peers-lqr" => peers::build(&peers::PeersLqrParams::default(), peers::PeersVariant::Lqr),
+        "peers-lqr-box" => peers::build(&peers::PeersLqrParams::default(), peers::PeersVariant::Box),
+        "peers-lqr-box-term" => peers::build(&peers::PeersLqrParams::default(), peers::PeersVariant::BoxTerminal),
+        _ => Err(Error::InvalidModel(format!(
+            "unknown problem `{name}`; valid names: {}",
+            CATALOGUE.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")
+        ))),
+    }
+}
+
+/// States `x_0..x_N` of the rollout of `us` from the problem's fixed `x0`.
+///
+/// # Errors
+/// If the problem has no fixed initial state, a stage has implicit dynamics or the
+/// rollout diverges.
+pub fn rollout(problem: &Problem, us: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
+    let x0 = problem
+        .x0()
+        .ok_or_else(|| Error::InvalidModel("rollout needs a fixed initial state".into()))?;
+    let mut xs = vec![x0.to_vec(); problem.horizon() + 1];
+    let mut data = ProblemData::new(problem, 1)?;
+    data.rollout(problem, &mut xs, us)?;
+    Ok(xs)
+}
+
+/// States `x_0..x_N` of a straight swing-up from hanging (`θ = π`) to upright (`θ = 0`),
+/// `θ_t = π (1 - t/N)`, `θ̇_t = -π/(N dt)` except at rest at both ends, written by
+/// `state(θ, θ̇)`: a dynamically infeasible initial guess for the swing-up problems.
+pub(crate) fn swing_guess(n: usize, dt: f64, state: impl Fn(f64, f64) -> Vec<f64>) -> Vec<Vec<f64>> {
+    let pi = std::f64::consts::PI;
+    let omega = -pi / (n as f64 * dt);
+    (0..=n)
+        .map(|t| {
+            let w = if t == 0 || t == n { 0.0 } else { omega };
+            state(pi * (1.0 - t as f64 / n as f64), w)
+        })
+        .collect()
+}
+
+/// Total cost of `(xs, us)` for `problem`.
+///
+/// # Errors
+/// If the trajectory has a wrong size or a non-finite value.
+pub fn total_cost(problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Result<f64> {
+    problem.check_trajectory(xs, us)?;
+    let mut data = ProblemData::new(problem, 1)?;
+    Ok(data.evaluate(problem, xs, us))
+}
