@@ -1,8 +1,11 @@
 //! The `gharial` command-line tool.
 
 mod bench;
+mod bench_solve;
+mod solve;
 
-use clap::{Parser, Subcommand};
+use clap::{Parser, Subcommand, ValueEnum};
+use gharial::solvers::proxddp::Rollout;
 
 #[derive(Parser)]
 #[command(name = "gharial", version, about = "Constrained trajectory optimization for robots")]
@@ -11,10 +14,48 @@ struct Cli {
     command: Command,
 }
 
+/// Forward pass of the solver.
+#[derive(Clone, Copy, ValueEnum)]
+enum RolloutArg {
+    /// The SQP step (50).
+    Linear,
+    /// A closed-loop rollout of the nonlinear dynamics (51).
+    Nonlinear,
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// List the built-in problems and solvers.
     List,
+    /// Solve a built-in problem: iteration table, summary, optional JSON output.
+    Solve {
+        /// Problem name (see `gharial list`).
+        problem: String,
+        /// Solver.
+        #[arg(long, default_value = "proxddp")]
+        solver: String,
+        /// Tolerance on the primal and dual residuals.
+        #[arg(long)]
+        tol: Option<f64>,
+        /// Initial augmented-Lagrangian penalty.
+        #[arg(long)]
+        mu_init: Option<f64>,
+        /// Iteration limit.
+        #[arg(long)]
+        max_iters: Option<usize>,
+        /// Forward pass.
+        #[arg(long, value_enum)]
+        rollout: Option<RolloutArg>,
+        /// Threads for stage-wise evaluation.
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Print the solver's live log (with outer updates) instead of the table afterwards.
+        #[arg(long)]
+        verbose: bool,
+        /// Write the solution, settings and history to this JSON file.
+        #[arg(long)]
+        output: Option<String>,
+    },
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -24,6 +65,48 @@ enum Command {
 
 #[derive(Subcommand)]
 enum BenchCommand {
+    /// Iterations, time per solve and per iteration of the built-in problems.
+    Solve {
+        /// Problems (default: the whole catalogue).
+        problems: Vec<String>,
+        /// Timed solves per problem.
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+    },
+    /// The LQR family of the peer harness, as JSON lines in its format.
+    Peers {
+        /// Harness problem names, comma separated (problems other than lqr, lqr_box and
+        /// lqr_box_term are skipped).
+        #[arg(long, value_delimiter = ',', default_values_t = vec!["lqr".to_string(), "lqr_box".to_string(), "lqr_box_term".to_string()])]
+        problems: Vec<String>,
+        /// Timed solves per problem and solver.
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// Tolerance.
+        #[arg(long, default_value_t = 1e-6)]
+        tol: f64,
+        /// Iteration limit.
+        #[arg(long, default_value_t = 500)]
+        max_iters: usize,
+        /// Directory where the final trajectories are written.
+        #[arg(long)]
+        traj_dir: Option<String>,
+        /// State size of the LQR family.
+        #[arg(long, default_value_t = 8)]
+        lqr_nx: usize,
+        /// Control size.
+        #[arg(long, default_value_t = 4)]
+        lqr_nu: usize,
+        /// Horizon.
+        #[arg(long = "lqr-N", default_value_t = 100)]
+        lqr_n: usize,
+        /// Seed.
+        #[arg(long, default_value_t = 42)]
+        lqr_seed: u64,
+        /// Control bound.
+        #[arg(long, default_value_t = 0.05)]
+        lqr_umax: f64,
+    },
     /// Proximal Riccati solver (serial and parallel) on the peers' random LQ problems.
     Riccati {
         /// Thread counts to time (1 = the serial solver), comma separated.
@@ -67,9 +150,67 @@ fn parse_dims(s: &str, n: usize) -> Result<Vec<usize>, String> {
 fn main() {
     let cli = Cli::parse();
     match cli.command {
-        Command::List => {
-            println!("solvers: (none yet)");
-            println!("problems: (none yet)");
+        Command::List => solve::list(),
+        Command::Solve {
+            problem,
+            solver,
+            tol,
+            mu_init,
+            max_iters,
+            rollout,
+            threads,
+            verbose,
+            output,
+        } => {
+            let args = solve::SolveArgs {
+                problem,
+                solver,
+                tol,
+                mu_init,
+                max_iters,
+                rollout: rollout.map(|r| match r {
+                    RolloutArg::Linear => Rollout::Linear,
+                    RolloutArg::Nonlinear => Rollout::Nonlinear,
+                }),
+                threads,
+                verbose,
+                output,
+            };
+            std::process::exit(solve::run(&args));
+        }
+        Command::Bench {
+            which: BenchCommand::Solve { problems, repeats },
+        } => std::process::exit(bench_solve::examples(&problems, repeats)),
+        Command::Bench {
+            which:
+                BenchCommand::Peers {
+                    problems,
+                    repeats,
+                    tol,
+                    max_iters,
+                    traj_dir,
+                    lqr_nx,
+                    lqr_nu,
+                    lqr_n,
+                    lqr_seed,
+                    lqr_umax,
+                },
+        } => {
+            let args = bench_solve::PeersArgs {
+                problems,
+                repeats,
+                tol,
+                max_iters,
+                traj_dir,
+                params: gharial_problems::peers::PeersLqrParams {
+                    nx: lqr_nx,
+                    nu: lqr_nu,
+                    horizon: lqr_n,
+                    seed: lqr_seed,
+                    umax: lqr_umax,
+                },
+            };
+            std::process::exit(bench_solve::peers(&args));
         }
         Command::Bench {
             which:

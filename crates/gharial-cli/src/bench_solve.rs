@@ -1,0 +1,243 @@
+//! `gharial bench solve` (every catalogue example) and `gharial bench peers` (the LQR
+//! family of the peer harness, as JSON lines in the harness's format).
+//!
+//! Each timed solve starts from the same guess with a solver set up once (setup is not
+//! timed, as in the harness); the median and minimum over the repeats are reported, with
+//! the time of one full-horizon model evaluation and derivative pass, to separate model
+//! cost from solver cost.
+
+use std::io::Write;
+use std::time::Instant;
+
+use gharial::problem::{Problem, ProblemData};
+use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
+use gharial::solvers::{InitialGuess, Solution};
+use gharial_problems::peers::{PeersLqrParams, PeersVariant};
+use serde_json::json;
+
+/// Timings of repeated solves of one problem.
+pub struct Timing {
+    /// The last solution.
+    pub solution: Solution,
+    /// Median wall time of a solve, ms.
+    pub median_ms: f64,
+    /// Minimum wall time of a solve, ms.
+    pub min_ms: f64,
+    /// One evaluation of the whole problem, ms (median of 11).
+    pub eval_ms: f64,
+    /// One derivative pass over the whole problem, ms (median of 11).
+    pub deriv_ms: f64,
+    /// Cost of the initial guess.
+    pub init_cost: f64,
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Solves `problem` `repeats` times from `(xs, us)` and times it.
+///
+/// # Errors
+/// If setup or the guess is invalid.
+pub fn time_solves(
+    problem: &Problem,
+    xs: &[Vec<f64>],
+    us: &[Vec<f64>],
+    opts: &ProxDdpOptions,
+    repeats: usize,
+) -> gharial::Result<Timing> {
+    let mut solver = ProxDdp::new(opts.clone());
+    solver.setup(problem)?;
+    let mut times = Vec::with_capacity(repeats.max(1));
+    for _ in 0..repeats.max(1) {
+        let t = Instant::now();
+        solver.solve(problem, InitialGuess::primal(xs, us))?;
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let min_ms = times.iter().copied().fold(f64::INFINITY, f64::min);
+    let median_ms = median(&mut times);
+    let mut data = ProblemData::new(problem, 1)?;
+    let init_cost = data.evaluate(problem, xs, us);
+    let (mut ev, mut de) = (Vec::new(), Vec::new());
+    for _ in 0..11 {
+        let t = Instant::now();
+        data.evaluate(problem, xs, us);
+        ev.push(t.elapsed().as_secs_f64() * 1e3);
+        let t = Instant::now();
+        data.compute_derivatives(problem, xs, us);
+        de.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    Ok(Timing {
+        solution: solver.solution().clone(),
+        median_ms,
+        min_ms,
+        eval_ms: median(&mut ev),
+        deriv_ms: median(&mut de),
+        init_cost,
+    })
+}
+
+/// `gharial bench solve`: iterations, time and time per iteration of every example.
+pub fn examples(names: &[String], repeats: usize) -> i32 {
+    let names: Vec<String> = if names.is_empty() {
+        gharial_problems::catalogue()
+            .iter()
+            .map(|p| p.name.to_string())
+            .collect()
+    } else {
+        names.to_vec()
+    };
+    println!(
+        "{:<20} {:>10} {:>6} {:>4} {:>12} {:>10} {:>10} {:>10} {:>15} {:>9} {:>9}",
+        "problem", "status", "iters", "al", "ms (median)", "ms (min)", "ms/iter", "eval/deriv", "cost", "prim", "dual"
+    );
+    let mut code = 0;
+    for name in &names {
+        let ex = match gharial_problems::build(name) {
+            Ok(e) => e,
+            Err(e) => {
+                eprintln!("gharial bench solve: {e}");
+                return 2;
+            }
+        };
+        match time_solves(&ex.problem, &ex.xs0, &ex.us0, &ex.proxddp, repeats) {
+            Ok(t) => {
+                let s = &t.solution;
+                if !s.status.converged() {
+                    code = 1;
+                }
+                println!(
+                    "{:<20} {:>10} {:>6} {:>4} {:>12.3} {:>10.3} {:>10.4} {:>4.3}/{:<5.3} {:>15.9e} {:>9.2e} {:>9.2e}",
+                    name,
+                    if s.status.converged() {
+                        "converged".to_string()
+                    } else {
+                        format!("{:?}", s.status)
+                    },
+                    s.iterations,
+                    s.al_iterations,
+                    t.median_ms,
+                    t.min_ms,
+                    t.median_ms / s.iterations.max(1) as f64,
+                    t.eval_ms,
+                    t.deriv_ms,
+                    s.cost,
+                    s.prim_err,
+                    s.dual_err
+                );
+            }
+            Err(e) => {
+                eprintln!("gharial bench solve {name}: {e}");
+                code = 1;
+            }
+        }
+        let _ = std::io::stdout().flush();
+    }
+    code
+}
+
+/// Settings of `gharial bench peers`, matching the harness's environment.
+pub struct PeersArgs {
+    /// Harness problem names (`lqr`, `lqr_box`, `lqr_box_term`; others are skipped).
+    pub problems: Vec<String>,
+    /// Timed solves per problem and solver.
+    pub repeats: usize,
+    /// Tolerance.
+    pub tol: f64,
+    /// Iteration limit.
+    pub max_iters: usize,
+    /// Directory of the trajectory files (`<problem>__gharial_<solver>.txt`).
+    pub traj_dir: Option<String>,
+    /// The family's parameters.
+    pub params: PeersLqrParams,
+}
+
+/// Writes a trajectory in the harness's format: lines `x v0 v1 ...`, then `u ...`.
+fn write_traj(path: &str, sol: &Solution) -> std::io::Result<()> {
+    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
+    for x in &sol.xs {
+        write!(f, "x")?;
+        for v in x {
+            write!(f, " {v:.17e}")?;
+        }
+        writeln!(f)?;
+    }
+    for u in &sol.us {
+        write!(f, "u")?;
+        for v in u {
+            write!(f, " {v:.17e}")?;
+        }
+        writeln!(f)?;
+    }
+    Ok(())
+}
+
+/// `gharial bench peers`: one JSON line per (problem, solver), trajectories written for
+/// the harness's independent check.
+pub fn peers(args: &PeersArgs) -> i32 {
+    for name in &args.problems {
+        let variant = match name.as_str() {
+            "lqr" => PeersVariant::Lqr,
+            "lqr_box" => PeersVariant::Box,
+            "lqr_box_term" => PeersVariant::BoxTerminal,
+            _ => continue,
+        };
+        let ex = match gharial_problems::peers::build(&args.params, variant) {
+            Ok(e) => e,
+            Err(e) => {
+                eprintln!("gharial bench peers {name}: {e}");
+                return 2;
+            }
+        };
+        // The harness's ProxDDP settings for the LQR family: mu_init 1e-5, linear
+        // rollout; `ProxDDP` with the filter, `ProxDDP_ls` with the nonmonotone search.
+        for (solver, acceptance) in [
+            ("ProxDDP", StepAcceptance::Filter),
+            ("ProxDDP_ls", StepAcceptance::NonmonotoneLinesearch),
+        ] {
+            let opts = ProxDdpOptions {
+                tol: args.tol,
+                max_iters: args.max_iters,
+                mu_init: 1e-5,
+                rollout: Rollout::Linear,
+                step_acceptance: acceptance,
+                ..Default::default()
+            };
+            let t = match time_solves(&ex.problem, &ex.xs0, &ex.us0, &opts, args.repeats) {
+                Ok(t) => t,
+                Err(e) => {
+                    println!(
+                        "{}",
+                        json!({"problem": name, "lib": "gharial", "solver": solver, "side": "rust", "error": e.to_string()})
+                    );
+                    continue;
+                }
+            };
+            let s = &t.solution;
+            if let Some(dir) = &args.traj_dir {
+                let path = format!("{dir}/{name}__gharial_{solver}.txt");
+                if let Err(e) = write_traj(&path, s) {
+                    eprintln!("gharial bench peers: cannot write {path}: {e}");
+                }
+            }
+            println!(
+                "{}",
+                json!({
+                    "problem": name, "lib": "gharial", "lib_version": env!("CARGO_PKG_VERSION"),
+                    "solver": solver, "side": "rust",
+                    "N": ex.problem.horizon(), "nx": args.params.nx, "nu": args.params.nu,
+                    "tol": args.tol, "max_iters": args.max_iters, "repeats": args.repeats,
+                    "settings": format!("mu_init=1e-5 rollout=linear step_acceptance={acceptance:?}"),
+                    "iters": s.iterations, "converged": s.status.converged(),
+                    "prim_res": s.prim_err, "dual_res": s.dual_err,
+                    "init_cost": t.init_cost, "final_cost": s.cost,
+                    "time_ms": t.median_ms, "time_ms_min": t.min_ms,
+                    "time_per_iter_ms": t.median_ms / s.iterations.max(1) as f64,
+                    "model_eval_ms": t.eval_ms, "model_deriv_ms": t.deriv_ms,
+                })
+            );
+        }
+    }
+    0
+}

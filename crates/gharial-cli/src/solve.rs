@@ -1,0 +1,218 @@
+//! `gharial list` and `gharial solve`: build a catalogue problem, solve it, print the
+//! iteration table and a summary, and write the solution as JSON.
+
+use std::io::Write;
+
+use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions, Rollout};
+use gharial::solvers::{InitialGuess, IterationRecord, Solution};
+use gharial_problems::Example;
+use serde_json::json;
+
+/// Command-line overrides of the recommended solver settings.
+#[derive(Debug, Clone, Default)]
+pub struct SolveArgs {
+    /// Problem name.
+    pub problem: String,
+    /// Solver name.
+    pub solver: String,
+    /// Tolerance.
+    pub tol: Option<f64>,
+    /// Initial AL penalty.
+    pub mu_init: Option<f64>,
+    /// Iteration limit.
+    pub max_iters: Option<usize>,
+    /// Rollout.
+    pub rollout: Option<Rollout>,
+    /// Threads for stage-wise evaluation.
+    pub threads: Option<usize>,
+    /// Live iteration log (with outer updates) instead of the table printed afterwards.
+    pub verbose: bool,
+    /// Where to write the solution.
+    pub output: Option<String>,
+}
+
+/// Prints the catalogue and the solvers.
+pub fn list() {
+    println!("solvers:");
+    println!("  proxddp   primal-dual augmented-Lagrangian DDP (Jallet et al. 2023)");
+    println!();
+    println!("problems:");
+    for p in gharial_problems::catalogue() {
+        println!("  {:<20} {}", p.name, p.summary);
+    }
+}
+
+/// The example's recommended options with the command-line overrides applied.
+pub fn options(example: &Example, args: &SolveArgs) -> ProxDdpOptions {
+    let mut o = example.proxddp.clone();
+    if let Some(v) = args.tol {
+        o.tol = v;
+    }
+    if let Some(v) = args.mu_init {
+        o.mu_init = v;
+        o.mu_lower_bound = o.mu_lower_bound.min(v);
+    }
+    if let Some(v) = args.max_iters {
+        o.max_iters = v;
+    }
+    if let Some(v) = args.rollout {
+        o.rollout = v;
+    }
+    if let Some(v) = args.threads {
+        o.num_threads = v;
+    }
+    o.verbose = args.verbose;
+    o
+}
+
+/// Runs `gharial solve`; returns the process exit code.
+pub fn run(args: &SolveArgs) -> i32 {
+    if args.solver != "proxddp" {
+        eprintln!("gharial solve: unknown solver `{}`; available: proxddp", args.solver);
+        return 2;
+    }
+    let example = match gharial_problems::build(&args.problem) {
+        Ok(e) => e,
+        Err(e) => {
+            eprintln!("gharial solve: {e}");
+            return 2;
+        }
+    };
+    let opts = options(&example, args);
+    let p = &example.problem;
+    println!(
+        "problem   {} (N = {}, nx = {}, ndx = {}, nu = {})",
+        example.name,
+        p.horizon(),
+        p.space(0).nx(),
+        p.space(0).ndx(),
+        p.nu(0)
+    );
+    println!(
+        "solver    ProxDDP (tol {:e}, mu_init {:e}, rollout {:?}, step acceptance {:?}, threads {})",
+        opts.tol, opts.mu_init, opts.rollout, opts.step_acceptance, opts.num_threads
+    );
+    let mut solver = ProxDdp::new(opts.clone());
+    if let Err(e) = solver.setup(p) {
+        eprintln!("gharial solve: {e}");
+        return 2;
+    }
+    let sol = match solver.solve(p, InitialGuess::primal(&example.xs0, &example.us0)) {
+        Ok(s) => s.clone(),
+        Err(e) => {
+            eprintln!("gharial solve: {e}");
+            return 2;
+        }
+    };
+    if !opts.verbose {
+        print_table(&sol.history);
+    }
+    print_summary(&sol);
+    if let Some(path) = &args.output {
+        let doc = solution_json(&example, &opts, &sol);
+        let text = serde_json::to_string_pretty(&doc).expect("JSON of plain numbers");
+        match std::fs::File::create(path).and_then(|mut f| f.write_all(text.as_bytes())) {
+            Ok(()) => println!("solution  written to {path}"),
+            Err(e) => {
+                eprintln!("gharial solve: cannot write {path}: {e}");
+                return 1;
+            }
+        }
+    }
+    if sol.status.converged() { 0 } else { 1 }
+}
+
+/// The iteration table (the columns of DESIGN.md).
+pub fn print_table(history: &[IterationRecord]) {
+    println!(
+        "{:>5} {:>9} {:>10} {:>10} {:>10} {:>9} {:>13} {:>10} {:>13} {:>10} {:>4} {:>9}",
+        "iter", "alpha", "inner_crit", "prim_err", "dual_err", "preg", "cost", "dphi0", "merit", "dM", "al", "mu"
+    );
+    for r in history {
+        println!(
+            "{:>5} {:>9.3e} {:>10.3e} {:>10.3e} {:>10.3e} {:>9.2e} {:>13.6e} {:>10.3e} {:>13.6e} {:>10.3e} {:>4} {:>9.2e}",
+            r.iter,
+            r.alpha,
+            r.inner_crit,
+            r.prim_err,
+            r.dual_err,
+            r.preg,
+            r.cost,
+            r.dphi0,
+            r.merit,
+            r.dmerit,
+            r.al_iter,
+            r.mu
+        );
+    }
+}
+
+fn print_summary(sol: &Solution) {
+    let ms = sol.solve_time.as_secs_f64() * 1e3;
+    println!("status    {}", sol.status);
+    println!(
+        "iterations {} (augmented-Lagrangian iterations {})",
+        sol.iterations, sol.al_iterations
+    );
+    println!("cost      {:.10e}", sol.cost);
+    println!("residuals primal {:.3e}, dual {:.3e}", sol.prim_err, sol.dual_err);
+    println!(
+        "time      {ms:.3} ms ({:.4} ms per iteration)",
+        ms / (sol.iterations.max(1) as f64)
+    );
+}
+
+/// The solution, the settings and the history as a JSON document.
+pub fn solution_json(example: &Example, opts: &ProxDdpOptions, sol: &Solution) -> serde_json::Value {
+    let history: Vec<_> = sol
+        .history
+        .iter()
+        .map(|r| {
+            json!({
+                "iter": r.iter, "alpha": r.alpha, "inner_crit": r.inner_crit, "prim_err": r.prim_err,
+                "dual_err": r.dual_err, "preg": r.preg, "cost": r.cost, "dphi0": r.dphi0,
+                "merit": r.merit, "dmerit": r.dmerit, "al_iter": r.al_iter, "mu": r.mu,
+            })
+        })
+        .collect();
+    let gains: Vec<_> = sol
+        .feedback
+        .iter()
+        .map(|k| {
+            (0..k.nrows())
+                .map(|i| (0..k.ncols()).map(|j| k[(i, j)]).collect::<Vec<_>>())
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let feedforward: Vec<Vec<f64>> = sol
+        .feedforward
+        .iter()
+        .map(|k| (0..k.nrows()).map(|i| k[i]).collect())
+        .collect();
+    json!({
+        "problem": example.name,
+        "solver": "proxddp",
+        "dt": example.dt,
+        "settings": {
+            "tol": opts.tol, "mu_init": opts.mu_init, "max_iters": opts.max_iters,
+            "rollout": format!("{:?}", opts.rollout), "step_acceptance": format!("{:?}", opts.step_acceptance),
+            "num_threads": opts.num_threads,
+        },
+        "status": sol.status.to_string(),
+        "converged": sol.status.converged(),
+        "iterations": sol.iterations,
+        "al_iterations": sol.al_iterations,
+        "cost": sol.cost,
+        "prim_err": sol.prim_err,
+        "dual_err": sol.dual_err,
+        "mu": sol.mu,
+        "solve_time_ms": sol.solve_time.as_secs_f64() * 1e3,
+        "xs": sol.xs,
+        "us": sol.us,
+        "lambdas": sol.lambdas,
+        "nus": sol.nus,
+        "feedforward": feedforward,
+        "feedback": gains,
+        "history": history,
+    })
+}
