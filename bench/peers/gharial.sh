@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Extra solver for the peer benchmark harness (its README, "To add the Rust solver"):
+# run.sh calls this script with REPEATS, TOL, MAX_ITERS, PROBLEMS, TRAJ_DIR and the
+# LQR_* knobs in the environment; it prints one JSON line per (problem, solver) and
+# writes the final trajectories to $TRAJ_DIR. GHARIAL_ROOT points at the repository.
+set -euo pipefail
+ROOT="${GHARIAL_ROOT:?set GHARIAL_ROOT to the gharial repository}"
+cargo build --release -q -p gharial-cli --manifest-path "$ROOT/Cargo.toml" >&2
+exec "$ROOT/target/release/gharial" bench peers \
+  --problems "${PROBLEMS:-lqr,lqr_box,lqr_box_term}" \
+  --repeats "${REPEATS:-5}" --tol "${TOL:-1e-6}" --max-iters "${MAX_ITERS:-500}" \
+  --traj-dir "${TRAJ_DIR:?}" \
+  --lqr-nx "${LQR_NX:-8}" --lqr-nu "${LQR_NU:-4}" --lqr-N "${LQR_N:-100}" \
+  --lqr-seed "${LQR_SEED:-42}" --lqr-umax "${LQR_UMAX:-0.05}"
