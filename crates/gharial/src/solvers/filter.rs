@@ -11,6 +11,11 @@
 //! Armijo condition (an "f-type" step) is accepted without consulting the filter and
 //! leaves it unchanged: close to a solution the infeasibility no longer changes while the
 //! merit still decreases by amounts far below the filter's margins.
+//!
+//! Whatever the filter holds, a trial must also be acceptable to the current iterate
+//! (with the same margins) and its infeasibility must stay below `θ_max` (IPOPT's upper
+//! bound, set once per solve): an empty filter (after a penalty update) then cannot
+//! accept a trial whose rollout exploded.
 
 use super::linesearch::{LinesearchOptions, LinesearchResult};
 
@@ -21,6 +26,7 @@ pub struct Filter {
     capacity: usize,
     gamma_phi: f64,
     gamma_theta: f64,
+    theta_max: f64,
 }
 
 impl Filter {
@@ -32,7 +38,14 @@ impl Filter {
             capacity: capacity.max(1),
             gamma_phi,
             gamma_theta,
+            theta_max: f64::INFINITY,
         }
+    }
+
+    /// Sets the largest infeasibility a trial may have (IPOPT uses
+    /// `1e4 · max(1, θ(x_0))`); [`Filter::clear`] keeps it.
+    pub fn set_theta_max(&mut self, theta_max: f64) {
+        self.theta_max = theta_max;
     }
 
     /// Removes every pair.
@@ -81,15 +94,14 @@ impl Filter {
 
     /// Backtracking search for an acceptable step: the full step first, then
     /// `alpha_model` (a model minimiser, when given and in `(0, 1)`), then halving.
-    /// `trial(α)` returns `(φ(α), θ(α))`; `phi0`, `dphi0` are the merit and its slope at
-    /// `α = 0`. A trial is accepted when it satisfies the Armijo condition on `φ` (the
-    /// filter is left unchanged) or is acceptable to the filter (it is then added). The
-    /// starting point of a search sequence (an empty filter) is not an entry, so the
-    /// first step is taken whole when it is finite.
+    /// `trial(α)` returns `(φ(α), θ(α))`; `(phi0, theta0)` is the current iterate and
+    /// `dphi0` the merit slope at `α = 0`. A trial with `θ ≤ θ_max` is accepted when it
+    /// satisfies the Armijo condition on `φ` (the filter is left unchanged) or is
+    /// acceptable both to the filter and to the current iterate (it is then added).
     pub fn search(
         &mut self,
         mut trial: impl FnMut(f64) -> (f64, f64),
-        phi0: f64,
+        (phi0, theta0): (f64, f64),
         dphi0: f64,
         alpha_model: Option<f64>,
         opts: &LinesearchOptions,
@@ -101,8 +113,10 @@ impl Filter {
         loop {
             let (phi, theta) = trial(alpha);
             trials += 1;
-            let armijo = phi.is_finite() && theta.is_finite() && phi <= phi0 + opts.c1 * alpha * slope && slope < 0.0;
-            let filter = !armijo && self.is_acceptable(phi, theta);
+            let bounded = phi.is_finite() && theta.is_finite() && theta <= self.theta_max;
+            let armijo = bounded && phi <= phi0 + opts.c1 * alpha * slope && slope < 0.0;
+            let filter =
+                bounded && !armijo && self.is_acceptable(phi, theta) && self.acceptable_to(phi, theta, phi0, theta0);
             if armijo || filter {
                 if filter {
                     self.add(phi, theta);
@@ -162,7 +176,13 @@ mod tests {
         f.add(1.0, 1.0);
         // Dominated by (1, 1) with margins, but an Armijo decrease of the merit from
         // φ(0) = 1.0 + 1e-12 along slope -1e-9: accepted, the filter is unchanged.
-        let r = f.search(|_| (1.0, 1.0), 1.0 + 1e-12, -1e-9, None, &LinesearchOptions::default());
+        let r = f.search(
+            |_| (1.0, 1.0),
+            (1.0 + 1e-12, 1.0),
+            -1e-9,
+            None,
+            &LinesearchOptions::default(),
+        );
         assert!(r.accepted && r.alpha == 1.0);
         assert_eq!(f.entries(), &[(1.0, 1.0)]);
     }
@@ -180,14 +200,14 @@ mod tests {
     #[test]
     fn search_backtracks_until_acceptable() {
         let mut f = Filter::new(8, 1e-5, 1e-5);
-        // Empty filter: the full step is taken.
-        let r = f.search(|_| (5.0, 5.0), 0.0, 0.0, None, &LinesearchOptions::default());
+        // Empty filter: a full step better than the current point is taken.
+        let r = f.search(|_| (5.0, 5.0), (10.0, 10.0), 0.0, None, &LinesearchOptions::default());
         assert!(r.accepted && r.alpha == 1.0);
         assert_eq!(f.entries(), &[(5.0, 5.0)]);
         // Trials are better than (5, 5) only for α ≤ 0.25.
         let r = f.search(
             |a| if a > 0.25 { (6.0, 6.0) } else { (0.5, 0.5) },
-            0.0,
+            (10.0, 10.0),
             0.0,
             None,
             &LinesearchOptions::default(),
@@ -200,7 +220,7 @@ mod tests {
         g.add(1.0, 1.0);
         let r = g.search(
             |a| if a == 0.3 { (0.1, 0.1) } else { (9.0, 9.0) },
-            0.0,
+            (2.0, 2.0),
             0.0,
             Some(0.3),
             &LinesearchOptions::default(),
@@ -211,8 +231,37 @@ mod tests {
             max_trials: 3,
             ..Default::default()
         };
-        let r = f.search(|_| (0.5, 0.5), 0.0, 0.0, None, &opts);
+        let r = f.search(|_| (0.5, 0.5), (10.0, 10.0), 0.0, None, &opts);
         assert!(!r.accepted);
         assert_eq!(r.trials, 3);
+    }
+
+    #[test]
+    fn an_empty_filter_rejects_trials_worse_than_the_current_point_or_exploding() {
+        let opts = LinesearchOptions::default();
+        // Worse than the current point (1, 1) in both measures for α > 0.1.
+        let mut f = Filter::new(8, 1e-5, 1e-5);
+        let r = f.search(
+            |a| if a > 0.1 { (1e200, 1e100) } else { (0.9, 0.9) },
+            (1.0, 1.0),
+            0.0,
+            None,
+            &opts,
+        );
+        assert!(r.accepted && r.alpha <= 0.1 && r.alpha > 0.05, "{r:?}");
+        // Infeasibility above θ_max is rejected even with an Armijo decrease of φ.
+        let mut g = Filter::new(8, 1e-5, 1e-5);
+        g.set_theta_max(10.0);
+        let r = g.search(
+            |a| if a > 0.3 { (0.0, 20.0) } else { (0.5, 5.0) },
+            (1.0, 1.0),
+            -1.0,
+            None,
+            &opts,
+        );
+        assert!(r.accepted && r.alpha <= 0.3 && r.phi == 0.5, "{r:?}");
+        g.clear();
+        let r = g.search(|_| (0.0, 20.0), (1.0, 1.0), -1.0, None, &opts);
+        assert!(!r.accepted);
     }
 }
