@@ -6,11 +6,12 @@
 //! ```
 //! Environment: `MU`, `TOL` and `MAX_ITERS` override `mu_init`, `tol` and `max_iters`;
 //! `VERBOSE` prints the iteration tables and the KKT residuals (one solve per rollout);
-//! `ROLLOUT=linear` or `ROLLOUT=nonlinear` runs one rollout only.
+//! `ROLLOUT=linear` or `ROLLOUT=nonlinear` runs one rollout only; `HESSIAN=exact` uses
+//! the exact Hessian of the Lagrangian.
 
 use gharial::problem::kkt_residuals;
 use gharial::solvers::InitialGuess;
-use gharial::solvers::proxddp::{ProxDdp, Rollout};
+use gharial::solvers::proxddp::{HessianApprox, ProxDdp, Rollout};
 
 fn main() {
     let names: Vec<String> = std::env::args().skip(1).collect();
@@ -38,6 +39,9 @@ fn main() {
             }
             if let Ok(it) = std::env::var("MAX_ITERS") {
                 opts.max_iters = it.parse().expect("MAX_ITERS is an integer");
+            }
+            if std::env::var("HESSIAN").is_ok_and(|h| h.eq_ignore_ascii_case("exact")) {
+                opts.hessian = HessianApprox::Exact;
             }
             if let Ok(tol) = std::env::var("TOL") {
                 opts.tol = tol.parse().expect("TOL is a number");

@@ -27,6 +27,7 @@ pub struct Filter {
     gamma_phi: f64,
     gamma_theta: f64,
     theta_max: f64,
+    theta_min: f64,
 }
 
 impl Filter {
@@ -39,6 +40,7 @@ impl Filter {
             gamma_phi,
             gamma_theta,
             theta_max: f64::INFINITY,
+            theta_min: 0.0,
         }
     }
 
@@ -72,6 +74,14 @@ impl Filter {
         theta <= (1.0 - self.gamma_theta) * tj || phi <= pj - self.gamma_phi * tj
     }
 
+    /// Sets the infeasibility below which a trial must satisfy the Armijo condition
+    /// (IPOPT's `θ_min`): once the current iterate is that feasible, only the merit
+    /// function ranks steps, and the filter can no longer trade merit increases for
+    /// tiny reductions of an infeasibility that need not go to zero.
+    pub fn set_theta_min(&mut self, theta_min: f64) {
+        self.theta_min = theta_min;
+    }
+
     /// Adds `(phi, theta)`, removing the pairs it dominates. When the filter is full
     /// the pair with the largest infeasibility is dropped first.
     pub fn add(&mut self, phi: f64, theta: f64) {
@@ -97,7 +107,8 @@ impl Filter {
     /// `trial(α)` returns `(φ(α), θ(α))`; `(phi0, theta0)` is the current iterate and
     /// `dphi0` the merit slope at `α = 0`. A trial with `θ ≤ θ_max` is accepted when it
     /// satisfies the Armijo condition on `φ` (the filter is left unchanged) or is
-    /// acceptable both to the filter and to the current iterate (it is then added).
+    /// acceptable both to the filter and to the current iterate while `theta0 > θ_min` (it
+    /// is then added).
     pub fn search(
         &mut self,
         mut trial: impl FnMut(f64) -> (f64, f64),
@@ -115,8 +126,11 @@ impl Filter {
             trials += 1;
             let bounded = phi.is_finite() && theta.is_finite() && theta <= self.theta_max;
             let armijo = bounded && phi <= phi0 + opts.c1 * alpha * slope && slope < 0.0;
-            let filter =
-                bounded && !armijo && self.is_acceptable(phi, theta) && self.acceptable_to(phi, theta, phi0, theta0);
+            let filter = bounded
+                && !armijo
+                && theta0 > self.theta_min
+                && self.is_acceptable(phi, theta)
+                && self.acceptable_to(phi, theta, phi0, theta0);
             if armijo || filter {
                 if filter {
                     self.add(phi, theta);
@@ -263,5 +277,26 @@ mod tests {
         g.clear();
         let r = g.search(|_| (0.0, 20.0), (1.0, 1.0), -1.0, None, &opts);
         assert!(!r.accepted);
+    }
+
+    #[test]
+    fn below_theta_min_only_the_armijo_condition_accepts() {
+        let opts = LinesearchOptions {
+            max_trials: 3,
+            ..Default::default()
+        };
+        // The merit rises, the infeasibility drops by 1 %: a filter (h-type) step.
+        let step = |_: f64| (1.1, 0.99e-5);
+        let mut f = Filter::new(8, 1e-5, 1e-5);
+        assert!(f.search(step, (1.0, 1e-5), -1e-3, None, &opts).accepted);
+        let mut g = Filter::new(8, 1e-5, 1e-5);
+        g.set_theta_min(1e-4);
+        let r = g.search(step, (1.0, 1e-5), -1e-3, None, &opts);
+        assert!(!r.accepted && r.trials == 3);
+        // An Armijo decrease is still accepted.
+        assert!(
+            g.search(|a| (1.0 - 1e-3 * a, 1e-5), (1.0, 1e-5), -1e-3, None, &opts)
+                .accepted
+        );
     }
 }

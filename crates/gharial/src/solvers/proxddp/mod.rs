@@ -347,6 +347,8 @@ impl ProxDdp {
                     }
                 }
                 StepAcceptance::Filter => {
+                    // Within the outer loop's feasibility target, the merit alone decides.
+                    filter.set_theta_min(eta);
                     filter.search(&mut trial, (phi0, theta0), dphi0, alpha_model, &opts.linesearch)
                 }
                 StepAcceptance::Linesearch | StepAcceptance::NonmonotoneLinesearch => {
