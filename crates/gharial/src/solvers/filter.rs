@@ -28,6 +28,9 @@ pub struct Filter {
     gamma_theta: f64,
     theta_max: f64,
     theta_min: f64,
+    /// The next trial is taken whole if bounded (set by [`Filter::new`] and
+    /// [`Filter::clear`]).
+    free_step: bool,
 }
 
 impl Filter {
@@ -41,6 +44,7 @@ impl Filter {
             gamma_theta,
             theta_max: f64::INFINITY,
             theta_min: 0.0,
+            free_step: true,
         }
     }
 
@@ -50,9 +54,13 @@ impl Filter {
         self.theta_max = theta_max;
     }
 
-    /// Removes every pair.
+    /// Removes every pair. The first trial after a clear (and after [`Filter::new`]) is
+    /// taken whole when its infeasibility is below `θ_max`: the merit function has just
+    /// changed (new multipliers or penalty), and the semi-smooth Newton step of the new
+    /// subproblem must be able to cross the kinks where constraints become active.
     pub fn clear(&mut self) {
         self.entries.clear();
+        self.free_step = true;
     }
 
     /// The stored pairs.
@@ -106,9 +114,10 @@ impl Filter {
     /// `alpha_model` (a model minimiser, when given and in `(0, 1)`), then halving.
     /// `trial(α)` returns `(φ(α), θ(α))`; `(phi0, theta0)` is the current iterate and
     /// `dphi0` the merit slope at `α = 0`. A trial with `θ ≤ θ_max` is accepted when it
-    /// satisfies the Armijo condition on `φ` (the filter is left unchanged) or is
-    /// acceptable both to the filter and to the current iterate while `theta0 > θ_min` (it
-    /// is then added).
+    /// satisfies the Armijo condition on `φ` (the filter is left unchanged), is the full
+    /// step of a new subproblem (first trial after [`Filter::new`] or [`Filter::clear`]),
+    /// or is acceptable both to the filter and to the current iterate while
+    /// `theta0 > θ_min` (in the last two cases it is added).
     pub fn search(
         &mut self,
         mut trial: impl FnMut(f64) -> (f64, f64),
@@ -126,11 +135,13 @@ impl Filter {
             trials += 1;
             let bounded = phi.is_finite() && theta.is_finite() && theta <= self.theta_max;
             let armijo = bounded && phi <= phi0 + opts.c1 * alpha * slope && slope < 0.0;
+            let free = std::mem::take(&mut self.free_step);
             let filter = bounded
                 && !armijo
-                && theta0 > self.theta_min
-                && self.is_acceptable(phi, theta)
-                && self.acceptable_to(phi, theta, phi0, theta0);
+                && (free
+                    || (theta0 > self.theta_min
+                        && self.is_acceptable(phi, theta)
+                        && self.acceptable_to(phi, theta, phi0, theta0)));
             if armijo || filter {
                 if filter {
                     self.add(phi, theta);
@@ -214,7 +225,7 @@ mod tests {
     #[test]
     fn search_backtracks_until_acceptable() {
         let mut f = Filter::new(8, 1e-5, 1e-5);
-        // Empty filter: a full step better than the current point is taken.
+        // The free first step of a new filter.
         let r = f.search(|_| (5.0, 5.0), (10.0, 10.0), 0.0, None, &LinesearchOptions::default());
         assert!(r.accepted && r.alpha == 1.0);
         assert_eq!(f.entries(), &[(5.0, 5.0)]);
@@ -230,7 +241,7 @@ mod tests {
         assert_eq!(r.alpha, 0.25);
         assert_eq!(f.entries(), &[(0.5, 0.5)]);
         // A model step is tried right after the full step.
-        let mut g = Filter::new(8, 1e-5, 1e-5);
+        let mut g = past_first_step(Filter::new(8, 1e-5, 1e-5));
         g.add(1.0, 1.0);
         let r = g.search(
             |a| if a == 0.3 { (0.1, 0.1) } else { (9.0, 9.0) },
@@ -250,23 +261,36 @@ mod tests {
         assert_eq!(r.trials, 3);
     }
 
+    /// A filter whose free first step has been used.
+    fn past_first_step(mut f: Filter) -> Filter {
+        f.free_step = false;
+        f
+    }
+
     #[test]
-    fn an_empty_filter_rejects_trials_worse_than_the_current_point_or_exploding() {
+    fn the_first_step_is_free_if_bounded_and_later_steps_must_beat_the_current_point() {
         let opts = LinesearchOptions::default();
-        // Worse than the current point (1, 1) in both measures for α > 0.1.
         let mut f = Filter::new(8, 1e-5, 1e-5);
+        f.set_theta_max(10.0);
+        // The full step of a new subproblem is taken although worse than the current
+        // point (1, 1) in both measures: θ = 5 ≤ θ_max.
+        let r = f.search(|_| (1e3, 5.0), (1.0, 1.0), 0.0, None, &opts);
+        assert!(r.accepted && r.alpha == 1.0, "{r:?}");
+        assert_eq!(f.entries(), &[(1e3, 5.0)]);
+        // Next search: (1e200, 2) is acceptable to the filter but worse than the current
+        // point, so the search backtracks to α ≤ 0.1.
         let r = f.search(
-            |a| if a > 0.1 { (1e200, 1e100) } else { (0.9, 0.9) },
+            |a| if a > 0.1 { (1e200, 2.0) } else { (0.9, 0.9) },
             (1.0, 1.0),
             0.0,
             None,
             &opts,
         );
         assert!(r.accepted && r.alpha <= 0.1 && r.alpha > 0.05, "{r:?}");
-        // Infeasibility above θ_max is rejected even with an Armijo decrease of φ.
-        let mut g = Filter::new(8, 1e-5, 1e-5);
-        g.set_theta_max(10.0);
-        let r = g.search(
+        // After a clear the full step is free again, but never above θ_max, even with
+        // an Armijo decrease of φ.
+        f.clear();
+        let r = f.search(
             |a| if a > 0.3 { (0.0, 20.0) } else { (0.5, 5.0) },
             (1.0, 1.0),
             -1.0,
@@ -274,8 +298,8 @@ mod tests {
             &opts,
         );
         assert!(r.accepted && r.alpha <= 0.3 && r.phi == 0.5, "{r:?}");
-        g.clear();
-        let r = g.search(|_| (0.0, 20.0), (1.0, 1.0), -1.0, None, &opts);
+        f.clear();
+        let r = f.search(|_| (0.0, 20.0), (1.0, 1.0), -1.0, None, &opts);
         assert!(!r.accepted);
     }
 
@@ -287,9 +311,9 @@ mod tests {
         };
         // The merit rises, the infeasibility drops by 1 %: a filter (h-type) step.
         let step = |_: f64| (1.1, 0.99e-5);
-        let mut f = Filter::new(8, 1e-5, 1e-5);
+        let mut f = past_first_step(Filter::new(8, 1e-5, 1e-5));
         assert!(f.search(step, (1.0, 1e-5), -1e-3, None, &opts).accepted);
-        let mut g = Filter::new(8, 1e-5, 1e-5);
+        let mut g = past_first_step(Filter::new(8, 1e-5, 1e-5));
         g.set_theta_min(1e-4);
         let r = g.search(step, (1.0, 1e-5), -1e-3, None, &opts);
         assert!(!r.accepted && r.trials == 3);
