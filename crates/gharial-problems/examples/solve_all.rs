@@ -5,11 +5,13 @@
 //! cargo run --release -p gharial-problems --example solve_all [names...]
 //! ```
 //! Environment: `MU`, `TOL` and `MAX_ITERS` override `mu_init`, `tol` and `max_iters`;
-//! `VERBOSE` prints the iteration tables and the KKT residuals.
+//! `VERBOSE` prints the iteration tables and the KKT residuals (one solve per rollout);
+//! `ROLLOUT=linear` or `ROLLOUT=nonlinear` runs one rollout only; `HESSIAN=exact` uses
+//! the exact Hessian of the Lagrangian.
 
 use gharial::problem::kkt_residuals;
 use gharial::solvers::InitialGuess;
-use gharial::solvers::proxddp::{ProxDdp, Rollout};
+use gharial::solvers::proxddp::{HessianApprox, ProxDdp, Rollout};
 
 fn main() {
     let names: Vec<String> = std::env::args().skip(1).collect();
@@ -24,6 +26,11 @@ fn main() {
         }
         let ex = gharial_problems::build(info.name).expect("catalogue entry builds");
         for rollout in [Rollout::Linear, Rollout::Nonlinear] {
+            if let Ok(r) = std::env::var("ROLLOUT")
+                && !format!("{rollout:?}").eq_ignore_ascii_case(&r)
+            {
+                continue;
+            }
             let mut opts = ex.proxddp.clone();
             opts.rollout = rollout;
             opts.verbose = verbose;
@@ -33,6 +40,9 @@ fn main() {
             if let Ok(it) = std::env::var("MAX_ITERS") {
                 opts.max_iters = it.parse().expect("MAX_ITERS is an integer");
             }
+            if std::env::var("HESSIAN").is_ok_and(|h| h.eq_ignore_ascii_case("exact")) {
+                opts.hessian = HessianApprox::Exact;
+            }
             if let Ok(tol) = std::env::var("TOL") {
                 opts.tol = tol.parse().expect("TOL is a number");
             }
@@ -41,7 +51,7 @@ fn main() {
             // Best of three solves for the time.
             let mut best = f64::INFINITY;
             let mut sol = None;
-            for _ in 0..3 {
+            for _ in 0..if verbose { 1 } else { 3 } {
                 let s = solver
                     .solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0))
                     .expect("solve")

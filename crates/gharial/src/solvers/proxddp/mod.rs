@@ -30,6 +30,10 @@ use crate::solvers::filter::Filter;
 use crate::solvers::linesearch::{LinesearchResult, Nonmonotone, armijo};
 use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 
+/// Trials of the filter may be at most this factor more infeasible than the initial
+/// point (or than 1), as in IPOPT.
+const THETA_MAX_FACTOR: f64 = 1e4;
+
 /// The ProxDDP solver.
 ///
 /// ```text
@@ -183,6 +187,10 @@ impl ProxDdp {
                 f64::NAN
             }
         };
+        // Upper bound on the infeasibility of accepted trials (IPOPT's θ_max).
+        ws.trial.copy_from(&ws.cur);
+        let (_, theta_init) = ws.trial_merit(problem, opts.merit, mu, mu_d);
+        filter.set_theta_max(THETA_MAX_FACTOR * theta_init.max(1.0));
         'outer: while status != Status::NonFinite {
             res = ws.estimates_and_residuals(problem, mu, mu_d);
             if !(res.prim.is_finite() && res.dual.is_finite()) {
@@ -297,7 +305,7 @@ impl ProxDdp {
 
             // Merit at the current point.
             ws.trial.copy_from(&ws.cur);
-            let (phi0, _) = ws.trial_merit(problem, opts.merit, mu, mu_d);
+            let (phi0, theta0) = ws.trial_merit(problem, opts.merit, mu, mu_d);
             let roundoff = dphi0.abs() <= opts.dphi_thresh * phi0.abs().max(1.0);
             if roundoff {
                 if res.inner > 0.5 * roundoff_inner {
@@ -338,7 +346,11 @@ impl ProxDdp {
                         trials: 1,
                     }
                 }
-                StepAcceptance::Filter => filter.search(&mut trial, phi0, dphi0, alpha_model, &opts.linesearch),
+                StepAcceptance::Filter => {
+                    // Within the outer loop's feasibility target, the merit alone decides.
+                    filter.set_theta_min(eta);
+                    filter.search(&mut trial, (phi0, theta0), dphi0, alpha_model, &opts.linesearch)
+                }
                 StepAcceptance::Linesearch | StepAcceptance::NonmonotoneLinesearch => {
                     let reference = nonmonotone.reference(phi0);
                     armijo(|a| trial(a).0, phi0, dphi0, reference, alpha_model, &opts.linesearch)

@@ -697,9 +697,21 @@ impl Workspace {
             }
         }
         for t in 0..=n {
+            // e = x_t^α ⊖ x_t, measured from the linear prediction x̂ = x_t ⊕ α δx_t as
+            // e = (x_t^α ⊖ x̂) + α δx_t: the same on vector spaces, and on spaces with
+            // angles (SO(2), SO(3)) it does not wrap by a full turn when the step turns a
+            // joint by more than π, which would feed a 2π error through the gains.
             let space = problem.space(t);
-            // e = x_t^α ⊖ x_t
-            space.difference(&self.cur.xs[t], &self.trial.xs[t], &mut self.dxbuf[t]);
+            let xhat = &mut self.ybuf[t];
+            let v = &mut self.dxbuf[t];
+            for (vi, s) in v.iter_mut().zip(slice(&self.step.xs[t])) {
+                *vi = alpha * s;
+            }
+            space.integrate(&self.cur.xs[t], v, xhat);
+            space.difference(xhat, &self.trial.xs[t], v);
+            for (vi, s) in v.iter_mut().zip(slice(&self.step.xs[t])) {
+                *vi += alpha * s;
+            }
             let stage = self.riccati.stage(t);
             let e = &self.dxbuf[t];
             // (51c) and the path multipliers.
