@@ -9,7 +9,7 @@
 use std::io::Write;
 use std::time::Instant;
 
-use gharial::problem::{Problem, ProblemData};
+use gharial::problem::{Problem, ProblemData, kkt_residuals};
 use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::solvers::{InitialGuess, Solution};
 use gharial_problems::peers::{PeersLqrParams, PeersVariant};
@@ -78,8 +78,10 @@ pub fn time_solves(
     })
 }
 
-/// `gharial bench solve`: iterations, time and time per iteration of every example.
-pub fn examples(names: &[String], repeats: usize) -> i32 {
+/// `gharial bench solve`: iterations, time and time per iteration of every example, at
+/// its recommended settings (with `rollout` if given), and the largest KKT residual of
+/// the solution recomputed by [`kkt_residuals`].
+pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>) -> i32 {
     let names: Vec<String> = if names.is_empty() {
         gharial_problems::catalogue()
             .iter()
@@ -89,8 +91,20 @@ pub fn examples(names: &[String], repeats: usize) -> i32 {
         names.to_vec()
     };
     println!(
-        "{:<20} {:>10} {:>6} {:>4} {:>12} {:>10} {:>10} {:>10} {:>15} {:>9} {:>9}",
-        "problem", "status", "iters", "al", "ms (median)", "ms (min)", "ms/iter", "eval/deriv", "cost", "prim", "dual"
+        "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12} {:>10} {:>10} {:>10} {:>15} {:>9} {:>9} {:>9}",
+        "problem",
+        "rollout",
+        "status",
+        "iters",
+        "al",
+        "ms (median)",
+        "ms (min)",
+        "ms/iter",
+        "eval/deriv",
+        "cost",
+        "prim",
+        "dual",
+        "KKT"
     );
     let mut code = 0;
     for name in &names {
@@ -101,15 +115,21 @@ pub fn examples(names: &[String], repeats: usize) -> i32 {
                 return 2;
             }
         };
-        match time_solves(&ex.problem, &ex.xs0, &ex.us0, &ex.proxddp, repeats) {
+        let mut opts = ex.proxddp.clone();
+        if let Some(r) = rollout {
+            opts.rollout = r;
+        }
+        match time_solves(&ex.problem, &ex.xs0, &ex.us0, &opts, repeats) {
             Ok(t) => {
                 let s = &t.solution;
                 if !s.status.converged() {
                     code = 1;
                 }
+                let kkt = kkt_residuals(&ex.problem, &s.xs, &s.us, &s.lambdas, &s.nus).map_or(f64::NAN, |k| k.max());
                 println!(
-                    "{:<20} {:>10} {:>6} {:>4} {:>12.3} {:>10.3} {:>10.4} {:>4.3}/{:<5.3} {:>15.9e} {:>9.2e} {:>9.2e}",
+                    "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12.3} {:>10.3} {:>10.4} {:>4.3}/{:<5.3} {:>15.9e} {:>9.2e} {:>9.2e} {:>9.2e}",
                     name,
+                    format!("{:?}", opts.rollout).to_lowercase(),
                     if s.status.converged() {
                         "converged".to_string()
                     } else {
@@ -124,7 +144,8 @@ pub fn examples(names: &[String], repeats: usize) -> i32 {
                     t.deriv_ms,
                     s.cost,
                     s.prim_err,
-                    s.dual_err
+                    s.dual_err,
+                    kkt
                 );
             }
             Err(e) => {

@@ -23,6 +23,15 @@ enum RolloutArg {
     Nonlinear,
 }
 
+impl From<RolloutArg> for Rollout {
+    fn from(r: RolloutArg) -> Self {
+        match r {
+            RolloutArg::Linear => Rollout::Linear,
+            RolloutArg::Nonlinear => Rollout::Nonlinear,
+        }
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// List the built-in problems and solvers.
@@ -72,6 +81,9 @@ enum BenchCommand {
         /// Timed solves per problem.
         #[arg(long, default_value_t = 5)]
         repeats: usize,
+        /// Forward pass (default: each problem's recommended one).
+        #[arg(long, value_enum)]
+        rollout: Option<RolloutArg>,
     },
     /// The LQR family of the peer harness, as JSON lines in its format.
     Peers {
@@ -168,10 +180,7 @@ fn main() {
                 tol,
                 mu_init,
                 max_iters,
-                rollout: rollout.map(|r| match r {
-                    RolloutArg::Linear => Rollout::Linear,
-                    RolloutArg::Nonlinear => Rollout::Nonlinear,
-                }),
+                rollout: rollout.map(Rollout::from),
                 threads,
                 verbose,
                 output,
@@ -179,8 +188,13 @@ fn main() {
             std::process::exit(solve::run(&args));
         }
         Command::Bench {
-            which: BenchCommand::Solve { problems, repeats },
-        } => std::process::exit(bench_solve::examples(&problems, repeats)),
+            which:
+                BenchCommand::Solve {
+                    problems,
+                    repeats,
+                    rollout,
+                },
+        } => std::process::exit(bench_solve::examples(&problems, repeats, rollout.map(Rollout::from))),
         Command::Bench {
             which:
                 BenchCommand::Peers {

@@ -42,16 +42,6 @@
 //! Hand-written: with `a = M⁻¹ b`, `b = (0, τ) - C - G`,
 //! `da/dz = M⁻¹ (db/dz - (dM/dz) a)`; checked against the generic model with dual
 //! numbers and against finite differences in the tests.
-//!
-//! Measured with ProxDDP at the recommended settings, both rollouts (release build,
-//! best of 3 solves on the shared 2-core machine; `solve_all` example):
-//!
-//! | problem | rollout | status | iterations | AL iterations | final cost | KKT residual | time (ms) |
-//! |---|---|---|---|---|---|---|---|
-//! | `acrobot` | linear | maximum iterations reached | 300 | 0 | 0.006812480636 | 1.4e0 | 873.55 |
-//! | `acrobot` | nonlinear | converged | 76 | 2 | 0.005805388337 | 3.7e-7 | 192.04 |
-//! | `acrobot-bounds` | linear | maximum iterations reached | 300 | 0 | 35.123063371436 | 2.6e1 | 1337.05 |
-//! | `acrobot-bounds` | nonlinear | converged | 267 | 5 | 0.005782330742 | 9.2e-7 | 775.95 |
 
 use std::sync::Arc;
 

@@ -32,14 +32,6 @@
 //! Hand-written: with `a = M⁻¹ b`, `da/dz = M⁻¹ (db/dz - (dM/dz) a)`, where only `θ`
 //! enters `M`. Checked against the generic model with dual numbers and against finite
 //! differences in the tests.
-//!
-//! Measured with ProxDDP at the recommended settings, both rollouts (release build,
-//! best of 3 solves on the shared 2-core machine; `solve_all` example):
-//!
-//! | problem | rollout | status | iterations | AL iterations | final cost | KKT residual | time (ms) |
-//! |---|---|---|---|---|---|---|---|
-//! | `cartpole` | linear | converged | 1693 | 1 | 0.051167798260 | 9.8e-7 | 42114.24 |
-//! | `cartpole` | nonlinear | converged | 1555 | 1 | 0.051167762260 | 9.2e-7 | 17671.65 |
 
 use std::sync::Arc;
 

@@ -16,20 +16,6 @@
 //! README, "Known solver issues"); nonlinear rollout (the paper's choice for explicit
 //! dynamics; on a linear system both rollouts coincide), tol `1e-6`.
 //!
-//! Measured with ProxDDP at the recommended settings, both rollouts (release build,
-//! best of 3 solves on the shared 2-core machine; `solve_all` example):
-//!
-//! | problem | rollout | status | iterations | AL iterations | final cost | KKT residual | time (ms) |
-//! |---|---|---|---|---|---|---|---|
-//! | `lqr` | linear | converged | 1 | 0 | 0.005901787110 | 5.8e-9 | 0.15 |
-//! | `lqr` | nonlinear | converged | 1 | 0 | 0.005901787110 | 5.8e-9 | 0.16 |
-//! | `lqr-bounds` | linear | converged | 8 | 5 | 0.010472220116 | 6.1e-7 | 0.79 |
-//! | `lqr-bounds` | nonlinear | converged | 8 | 5 | 0.010472220116 | 6.1e-7 | 0.84 |
-//! | `lqr-term` | linear | converged | 1 | 0 | 0.005862818913 | 5.8e-9 | 0.09 |
-//! | `lqr-term` | nonlinear | converged | 1 | 0 | 0.005862818913 | 5.8e-9 | 0.09 |
-//! | `lqr-bounds-term` | linear | converged | 4 | 0 | 0.010382666394 | 2.7e-8 | 0.40 |
-//! | `lqr-bounds-term` | nonlinear | converged | 4 | 0 | 0.010382666394 | 2.7e-8 | 0.41 |
-//!
 //! # `clqr`
 //!
 //! A random system drawn from [`SplitMix64`] with seed [`CLQR_SEED`] = 3 (standard normals by
@@ -38,14 +24,6 @@
 //! terms, terminal cost `½ xᵀ (10 Q) x`, N = 100, `|u|_∞ ≤ 0.3`. Initial guess: the
 //! constant state `x0` (dynamically infeasible) and `u = 0`. Settings: `mu_init = 1e-6`,
 //! linear rollout.
-//!
-//! Measured with ProxDDP at the recommended settings, both rollouts (release build,
-//! best of 3 solves on the shared 2-core machine; `solve_all` example):
-//!
-//! | problem | rollout | status | iterations | AL iterations | final cost | KKT residual | time (ms) |
-//! |---|---|---|---|---|---|---|---|
-//! | `clqr` | linear | converged | 4 | 1 | 11.987940891584 | 1.8e-9 | 2.85 |
-//! | `clqr` | nonlinear | converged | 4 | 1 | 11.987940891584 | 1.8e-9 | 2.00 |
 
 use std::sync::Arc;
 

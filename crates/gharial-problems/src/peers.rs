@@ -26,18 +26,6 @@
 //! tol `1e-6` the optimal costs below are within 2e-6 (relative) of the references, the
 //! accuracy that primal residuals of ~1e-7 allow; at tol `1e-10` they agree to 1e-9
 //! (`tests/peers.rs`).
-//!
-//! Measured with ProxDDP at the recommended settings, both rollouts (release build,
-//! best of 3 solves on the shared 2-core machine; `solve_all` example):
-//!
-//! | problem | rollout | status | iterations | AL iterations | final cost | KKT residual | time (ms) |
-//! |---|---|---|---|---|---|---|---|
-//! | `peers-lqr` | linear | converged | 2 | 1 | 6.248571512038 | 5.9e-8 | 4.32 |
-//! | `peers-lqr` | nonlinear | converged | 2 | 1 | 6.248571512038 | 5.9e-8 | 4.17 |
-//! | `peers-lqr-box` | linear | converged | 46 | 1 | 6.922104452876 | 6.5e-8 | 72.40 |
-//! | `peers-lqr-box` | nonlinear | converged | 46 | 1 | 6.922104452876 | 6.5e-8 | 76.18 |
-//! | `peers-lqr-box-term` | linear | converged | 9 | 2 | 6.922415498416 | 2.2e-7 | 12.57 |
-//! | `peers-lqr-box-term` | nonlinear | converged | 9 | 2 | 6.922415498416 | 2.2e-7 | 11.04 |
 
 use std::sync::Arc;
 

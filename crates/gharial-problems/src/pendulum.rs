@@ -27,21 +27,12 @@
 //! 1e-3).
 //! Settings: `mu_init = 1e-2`, linear rollout. The paper's `mu_init = 1` (Fig. 4) runs
 //! into a solver issue (one Newton step, then the outer loop spins without another
-//! step; see the crate README, "Known solver issues"); from `mu_init = 0.5` or `0.1`,
-//! and with the nonlinear rollout at `1e-2`, ProxDDP does not converge in 300
-//! iterations (measured).
+//! step; see the crate README, "Known solver issues"). Both rollouts converge at
+//! `mu_init = 1e-2` (crate README, "Results").
 //!
 //! # Jacobians
 //! Hand-written (two nonzero entries); checked against the generic model with dual
 //! numbers and against finite differences in the tests.
-//!
-//! Measured with ProxDDP at the recommended settings, both rollouts (release build,
-//! best of 3 solves on the shared 2-core machine; `solve_all` example):
-//!
-//! | problem | rollout | status | iterations | AL iterations | final cost | KKT residual | time (ms) |
-//! |---|---|---|---|---|---|---|---|
-//! | `pendulum` | linear | converged | 247 | 3 | 0.955529757967 | 5.2e-7 | 558.12 |
-//! | `pendulum` | nonlinear | maximum iterations reached | 300 | 1 | 0.943081284811 | 3.5e-3 | 705.74 |
 
 use std::sync::Arc;
 

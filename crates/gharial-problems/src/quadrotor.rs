@@ -51,16 +51,6 @@
 //! plus the floor and ceiling `0 ≤ p_z ≤ 2`. Settings: linear rollout (the paper's
 //! choice for this problem), `mu_init = 1e-2`. With the paper's `mu_init = 1` the solver
 //! takes one step and then stalls (see the crate README, "Known solver issues").
-//!
-//! Measured with ProxDDP at the recommended settings, both rollouts (release build,
-//! best of 3 solves on the shared 2-core machine; `solve_all` example):
-//!
-//! | problem | rollout | status | iterations | AL iterations | final cost | KKT residual | time (ms) |
-//! |---|---|---|---|---|---|---|---|
-//! | `quadrotor` | linear | converged | 212 | 5 | 3.298021148000 | 1.0e-6 | 460.31 |
-//! | `quadrotor` | nonlinear | converged | 203 | 5 | 3.298021150600 | 2.3e-7 | 644.30 |
-//! | `quadrotor-slalom` | linear | converged | 140 | 6 | 2.382425018263 | 7.0e-7 | 500.35 |
-//! | `quadrotor-slalom` | nonlinear | converged | 156 | 6 | 2.382425017949 | 6.8e-7 | 475.29 |
 
 use std::sync::Arc;
 

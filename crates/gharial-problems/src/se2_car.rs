@@ -19,14 +19,6 @@
 //! N = 40, `dt = 0.05`, `x0 = (0.7, -0.1, θ = 0.15355)`. No constraint. Initial guess
 //! `u = 0` and its rollout (the car stays at `x0`). Settings: `mu_init = 1e-2`, linear
 //! rollout (as in the original example); both rollouts converge.
-//!
-//! Measured with ProxDDP at the recommended settings, both rollouts (release build,
-//! best of 3 solves on the shared 2-core machine; `solve_all` example):
-//!
-//! | problem | rollout | status | iterations | AL iterations | final cost | KKT residual | time (ms) |
-//! |---|---|---|---|---|---|---|---|
-//! | `se2-car` | linear | converged | 5 | 2 | 0.026610912667 | 7.3e-7 | 1.40 |
-//! | `se2-car` | nonlinear | converged | 5 | 2 | 0.026610913457 | 7.3e-7 | 1.72 |
 
 use std::sync::Arc;
 

@@ -28,14 +28,23 @@ fn main() -> Result<()> {
         b[(i, i)] = 0.5 * dt * dt;
         b[(i + 2, i)] = dt;
     }
-    let dynamics = Dynamics::Explicit(Arc::new(LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &[0.0; 4])?));
+    let dynamics = Dynamics::Explicit(Arc::new(LinearDiscreteDynamics::new(
+        a.as_ref(),
+        b.as_ref(),
+        &[0.0; 4],
+    )?));
 
     // Running cost: 1/2 |x - 0|²_Wx + 1/2 |u|²_Wu; terminal cost: 1/2 |x_N|²_Wf.
     let x_ref = [0.0; 4];
     let cost = CostStack::new(space.as_ref(), 2)
         .with(
             "state",
-            Arc::new(QuadraticStateCost::diagonal(space.clone(), &x_ref, &[1.0, 1.0, 0.1, 0.1], 2)?),
+            Arc::new(QuadraticStateCost::diagonal(
+                space.clone(),
+                &x_ref,
+                &[1.0, 1.0, 0.1, 0.1],
+                2,
+            )?),
             dt,
         )?
         .with(
@@ -48,7 +57,8 @@ fn main() -> Result<()> {
     // Path constraint: |u_i| <= 2 N.
     let force = Arc::new(ControlError::new(space.as_ref(), &[0.0; 2])?);
     let limits = Arc::new(BoxConstraint::new(&[-2.0; 2], &[2.0; 2])?);
-    let stage = StageModel::new(Arc::new(cost), dynamics)?.with_constraint(StageConstraint::new("force", force, limits))?;
+    let stage =
+        StageModel::new(Arc::new(cost), dynamics)?.with_constraint(StageConstraint::new("force", force, limits))?;
     let problem = Problem::new(&[1.0, -0.5, 0.0, 0.0], vec![stage; horizon], terminal)?;
 
     // Solve from a dynamically infeasible guess: every state at x0, zero forces.

@@ -223,6 +223,32 @@ fn equality_constrained_lq_reaches_the_dense_kkt_solution() {
     }
 }
 
+/// With `mu_init >= 1` the BCL tolerances must still shrink after successful outer
+/// steps (by `min(mu, 0.1)`); with the penalty alone as the factor they stayed at 1 and
+/// the outer loop updated the multipliers without Newton steps until `max_al_iters`.
+#[test]
+fn a_large_initial_penalty_still_reaches_the_dense_kkt_solution() {
+    let lq = random_lq(4, 2, 20, 7);
+    let target = [0.1, -0.2, 0.0, 0.3];
+    let p = ocp(&lq, None, Some(&target));
+    let reference = dense::solve(&exact_lq(&lq, Some(&target))).unwrap();
+    for mu_init in [1.0, 10.0] {
+        let (xs, us) = zero_guess(&p);
+        let opts = ProxDdpOptions {
+            mu_init,
+            tol: 1e-9,
+            ..Default::default()
+        };
+        let sol = solve(&p, opts, &xs, &us);
+        assert_eq!(sol.status, Status::Converged, "mu_init {mu_init}");
+        assert!(sol.iterations < 60, "mu_init {mu_init}: {} iterations", sol.iterations);
+        let scale = 1.0 + reference.xs.iter().map(|c| c.norm_max()).fold(0.0, f64::max);
+        let dx = max_diff(&sol.xs, &reference.xs) / scale;
+        let du = max_diff(&sol.us, &reference.us) / scale;
+        assert!(dx < 1e-7 && du < 1e-7, "mu_init {mu_init}: {dx:e} {du:e}");
+    }
+}
+
 #[test]
 fn box_constrained_lq_satisfies_the_kkt_conditions_for_every_step_acceptance() {
     let lq = random_lq(4, 2, 30, 7);

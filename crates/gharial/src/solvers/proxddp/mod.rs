@@ -159,8 +159,8 @@ impl ProxDdp {
         let mut mu = opts.mu_init;
         let mut mu_d = opts.dyn_al_scale * mu;
         // Initial tolerances: the failure update of Algorithm 2 from omega_0 = eta_0 = 1.
-        let mut eta = mu.powf(opts.bcl_beta_eta).max(opts.tol);
-        let mut omega = mu.powf(opts.bcl_beta_omega).max(opts.tol);
+        let mut eta = bcl_rate(mu).powf(opts.bcl_beta_eta).max(opts.tol);
+        let mut omega = bcl_rate(mu).powf(opts.bcl_beta_omega).max(opts.tol);
         let mut preg = 0.0;
         let mut iter = 0;
         let mut al_iter = 0;
@@ -240,13 +240,13 @@ impl ProxDdp {
                 }
                 if success {
                     ws.accept_multipliers();
-                    omega *= mu.powf(opts.bcl_alpha_omega);
-                    eta *= mu.powf(opts.bcl_alpha_eta);
+                    omega *= bcl_rate(mu).powf(opts.bcl_alpha_omega);
+                    eta *= bcl_rate(mu).powf(opts.bcl_alpha_eta);
                 } else {
                     mu = (mu * opts.mu_update_factor).max(opts.mu_lower_bound);
                     mu_d = opts.dyn_al_scale * mu;
-                    omega *= mu.powf(opts.bcl_beta_omega);
-                    eta *= mu.powf(opts.bcl_beta_eta);
+                    omega *= bcl_rate(mu).powf(opts.bcl_beta_omega);
+                    eta *= bcl_rate(mu).powf(opts.bcl_beta_eta);
                 }
                 omega = omega.max(opts.tol);
                 eta = eta.max(opts.tol);
@@ -442,6 +442,14 @@ impl ProxDdp {
         sol.solve_time = start.elapsed();
         Ok(&self.solution)
     }
+}
+
+/// The factor of the BCL tolerance updates: `min(mu, 0.1)`, as `min(mu_k, gamma_1)` in
+/// Conn, Gould and Toint's bound-constrained Lagrangian method. With the penalty alone,
+/// `mu >= 1` would leave the tolerances unchanged after a successful outer step, and the
+/// outer loop could update the multipliers forever without a Newton step.
+fn bcl_rate(mu: f64) -> f64 {
+    mu.min(0.1)
 }
 
 fn push_record(sol: &mut Solution, record: IterationRecord, verbose: bool) {
