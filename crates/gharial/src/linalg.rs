@@ -1091,6 +1091,83 @@ mod tests {
     }
 
     #[test]
+    fn matvec_kernels_match_the_naive_product_on_strided_views() {
+        // Sizes around the four-column blocking, on a submatrix of a larger matrix
+        // (contiguous columns, column stride > rows) and on a transposed one (rows
+        // strided): both the loop kernels and the strided fallbacks.
+        for (m, n) in [(1, 1), (3, 5), (4, 4), (5, 3), (7, 9), (8, 8), (13, 6), (6, 13)] {
+            let big = filled(m + 3, n + 2, m + n);
+            let bigt = filled(n + 2, m + 3, m * n);
+            let x: Vec<f64> = (0..n).map(|i| (i as f64 - 2.5) / 3.0).collect();
+            let xt: Vec<f64> = (0..m).map(|i| (1.5 - i as f64) / 5.0).collect();
+            for a in [
+                big.as_ref().submatrix(2, 1, m, n),
+                bigt.as_ref().submatrix(1, 2, n, m).transpose(),
+            ] {
+                let ax = naive(a, as_mat(&x));
+                let atx = naive(a.transpose(), as_mat(&xt));
+                let mut y: Vec<f64> = (0..m).map(|i| i as f64).collect();
+                matvec(&mut y, Accum::Add, a, &x, -2.0);
+                let mut yt: Vec<f64> = (0..n).map(|i| 0.5 * i as f64).collect();
+                matvec_t(&mut yt, Accum::Add, a, &xt, 3.0);
+                for i in 0..m {
+                    assert!((y[i] - (i as f64 - 2.0 * ax[(i, 0)])).abs() < 1e-12, "matvec {m}x{n}");
+                }
+                for j in 0..n {
+                    assert!(
+                        (yt[j] - (0.5 * j as f64 + 3.0 * atx[(j, 0)])).abs() < 1e-12,
+                        "matvec_t {m}x{n}"
+                    );
+                }
+                matvec(&mut y, Accum::Replace, a, &x, 1.0);
+                matvec_t(&mut yt, Accum::Replace, a, &xt, 1.0);
+                for i in 0..m {
+                    assert!((y[i] - ax[(i, 0)]).abs() < 1e-12);
+                }
+                for j in 0..n {
+                    assert!((yt[j] - atx[(j, 0)]).abs() < 1e-12);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn llt_small_and_blocked_paths_solve_strided_right_hand_sides() {
+        for n in [1usize, 2, 5, 8, 11, 12, 13, 20] {
+            let a = spd(n, 7 + n as u64);
+            let mut f = Llt::new(n);
+            f.factor(a.as_ref()).unwrap();
+            // L Lᵀ reproduces the lower triangle of A.
+            let l = Mat::from_fn(n, n, |i, j| if i >= j { f.l()[(i, j)] } else { 0.0 });
+            let llt = naive(l.as_ref(), l.transpose());
+            for j in 0..n {
+                for i in j..n {
+                    assert!((llt[(i, j)] - a[(i, j)]).abs() < 1e-12, "n {n}: ({i}, {j})");
+                }
+            }
+            for cols in [1, 3, 8] {
+                let b = filled(n, cols, cols + n);
+                let mut x = b.clone();
+                f.solve_in_place(x.as_mut());
+                assert!(residual(a.as_ref(), x.as_ref(), b.as_ref()) < 1e-10, "n {n}");
+                let bt = filled(cols, n, cols);
+                let mut xt = bt.clone();
+                f.solve_in_place(xt.as_mut().transpose_mut());
+                assert!(
+                    residual(a.as_ref(), xt.transpose(), bt.transpose()) < 1e-10,
+                    "n {n}, transposed"
+                );
+            }
+        }
+        let mut f = Llt::new(3);
+        let mut a = spd(3, 1);
+        a[(2, 2)] = -a[(2, 2)];
+        a[(2, 1)] = 0.0;
+        a[(2, 0)] = 0.0;
+        assert_eq!(f.factor(a.as_ref()), Err(FactorError::Singular { index: 2 }));
+    }
+
+    #[test]
     fn ldlt_small_and_blocked_paths_agree_with_the_system() {
         // Quasi-definite [[H, Dᵀ], [D, -mu I]] of sizes around SMALL_FACTOR, solved with one,
         // two and many right-hand sides (loop kernels and faer's blocked solve), and

@@ -2,6 +2,7 @@
 //! per-iteration computations (residuals, Newton system, merit, rollouts). Everything is
 //! allocated in [`Workspace::new`]; no method allocates.
 
+use faer::prelude::ReborrowMut;
 use faer::{Accum, Mat};
 
 use super::options::{HessianApprox, Merit, ProxDdpOptions};
@@ -326,7 +327,7 @@ impl Workspace {
                 .compute_second_order(problem, &self.cur.xs, &self.cur.us, &self.lams_p, &self.nus_p);
         }
         // Initial condition (65).
-        self.lq.G0.copy_from(&self.data.init.jx);
+        crate::linalg::copy(self.lq.G0.as_mut(), self.data.init.jx.as_ref());
         for i in 0..self.lq.g0.nrows() {
             self.lq.g0[i] = mu_d * (self.lams_p[0][i] - self.cur.lams[0][i]);
         }
@@ -336,19 +337,19 @@ impl Workspace {
             slice_mut(&mut knot.q).copy_from_slice(&self.gx[t]);
             if t < n {
                 let sd = &self.data.stages[t];
-                knot.Q.copy_from(&sd.cost.lxx);
-                knot.S.copy_from(&sd.cost.lxu);
-                knot.R.copy_from(&sd.cost.luu);
+                crate::linalg::copy(knot.Q.as_mut(), sd.cost.lxx.as_ref());
+                crate::linalg::copy(knot.S.as_mut(), sd.cost.lxu.as_ref());
+                crate::linalg::copy(knot.R.as_mut(), sd.cost.luu.as_ref());
                 slice_mut(&mut knot.r).copy_from_slice(&self.gu[t]);
-                knot.A.copy_from(&sd.dyn_jx);
-                knot.B.copy_from(&sd.dyn_ju);
-                knot.E.copy_from(&sd.dyn_jy);
+                crate::linalg::copy(knot.A.as_mut(), sd.dyn_jx.as_ref());
+                crate::linalg::copy(knot.B.as_mut(), sd.dyn_ju.as_ref());
+                crate::linalg::copy(knot.E.as_mut(), sd.dyn_jy.as_ref());
                 for i in 0..knot.nx_next {
                     knot.f[i] = mu_d * (self.lams_p[t + 1][i] - self.cur.lams[t + 1][i]);
                 }
                 knot.mu_dyn = mu_d;
             } else {
-                knot.Q.copy_from(&self.data.terminal_cost.lxx);
+                crate::linalg::copy(knot.Q.as_mut(), self.data.terminal_cost.lxx.as_ref());
             }
             // Constraint rows: C = J_N h_x, D = J_N h_u, d = mu_i (ν⁺ - ν), mu_c = mu_i.
             let cs = problem.constraints(t);
@@ -359,11 +360,11 @@ impl Workspace {
                 let mu_i = c.scale * mu;
                 let z = &self.zbuf[t][off..off + nr];
                 let mut crows = knot.C.as_mut().subrows_mut(off, nr);
-                crows.copy_from(&d.jx);
+                crate::linalg::copy(crows.rb_mut(), d.jx.as_ref());
                 c.set.apply_normal_cone_jacobian(z, mu_i, crows);
                 if knot.nu > 0 {
                     let mut drows = knot.D.as_mut().subrows_mut(off, nr);
-                    drows.copy_from(&d.ju);
+                    crate::linalg::copy(drows.rb_mut(), d.ju.as_ref());
                     c.set.apply_normal_cone_jacobian(z, mu_i, drows);
                 }
                 for i in 0..nr {
