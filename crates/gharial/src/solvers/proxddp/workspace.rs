@@ -482,9 +482,18 @@ impl Workspace {
     /// [`Workspace::prepare_model`]); at `α = 0` it is the exact directional derivative
     /// `dφ(0)` of the merit function.
     pub fn model_slope(&mut self, problem: &Problem, merit: Merit, mu: f64, mu_d: f64, alpha: f64) -> f64 {
+        self.cost_slope
+            + alpha * self.cost_curv
+            + self.equality_slope(problem, merit, mu_d, alpha)
+            + self.constraint_slope(problem, merit, mu, alpha)
+    }
+
+    /// The part of [`model_slope`](Self::model_slope) from the initial condition and the
+    /// dynamics: an affine function of `α`.
+    fn equality_slope(&self, problem: &Problem, merit: Merit, mu_d: f64, alpha: f64) -> f64 {
         let n = problem.horizon();
         let st = &self.step;
-        let mut d = self.cost_slope + alpha * self.cost_curv;
+        let mut d = 0.0;
         // An equality row with residual f, linearised change a, multiplier l and step dl:
         // primal-dual (17): (1/mu)(f + αa + mu(λ_e - l(α)/2))² + (mu/4) l(α)²;
         // primal (35): (1/2mu)(f + αa + mu λ_e)².
@@ -519,6 +528,15 @@ impl Workspace {
                 );
             }
         }
+        d
+    }
+
+    /// The part of [`model_slope`](Self::model_slope) from the path and terminal
+    /// constraints.
+    fn constraint_slope(&mut self, problem: &Problem, merit: Merit, mu: f64, alpha: f64) -> f64 {
+        let n = problem.horizon();
+        let st = &self.step;
+        let mut d = 0.0;
         // Constraints: with w(α) the shifted, linearised residual, the merit term is
         // 2 e(w) + (mu/4)|ν(α)|² (primal-dual) or e(w) (primal), e the Moreau envelope
         // of the set, whose gradient is N(w) / mu with N the normal-cone projection.
@@ -567,13 +585,19 @@ impl Workspace {
     /// the step activates stop the decrease, which a backtracking search from `α = 1`
     /// approaches only geometrically. `dphi0 = model_slope(0)` must be negative.
     pub fn model_step(&mut self, problem: &Problem, merit: Merit, mu: f64, mu_d: f64, alpha_min: f64) -> f64 {
-        if self.model_slope(problem, merit, mu, mu_d, 1.0) <= 0.0 {
+        // The smooth part of the slope (cost and equality rows) is affine in α: two
+        // evaluations give it for every α of the bisection.
+        let e0 = self.equality_slope(problem, merit, mu_d, 0.0);
+        let e1 = self.equality_slope(problem, merit, mu_d, 1.0);
+        let (c0, c1) = (self.cost_slope + e0, self.cost_curv + (e1 - e0));
+        let slope = |ws: &mut Self, alpha: f64| c0 + alpha * c1 + ws.constraint_slope(problem, merit, mu, alpha);
+        if slope(self, 1.0) <= 0.0 {
             return 1.0;
         }
         let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
         while hi - lo > 1e-3 * hi.max(alpha_min) {
             let mid = 0.5 * (lo + hi);
-            if self.model_slope(problem, merit, mu, mu_d, mid) <= 0.0 {
+            if slope(self, mid) <= 0.0 {
                 lo = mid;
             } else {
                 hi = mid;
