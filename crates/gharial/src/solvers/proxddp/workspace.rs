@@ -97,6 +97,9 @@ pub(super) struct Workspace {
     tbuf: Vec<Vec<f64>>,
     /// Implicit-dynamics Newton solves of the nonlinear rollout, per stage.
     implicit_lu: Vec<Option<Lu>>,
+    /// Smallest constraint scale of the problem (1 without constraints): the smallest
+    /// penalty of the Newton system is `min(mu_d, min_scale * mu)`.
+    min_scale: f64,
     pub lq: LqProblem,
     pub step: LqSolution,
     pub riccati: RiccatiSolver,
@@ -139,6 +142,9 @@ impl Workspace {
                 Dynamics::Explicit(_) => None,
             })
             .collect();
+        let min_scale = (0..=n)
+            .flat_map(|t| problem.constraints(t).iter().map(|c| c.scale))
+            .fold(1.0_f64, f64::min);
         let vecs = |sizes: &[usize]| sizes.iter().map(|&k| vec![0.0; k]).collect::<Vec<_>>();
         let nus_sizes: Vec<usize> = ncs.clone();
         Ok(Self {
@@ -163,6 +169,7 @@ impl Workspace {
             cost_curv: 0.0,
             tbuf: vecs(&ndxs),
             implicit_lu,
+            min_scale,
             lq,
             step,
             riccati,
@@ -332,6 +339,13 @@ impl Workspace {
             self.lq.g0[i] = mu_d * (self.lams_p[0][i] - self.cur.lams[0][i]);
         }
         self.lq.mu0 = mu_d;
+        // The Riccati recursion determines the step to about ε / mu relative (module docs
+        // of `crate::lq`, "Accuracy"); one refinement step restores ε but costs about a
+        // third of the forward and backward passes. Refine only when ε / mu could reach
+        // a hundredth of the tolerance.
+        let mu_min = mu_d.min(self.min_scale * mu);
+        let refine = f64::EPSILON / mu_min > 1e-2 * opts.tol;
+        self.riccati.set_refinement_steps(usize::from(refine));
         for t in 0..=n {
             let knot = &mut self.lq.knots[t];
             slice_mut(&mut knot.q).copy_from_slice(&self.gx[t]);
