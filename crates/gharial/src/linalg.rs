@@ -338,6 +338,9 @@ pub fn norm_l1(v: &[f64]) -> f64 {
 #[inline]
 pub fn copy(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
     debug_assert_eq!((dst.nrows(), dst.ncols()), (src.nrows(), src.ncols()));
+    if src.row_stride() == 1 && dst.row_stride() == 1 && with_fixed_len!(src.nrows(), copy_fixed, (dst.rb_mut(), src)) {
+        return;
+    }
     for j in 0..src.ncols() {
         let pair = (
             src.col(j).try_as_col_major(),
@@ -350,6 +353,30 @@ pub fn copy(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
         for i in 0..src.nrows() {
             dst[(i, j)] = src[(i, j)];
         }
+    }
+}
+
+/// [`copy`] of column-major matrices with `M` rows: fixed-size column moves instead of
+/// a `memcpy` call per column.
+#[inline]
+fn copy_fixed<const M: usize>(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
+    for j in 0..src.ncols() {
+        let s: &[f64; M] = src
+            .col(j)
+            .try_as_col_major()
+            .expect("checked")
+            .as_slice()
+            .try_into()
+            .expect("M rows");
+        let d: &mut [f64; M] = dst
+            .rb_mut()
+            .col_mut(j)
+            .try_as_col_major_mut()
+            .expect("checked")
+            .as_slice_mut()
+            .try_into()
+            .expect("M rows");
+        *d = *s;
     }
 }
 
