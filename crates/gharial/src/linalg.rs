@@ -59,6 +59,23 @@ pub fn matmul_lower(mut dst: MatMut<'_, f64>, accum: Accum, lhs: MatRef<'_, f64>
     );
 }
 
+/// Calls `$f::<N>$args` when `$n` is one of the lengths with a fixed-size kernel (1 to
+/// 16) and evaluates to whether it did.
+macro_rules! with_fixed_len {
+    ($n:expr, $f:ident, $args:tt) => {
+        with_fixed_len!(@arms $n, $f, $args, 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16)
+    };
+    (@arms $n:expr, $f:ident, $args:tt, $($len:literal)*) => {
+        match $n {
+            $($len => {
+                $f::<$len> $args;
+                true
+            })*
+            _ => false,
+        }
+    };
+}
+
 /// Largest inner dimension of the product loop kernels (their slices are gathered in a
 /// fixed array, initialised at every call: small on purpose).
 const MAX_SMALL_DIM: usize = 16;
@@ -106,22 +123,124 @@ fn small_matmul(
             d.fill(0.0);
         }
         if lhs_cols {
-            for (l, al) in a.iter().enumerate().take(k) {
-                let s = alpha * rhs[(l, j)];
-                if s != 0.0 {
-                    for (di, ai) in d.iter_mut().zip(&al[i0..]) {
-                        *di += s * ai;
+            let mut s = [0.0; MAX_SMALL_DIM];
+            for (l, sl) in s.iter_mut().enumerate().take(k) {
+                *sl = alpha * rhs[(l, j)];
+            }
+            let (a, s) = (&a[..k], &s[..k]);
+            if !with_fixed_len!(d.len(), axpy_fixed, (d, a, i0, s)) {
+                for (al, &sl) in a.iter().zip(s) {
+                    if sl != 0.0 {
+                        for (di, ai) in d.iter_mut().zip(&al[i0..]) {
+                            *di += sl * ai;
+                        }
                     }
                 }
             }
         } else {
             let b = rhs.col(j).try_as_col_major().expect("checked").as_slice();
-            for (di, ai) in d.iter_mut().zip(&a[i0..m]) {
-                *di += alpha * dot(ai, b);
+            let rows = &a[i0..m];
+            if !with_fixed_len!(k, dots_fixed, (d, rows, b, alpha)) {
+                for (di, ai) in d.iter_mut().zip(rows) {
+                    *di += alpha * dot(ai, b);
+                }
             }
         }
     }
     true
+}
+
+/// `d[i] += Σ_l s[l] a[l][off + i]` for `d` of length `M`, skipping zero `s[l]`: the axpy
+/// loop of [`small_matmul`] unrolled, with `d` in registers (same order of additions).
+#[inline]
+fn axpy_fixed<const M: usize>(d: &mut [f64], a: &[&[f64]], off: usize, s: &[f64]) {
+    let d: &mut [f64; M] = d.try_into().expect("M rows");
+    let mut acc = *d;
+    for (al, &sl) in a.iter().zip(s) {
+        if sl == 0.0 {
+            continue;
+        }
+        let c: &[f64; M] = al[off..off + M].try_into().expect("M rows");
+        for i in 0..M {
+            acc[i] += sl * c[i];
+        }
+    }
+    *d = acc;
+}
+
+/// `d[i] += alpha * rows[i]ᵀb` for `b` of length `K`: the dot loop of [`small_matmul`]
+/// with [`dot_fixed`] (same partial sums as [`dot`]).
+#[inline]
+fn dots_fixed<const K: usize>(d: &mut [f64], rows: &[&[f64]], b: &[f64], alpha: f64) {
+    let b: &[f64; K] = b.try_into().expect("K rows");
+    for (di, ai) in d.iter_mut().zip(rows) {
+        let a: &[f64; K] = ai[..K].try_into().expect("K columns");
+        *di += alpha * dot_fixed(a, b);
+    }
+}
+
+/// [`matvec`] (after the `Replace` zeroing) for a column-major `A` with `M` rows: `y`
+/// lives in registers and each column is one fixed-size, unrolled axpy, with the
+/// additions in the order of the generic loop (bit-identical results).
+#[inline]
+fn matvec_fixed<const M: usize>(y: &mut [f64], a: MatRef<'_, f64>, x: &[f64], alpha: f64) {
+    let y: &mut [f64; M] = y.try_into().expect("M rows");
+    let mut acc = *y;
+    for (j, &xj) in x.iter().enumerate() {
+        let s = alpha * xj;
+        if s == 0.0 {
+            continue;
+        }
+        let c: &[f64; M] = a
+            .col(j)
+            .try_as_col_major()
+            .expect("checked")
+            .as_slice()
+            .try_into()
+            .expect("M rows");
+        for i in 0..M {
+            acc[i] += s * c[i];
+        }
+    }
+    *y = acc;
+}
+
+/// [`matvec_t`] for a column-major `A` with `M` rows: fixed-size, unrolled dot products
+/// with the partial sums of [`dot`] (bit-identical results).
+#[inline]
+fn matvec_t_fixed<const M: usize>(y: &mut [f64], accum: Accum, a: MatRef<'_, f64>, x: &[f64], alpha: f64) {
+    let x: &[f64; M] = x.try_into().expect("M rows");
+    for (j, yj) in y.iter_mut().enumerate() {
+        let c: &[f64; M] = a
+            .col(j)
+            .try_as_col_major()
+            .expect("checked")
+            .as_slice()
+            .try_into()
+            .expect("M rows");
+        let s = dot_fixed(c, x);
+        *yj = if accum == Accum::Replace {
+            alpha * s
+        } else {
+            *yj + alpha * s
+        };
+    }
+}
+
+/// [`dot`] for slices of a fixed length, with the same partial sums.
+#[inline]
+fn dot_fixed<const M: usize>(a: &[f64; M], b: &[f64; M]) -> f64 {
+    let mut acc = [0.0; 4];
+    for c in 0..M / 4 {
+        for k in 0..4 {
+            acc[k] += a[4 * c + k] * b[4 * c + k];
+        }
+    }
+    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    for i in 4 * (M / 4)..M {
+        s += a[i] * b[i];
+    }
+    s
 }
 
 /// `y = alpha * A x` (`Accum::Replace`) or `y += alpha * A x` (`Accum::Add`) on slices.
@@ -131,6 +250,9 @@ pub fn matvec(y: &mut [f64], accum: Accum, a: MatRef<'_, f64>, x: &[f64], alpha:
     debug_assert_eq!(a.ncols(), x.len());
     if accum == Accum::Replace {
         y.fill(0.0);
+    }
+    if a.row_stride() == 1 && with_fixed_len!(y.len(), matvec_fixed, (y, a, x, alpha)) {
+        return;
     }
     // Column-major saxpy loop: faster than a faer call at the small sizes of this library.
     for (j, &xj) in x.iter().enumerate() {
@@ -159,6 +281,9 @@ pub fn matvec(y: &mut [f64], accum: Accum, a: MatRef<'_, f64>, x: &[f64], alpha:
 pub fn matvec_t(y: &mut [f64], accum: Accum, a: MatRef<'_, f64>, x: &[f64], alpha: f64) {
     debug_assert_eq!(a.ncols(), y.len());
     debug_assert_eq!(a.nrows(), x.len());
+    if a.row_stride() == 1 && with_fixed_len!(x.len(), matvec_t_fixed, (y, accum, a, x, alpha)) {
+        return;
+    }
     for (j, yj) in y.iter_mut().enumerate() {
         let s = match a.col(j).try_as_col_major() {
             Some(c) => dot(c.as_slice(), x),
@@ -213,6 +338,9 @@ pub fn norm_l1(v: &[f64]) -> f64 {
 #[inline]
 pub fn copy(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
     debug_assert_eq!((dst.nrows(), dst.ncols()), (src.nrows(), src.ncols()));
+    if src.row_stride() == 1 && dst.row_stride() == 1 && with_fixed_len!(src.nrows(), copy_fixed, (dst.rb_mut(), src)) {
+        return;
+    }
     for j in 0..src.ncols() {
         let pair = (
             src.col(j).try_as_col_major(),
@@ -225,6 +353,30 @@ pub fn copy(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
         for i in 0..src.nrows() {
             dst[(i, j)] = src[(i, j)];
         }
+    }
+}
+
+/// [`copy`] of column-major matrices with `M` rows: fixed-size column moves instead of
+/// a `memcpy` call per column.
+#[inline]
+fn copy_fixed<const M: usize>(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
+    for j in 0..src.ncols() {
+        let s: &[f64; M] = src
+            .col(j)
+            .try_as_col_major()
+            .expect("checked")
+            .as_slice()
+            .try_into()
+            .expect("M rows");
+        let d: &mut [f64; M] = dst
+            .rb_mut()
+            .col_mut(j)
+            .try_as_col_major_mut()
+            .expect("checked")
+            .as_slice_mut()
+            .try_into()
+            .expect("M rows");
+        *d = *s;
     }
 }
 
@@ -1088,6 +1240,83 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn matvec_kernels_match_the_naive_product_on_strided_views() {
+        // Sizes around the four-column blocking, on a submatrix of a larger matrix
+        // (contiguous columns, column stride > rows) and on a transposed one (rows
+        // strided): both the loop kernels and the strided fallbacks.
+        for (m, n) in [(1, 1), (3, 5), (4, 4), (5, 3), (7, 9), (8, 8), (13, 6), (6, 13)] {
+            let big = filled(m + 3, n + 2, m + n);
+            let bigt = filled(n + 2, m + 3, m * n);
+            let x: Vec<f64> = (0..n).map(|i| (i as f64 - 2.5) / 3.0).collect();
+            let xt: Vec<f64> = (0..m).map(|i| (1.5 - i as f64) / 5.0).collect();
+            for a in [
+                big.as_ref().submatrix(2, 1, m, n),
+                bigt.as_ref().submatrix(1, 2, n, m).transpose(),
+            ] {
+                let ax = naive(a, as_mat(&x));
+                let atx = naive(a.transpose(), as_mat(&xt));
+                let mut y: Vec<f64> = (0..m).map(|i| i as f64).collect();
+                matvec(&mut y, Accum::Add, a, &x, -2.0);
+                let mut yt: Vec<f64> = (0..n).map(|i| 0.5 * i as f64).collect();
+                matvec_t(&mut yt, Accum::Add, a, &xt, 3.0);
+                for i in 0..m {
+                    assert!((y[i] - (i as f64 - 2.0 * ax[(i, 0)])).abs() < 1e-12, "matvec {m}x{n}");
+                }
+                for j in 0..n {
+                    assert!(
+                        (yt[j] - (0.5 * j as f64 + 3.0 * atx[(j, 0)])).abs() < 1e-12,
+                        "matvec_t {m}x{n}"
+                    );
+                }
+                matvec(&mut y, Accum::Replace, a, &x, 1.0);
+                matvec_t(&mut yt, Accum::Replace, a, &xt, 1.0);
+                for i in 0..m {
+                    assert!((y[i] - ax[(i, 0)]).abs() < 1e-12);
+                }
+                for j in 0..n {
+                    assert!((yt[j] - atx[(j, 0)]).abs() < 1e-12);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn llt_small_and_blocked_paths_solve_strided_right_hand_sides() {
+        for n in [1usize, 2, 5, 8, 11, 12, 13, 20] {
+            let a = spd(n, 7 + n as u64);
+            let mut f = Llt::new(n);
+            f.factor(a.as_ref()).unwrap();
+            // L Lᵀ reproduces the lower triangle of A.
+            let l = Mat::from_fn(n, n, |i, j| if i >= j { f.l()[(i, j)] } else { 0.0 });
+            let llt = naive(l.as_ref(), l.transpose());
+            for j in 0..n {
+                for i in j..n {
+                    assert!((llt[(i, j)] - a[(i, j)]).abs() < 1e-12, "n {n}: ({i}, {j})");
+                }
+            }
+            for cols in [1, 3, 8] {
+                let b = filled(n, cols, cols + n);
+                let mut x = b.clone();
+                f.solve_in_place(x.as_mut());
+                assert!(residual(a.as_ref(), x.as_ref(), b.as_ref()) < 1e-10, "n {n}");
+                let bt = filled(cols, n, cols);
+                let mut xt = bt.clone();
+                f.solve_in_place(xt.as_mut().transpose_mut());
+                assert!(
+                    residual(a.as_ref(), xt.transpose(), bt.transpose()) < 1e-10,
+                    "n {n}, transposed"
+                );
+            }
+        }
+        let mut f = Llt::new(3);
+        let mut a = spd(3, 1);
+        a[(2, 2)] = -a[(2, 2)];
+        a[(2, 1)] = 0.0;
+        a[(2, 0)] = 0.0;
+        assert_eq!(f.factor(a.as_ref()), Err(FactorError::Singular { index: 2 }));
     }
 
     #[test]

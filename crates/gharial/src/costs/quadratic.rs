@@ -102,9 +102,9 @@ impl Cost for QuadraticCost {
         lu.copy_from_slice(slice(&self.r));
         matvec_t(lu, Accum::Add, self.S.as_ref(), x, 1.0);
         matvec(lu, Accum::Add, self.R.as_ref(), u, 1.0);
-        data.lxx.copy_from(&self.Q);
-        data.lxu.copy_from(&self.S);
-        data.luu.copy_from(&self.R);
+        crate::linalg::copy(data.lxx.as_mut(), self.Q.as_ref());
+        crate::linalg::copy(data.lxu.as_mut(), self.S.as_ref());
+        crate::linalg::copy(data.luu.as_mut(), self.R.as_ref());
     }
 }
 

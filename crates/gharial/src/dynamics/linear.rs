@@ -72,8 +72,8 @@ impl ExplicitDynamics for LinearDiscreteDynamics {
         matvec(y, Accum::Add, self.b.as_ref(), u, 1.0);
     }
     fn jacobians(&self, _x: &[f64], _u: &[f64], data: &mut ExplicitDynamicsData) {
-        data.jx.copy_from(&self.a);
-        data.ju.copy_from(&self.b);
+        crate::linalg::copy(data.jx.as_mut(), self.a.as_ref());
+        crate::linalg::copy(data.ju.as_mut(), self.b.as_ref());
     }
 }
 
@@ -132,8 +132,8 @@ impl Ode for LinearOde {
         matvec(xdot, Accum::Add, self.b.as_ref(), u, 1.0);
     }
     fn jacobians(&self, _x: &[f64], _u: &[f64], data: &mut OdeData) {
-        data.jx.copy_from(&self.a);
-        data.ju.copy_from(&self.b);
+        crate::linalg::copy(data.jx.as_mut(), self.a.as_ref());
+        crate::linalg::copy(data.ju.as_mut(), self.b.as_ref());
     }
 }
 

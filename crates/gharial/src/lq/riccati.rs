@@ -215,6 +215,15 @@ impl RiccatiSolver {
         Ok(())
     }
 
+    /// Sets the number of iterative refinement steps of [`forward`](Self::forward) (see
+    /// [`RiccatiOptions::refinement_steps`]); no effect on a solver created without
+    /// refinement, whose storage for it was not allocated.
+    pub(crate) fn set_refinement_steps(&mut self, steps: usize) {
+        if let Some(r) = &mut self.refinement {
+            r.steps = steps;
+        }
+    }
+
     /// The per-knot workspaces: Q-function, gains and value function of every knot after
     /// a backward pass.
     pub fn stages(&self) -> &[RiccatiStage] {

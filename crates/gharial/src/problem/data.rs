@@ -100,7 +100,7 @@ impl StageData {
             }
             (Dynamics::Implicit(m), DynamicsData::Implicit(d)) => {
                 m.evaluate(x, u, y, d);
-                self.dyn_value.copy_from(&d.value);
+                slice_mut(&mut self.dyn_value).copy_from_slice(slice(&d.value));
             }
             _ => unreachable!("stage data created for another dynamics kind"),
         }
@@ -117,8 +117,8 @@ impl StageData {
                 m.jacobians(x, u, d);
                 let sn = stage.space_next();
                 if sn.is_vector_space() {
-                    self.dyn_jx.copy_from(&d.jx);
-                    self.dyn_ju.copy_from(&d.ju);
+                    crate::linalg::copy(self.dyn_jx.as_mut(), d.jx.as_ref());
+                    crate::linalg::copy(self.dyn_ju.as_mut(), d.ju.as_ref());
                 } else {
                     // f = φ ⊖ y: df/dx = J_φ φ_x, df/du = J_φ φ_u, df/dy = d(φ ⊖ y)/dy.
                     sn.jdifference(y, d.xnext(), Arg::Second, self.jdiff_phi.as_mut());
@@ -141,9 +141,9 @@ impl StageData {
             }
             (Dynamics::Implicit(m), DynamicsData::Implicit(d)) => {
                 m.jacobians(x, u, y, d);
-                self.dyn_jx.copy_from(&d.jx);
-                self.dyn_ju.copy_from(&d.ju);
-                self.dyn_jy.copy_from(&d.jy);
+                crate::linalg::copy(self.dyn_jx.as_mut(), d.jx.as_ref());
+                crate::linalg::copy(self.dyn_ju.as_mut(), d.ju.as_ref());
+                crate::linalg::copy(self.dyn_jy.as_mut(), d.jy.as_ref());
             }
             _ => unreachable!("stage data created for another dynamics kind"),
         }

@@ -2,6 +2,7 @@
 //! per-iteration computations (residuals, Newton system, merit, rollouts). Everything is
 //! allocated in [`Workspace::new`]; no method allocates.
 
+use faer::prelude::ReborrowMut;
 use faer::{Accum, Mat};
 
 use super::options::{HessianApprox, Merit, ProxDdpOptions};
@@ -96,6 +97,9 @@ pub(super) struct Workspace {
     tbuf: Vec<Vec<f64>>,
     /// Implicit-dynamics Newton solves of the nonlinear rollout, per stage.
     implicit_lu: Vec<Option<Lu>>,
+    /// Smallest constraint scale of the problem (1 without constraints): the smallest
+    /// penalty of the Newton system is `min(mu_d, min_scale * mu)`.
+    min_scale: f64,
     pub lq: LqProblem,
     pub step: LqSolution,
     pub riccati: RiccatiSolver,
@@ -138,6 +142,9 @@ impl Workspace {
                 Dynamics::Explicit(_) => None,
             })
             .collect();
+        let min_scale = (0..=n)
+            .flat_map(|t| problem.constraints(t).iter().map(|c| c.scale))
+            .fold(1.0_f64, f64::min);
         let vecs = |sizes: &[usize]| sizes.iter().map(|&k| vec![0.0; k]).collect::<Vec<_>>();
         let nus_sizes: Vec<usize> = ncs.clone();
         Ok(Self {
@@ -162,6 +169,7 @@ impl Workspace {
             cost_curv: 0.0,
             tbuf: vecs(&ndxs),
             implicit_lu,
+            min_scale,
             lq,
             step,
             riccati,
@@ -326,29 +334,36 @@ impl Workspace {
                 .compute_second_order(problem, &self.cur.xs, &self.cur.us, &self.lams_p, &self.nus_p);
         }
         // Initial condition (65).
-        self.lq.G0.copy_from(&self.data.init.jx);
+        crate::linalg::copy(self.lq.G0.as_mut(), self.data.init.jx.as_ref());
         for i in 0..self.lq.g0.nrows() {
             self.lq.g0[i] = mu_d * (self.lams_p[0][i] - self.cur.lams[0][i]);
         }
         self.lq.mu0 = mu_d;
+        // The Riccati recursion determines the step to about ε / mu relative (module docs
+        // of `crate::lq`, "Accuracy"); one refinement step restores ε but costs about a
+        // third of the forward and backward passes. Refine only when ε / mu could reach
+        // a hundredth of the tolerance.
+        let mu_min = mu_d.min(self.min_scale * mu);
+        let refine = f64::EPSILON / mu_min > 1e-2 * opts.tol;
+        self.riccati.set_refinement_steps(usize::from(refine));
         for t in 0..=n {
             let knot = &mut self.lq.knots[t];
             slice_mut(&mut knot.q).copy_from_slice(&self.gx[t]);
             if t < n {
                 let sd = &self.data.stages[t];
-                knot.Q.copy_from(&sd.cost.lxx);
-                knot.S.copy_from(&sd.cost.lxu);
-                knot.R.copy_from(&sd.cost.luu);
+                crate::linalg::copy(knot.Q.as_mut(), sd.cost.lxx.as_ref());
+                crate::linalg::copy(knot.S.as_mut(), sd.cost.lxu.as_ref());
+                crate::linalg::copy(knot.R.as_mut(), sd.cost.luu.as_ref());
                 slice_mut(&mut knot.r).copy_from_slice(&self.gu[t]);
-                knot.A.copy_from(&sd.dyn_jx);
-                knot.B.copy_from(&sd.dyn_ju);
-                knot.E.copy_from(&sd.dyn_jy);
+                crate::linalg::copy(knot.A.as_mut(), sd.dyn_jx.as_ref());
+                crate::linalg::copy(knot.B.as_mut(), sd.dyn_ju.as_ref());
+                crate::linalg::copy(knot.E.as_mut(), sd.dyn_jy.as_ref());
                 for i in 0..knot.nx_next {
                     knot.f[i] = mu_d * (self.lams_p[t + 1][i] - self.cur.lams[t + 1][i]);
                 }
                 knot.mu_dyn = mu_d;
             } else {
-                knot.Q.copy_from(&self.data.terminal_cost.lxx);
+                crate::linalg::copy(knot.Q.as_mut(), self.data.terminal_cost.lxx.as_ref());
             }
             // Constraint rows: C = J_N h_x, D = J_N h_u, d = mu_i (ν⁺ - ν), mu_c = mu_i.
             let cs = problem.constraints(t);
@@ -359,11 +374,11 @@ impl Workspace {
                 let mu_i = c.scale * mu;
                 let z = &self.zbuf[t][off..off + nr];
                 let mut crows = knot.C.as_mut().subrows_mut(off, nr);
-                crows.copy_from(&d.jx);
+                crate::linalg::copy(crows.rb_mut(), d.jx.as_ref());
                 c.set.apply_normal_cone_jacobian(z, mu_i, crows);
                 if knot.nu > 0 {
                     let mut drows = knot.D.as_mut().subrows_mut(off, nr);
-                    drows.copy_from(&d.ju);
+                    crate::linalg::copy(drows.rb_mut(), d.ju.as_ref());
                     c.set.apply_normal_cone_jacobian(z, mu_i, drows);
                 }
                 for i in 0..nr {
@@ -481,9 +496,18 @@ impl Workspace {
     /// [`Workspace::prepare_model`]); at `α = 0` it is the exact directional derivative
     /// `dφ(0)` of the merit function.
     pub fn model_slope(&mut self, problem: &Problem, merit: Merit, mu: f64, mu_d: f64, alpha: f64) -> f64 {
+        self.cost_slope
+            + alpha * self.cost_curv
+            + self.equality_slope(problem, merit, mu_d, alpha)
+            + self.constraint_slope(problem, merit, mu, alpha)
+    }
+
+    /// The part of [`model_slope`](Self::model_slope) from the initial condition and the
+    /// dynamics: an affine function of `α`.
+    fn equality_slope(&self, problem: &Problem, merit: Merit, mu_d: f64, alpha: f64) -> f64 {
         let n = problem.horizon();
         let st = &self.step;
-        let mut d = self.cost_slope + alpha * self.cost_curv;
+        let mut d = 0.0;
         // An equality row with residual f, linearised change a, multiplier l and step dl:
         // primal-dual (17): (1/mu)(f + αa + mu(λ_e - l(α)/2))² + (mu/4) l(α)²;
         // primal (35): (1/2mu)(f + αa + mu λ_e)².
@@ -518,6 +542,15 @@ impl Workspace {
                 );
             }
         }
+        d
+    }
+
+    /// The part of [`model_slope`](Self::model_slope) from the path and terminal
+    /// constraints.
+    fn constraint_slope(&mut self, problem: &Problem, merit: Merit, mu: f64, alpha: f64) -> f64 {
+        let n = problem.horizon();
+        let st = &self.step;
+        let mut d = 0.0;
         // Constraints: with w(α) the shifted, linearised residual, the merit term is
         // 2 e(w) + (mu/4)|ν(α)|² (primal-dual) or e(w) (primal), e the Moreau envelope
         // of the set, whose gradient is N(w) / mu with N the normal-cone projection.
@@ -566,13 +599,19 @@ impl Workspace {
     /// the step activates stop the decrease, which a backtracking search from `α = 1`
     /// approaches only geometrically. `dphi0 = model_slope(0)` must be negative.
     pub fn model_step(&mut self, problem: &Problem, merit: Merit, mu: f64, mu_d: f64, alpha_min: f64) -> f64 {
-        if self.model_slope(problem, merit, mu, mu_d, 1.0) <= 0.0 {
+        // The smooth part of the slope (cost and equality rows) is affine in α: two
+        // evaluations give it for every α of the bisection.
+        let e0 = self.equality_slope(problem, merit, mu_d, 0.0);
+        let e1 = self.equality_slope(problem, merit, mu_d, 1.0);
+        let (c0, c1) = (self.cost_slope + e0, self.cost_curv + (e1 - e0));
+        let slope = |ws: &mut Self, alpha: f64| c0 + alpha * c1 + ws.constraint_slope(problem, merit, mu, alpha);
+        if slope(self, 1.0) <= 0.0 {
             return 1.0;
         }
         let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
         while hi - lo > 1e-3 * hi.max(alpha_min) {
             let mid = 0.5 * (lo + hi);
-            if self.model_slope(problem, merit, mu, mu_d, mid) <= 0.0 {
+            if slope(self, mid) <= 0.0 {
                 lo = mid;
             } else {
                 hi = mid;
