@@ -140,24 +140,26 @@ pub fn run(b: &RiccatiBench) {
             }
         }
     }
-    println!(
+    out!(
         "Riccati backward + forward on the peers' random LQ problems (seed {}, mu = {:e}, refinement steps {}); \
          median over repetitions (min in parentheses), µs",
-        b.seed, b.mu, b.refine
+        b.seed,
+        b.mu,
+        b.refine
     );
     for &threads in &b.threads {
-        println!();
+        out!();
         if threads <= 1 {
-            println!("serial RiccatiSolver");
+            out!("serial RiccatiSolver");
         } else {
-            println!("ParallelRiccatiSolver, {threads} threads");
+            out!("ParallelRiccatiSolver, {threads} threads");
         }
-        println!("| nx | nu | nc | N | legs | backward | forward | total | per stage | reps | KKT dyn / cstr / dual |");
-        println!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
+        out!("| nx | nu | nc | N | legs | backward | forward | total | per stage | reps | KKT dyn / cstr / dual |");
+        out!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
         for r in runs.iter().filter(|r| r.threads == threads) {
             let res = kkt_residuals(&r.problem, &r.sol).expect("dimensions match");
             let (tt, tmin) = (median(&r.tt), min(&r.tt));
-            println!(
+            out!(
                 "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} ({:.1}) | {:.2} ({:.2}) | {} | {:.1e} / {:.1e} / {:.1e} |",
                 r.dims.0,
                 r.dims.1,

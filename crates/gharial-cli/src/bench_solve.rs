@@ -90,7 +90,7 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>) -> i
     } else {
         names.to_vec()
     };
-    println!(
+    out!(
         "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12} {:>10} {:>10} {:>10} {:>15} {:>9} {:>9} {:>9}",
         "problem",
         "rollout",
@@ -126,7 +126,7 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>) -> i
                     code = 1;
                 }
                 let kkt = kkt_residuals(&ex.problem, &s.xs, &s.us, &s.lambdas, &s.nus).map_or(f64::NAN, |k| k.max());
-                println!(
+                out!(
                     "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12.3} {:>10.3} {:>10.4} {:>4.3}/{:<5.3} {:>15.9e} {:>9.2e} {:>9.2e} {:>9.2e}",
                     name,
                     format!("{:?}", opts.rollout).to_lowercase(),
@@ -228,7 +228,7 @@ pub fn peers(args: &PeersArgs) -> i32 {
             let t = match time_solves(&ex.problem, &ex.xs0, &ex.us0, &opts, args.repeats) {
                 Ok(t) => t,
                 Err(e) => {
-                    println!(
+                    out!(
                         "{}",
                         json!({"problem": name, "lib": "gharial", "solver": solver, "side": "rust", "error": e.to_string()})
                     );
@@ -242,7 +242,7 @@ pub fn peers(args: &PeersArgs) -> i32 {
                     eprintln!("gharial bench peers: cannot write {path}: {e}");
                 }
             }
-            println!(
+            out!(
                 "{}",
                 json!({
                     "problem": name, "lib": "gharial", "lib_version": env!("CARGO_PKG_VERSION"),

@@ -1,5 +1,16 @@
 //! The `gharial` command-line tool.
 
+/// `println!` for the tool's output: a closed standard output (`gharial list | head`)
+/// ends the process quietly instead of panicking.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if writeln!(std::io::stdout(), $($arg)*).is_err() {
+            std::process::exit(0);
+        }
+    }};
+}
+
 mod bench;
 mod bench_solve;
 mod solve;

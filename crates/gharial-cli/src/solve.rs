@@ -33,12 +33,12 @@ pub struct SolveArgs {
 
 /// Prints the catalogue and the solvers.
 pub fn list() {
-    println!("solvers:");
-    println!("  proxddp   primal-dual augmented-Lagrangian DDP (Jallet et al. 2023)");
-    println!();
-    println!("problems:");
+    out!("solvers:");
+    out!("  proxddp   primal-dual augmented-Lagrangian DDP (Jallet et al. 2023)");
+    out!();
+    out!("problems:");
     for p in gharial_problems::catalogue() {
-        println!("  {:<20} {}", p.name, p.summary);
+        out!("  {:<20} {}", p.name, p.summary);
     }
 }
 
@@ -80,7 +80,7 @@ pub fn run(args: &SolveArgs) -> i32 {
     };
     let opts = options(&example, args);
     let p = &example.problem;
-    println!(
+    out!(
         "problem   {} (N = {}, nx = {}, ndx = {}, nu = {})",
         example.name,
         p.horizon(),
@@ -88,9 +88,13 @@ pub fn run(args: &SolveArgs) -> i32 {
         p.space(0).ndx(),
         p.nu(0)
     );
-    println!(
+    out!(
         "solver    ProxDDP (tol {:e}, mu_init {:e}, rollout {:?}, step acceptance {:?}, threads {})",
-        opts.tol, opts.mu_init, opts.rollout, opts.step_acceptance, opts.num_threads
+        opts.tol,
+        opts.mu_init,
+        opts.rollout,
+        opts.step_acceptance,
+        opts.num_threads
     );
     let mut solver = ProxDdp::new(opts.clone());
     if let Err(e) = solver.setup(p) {
@@ -112,7 +116,7 @@ pub fn run(args: &SolveArgs) -> i32 {
         let doc = solution_json(&example, &opts, &sol);
         let text = serde_json::to_string_pretty(&doc).expect("JSON of plain numbers");
         match std::fs::File::create(path).and_then(|mut f| f.write_all(text.as_bytes())) {
-            Ok(()) => println!("solution  written to {path}"),
+            Ok(()) => out!("solution  written to {path}"),
             Err(e) => {
                 eprintln!("gharial solve: cannot write {path}: {e}");
                 return 1;
@@ -124,39 +128,23 @@ pub fn run(args: &SolveArgs) -> i32 {
 
 /// The iteration table (the columns of DESIGN.md).
 pub fn print_table(history: &[IterationRecord]) {
-    println!(
-        "{:>5} {:>9} {:>10} {:>10} {:>10} {:>9} {:>13} {:>10} {:>13} {:>10} {:>4} {:>9}",
-        "iter", "alpha", "inner_crit", "prim_err", "dual_err", "preg", "cost", "dphi0", "merit", "dM", "al", "mu"
-    );
+    out!("{}", IterationRecord::table_header());
     for r in history {
-        println!(
-            "{:>5} {:>9.3e} {:>10.3e} {:>10.3e} {:>10.3e} {:>9.2e} {:>13.6e} {:>10.3e} {:>13.6e} {:>10.3e} {:>4} {:>9.2e}",
-            r.iter,
-            r.alpha,
-            r.inner_crit,
-            r.prim_err,
-            r.dual_err,
-            r.preg,
-            r.cost,
-            r.dphi0,
-            r.merit,
-            r.dmerit,
-            r.al_iter,
-            r.mu
-        );
+        out!("{r}");
     }
 }
 
 fn print_summary(sol: &Solution) {
     let ms = sol.solve_time.as_secs_f64() * 1e3;
-    println!("status    {}", sol.status);
-    println!(
+    out!("status    {}", sol.status);
+    out!(
         "iterations {} (augmented-Lagrangian iterations {})",
-        sol.iterations, sol.al_iterations
+        sol.iterations,
+        sol.al_iterations
     );
-    println!("cost      {:.10e}", sol.cost);
-    println!("residuals primal {:.3e}, dual {:.3e}", sol.prim_err, sol.dual_err);
-    println!(
+    out!("cost      {:.10e}", sol.cost);
+    out!("residuals primal {:.3e}, dual {:.3e}", sol.prim_err, sol.dual_err);
+    out!(
         "time      {ms:.3} ms ({:.4} ms per iteration)",
         ms / (sol.iterations.max(1) as f64)
     );

@@ -95,6 +95,57 @@ pub struct IterationRecord {
     pub mu: f64,
 }
 
+impl IterationRecord {
+    /// The header line of the iteration table whose rows are the [`fmt::Display`] of
+    /// records.
+    pub fn table_header() -> impl fmt::Display {
+        struct Header;
+        impl fmt::Display for Header {
+            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                write!(
+                    f,
+                    "{:>5} {:>9} {:>10} {:>10} {:>10} {:>9} {:>13} {:>10} {:>13} {:>10} {:>4} {:>9}",
+                    "iter",
+                    "alpha",
+                    "inner_crit",
+                    "prim_err",
+                    "dual_err",
+                    "preg",
+                    "cost",
+                    "dphi0",
+                    "merit",
+                    "dM",
+                    "al",
+                    "mu"
+                )
+            }
+        }
+        Header
+    }
+}
+
+impl fmt::Display for IterationRecord {
+    /// One row of the iteration table.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{:>5} {:>9.3e} {:>10.3e} {:>10.3e} {:>10.3e} {:>9.2e} {:>13.6e} {:>10.3e} {:>13.6e} {:>10.3e} {:>4} {:>9.2e}",
+            self.iter,
+            self.alpha,
+            self.inner_crit,
+            self.prim_err,
+            self.dual_err,
+            self.preg,
+            self.cost,
+            self.dphi0,
+            self.merit,
+            self.dmerit,
+            self.al_iter,
+            self.mu
+        )
+    }
+}
+
 /// The result of a solve: trajectory, multipliers, gains, status and history.
 ///
 /// Multiplier conventions: the Lagrangian is

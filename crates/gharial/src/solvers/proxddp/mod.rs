@@ -177,7 +177,7 @@ impl ProxDdp {
         let mut stall_err = f64::INFINITY;
         sol.history.clear();
         if opts.verbose {
-            print_header();
+            eprintln!("{}", IterationRecord::table_header());
         }
 
         let mut cost = match ws.evaluate_current(problem) {
@@ -457,33 +457,6 @@ fn push_record(sol: &mut Solution, record: IterationRecord, verbose: bool) {
         sol.history.push(record);
     }
     if verbose {
-        print_row(&record);
+        eprintln!("{record}");
     }
-}
-
-/// Writes the header of the iteration table to standard error.
-fn print_header() {
-    eprintln!(
-        "{:>5} {:>9} {:>10} {:>10} {:>10} {:>9} {:>13} {:>10} {:>13} {:>10} {:>4} {:>9}",
-        "iter", "alpha", "inner_crit", "prim_err", "dual_err", "preg", "cost", "dphi0", "merit", "dM", "al", "mu"
-    );
-}
-
-/// Writes one row of the iteration table to standard error.
-fn print_row(r: &IterationRecord) {
-    eprintln!(
-        "{:>5} {:>9.3e} {:>10.3e} {:>10.3e} {:>10.3e} {:>9.2e} {:>13.6e} {:>10.3e} {:>13.6e} {:>10.3e} {:>4} {:>9.2e}",
-        r.iter,
-        r.alpha,
-        r.inner_crit,
-        r.prim_err,
-        r.dual_err,
-        r.preg,
-        r.cost,
-        r.dphi0,
-        r.merit,
-        r.dmerit,
-        r.al_iter,
-        r.mu
-    );
 }
