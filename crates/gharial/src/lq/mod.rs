@@ -798,10 +798,10 @@ impl From<LqError> for crate::Error {
 /// On a numerical failure at `knot`, names the offending input if there is one, else
 /// returns `fallback`. Only called on the error path.
 pub(crate) fn blame(problem: &LqProblem, knot: usize, fallback: LqError) -> LqError {
-    if knot == 0 {
-        if let Err(e) = problem.check_initial_values() {
-            return e;
-        }
+    if knot == 0
+        && let Err(e) = problem.check_initial_values()
+    {
+        return e;
     }
     match problem.knots.get(knot).map(|k| k.check_values(knot)) {
         Some(Err(e)) => e,
