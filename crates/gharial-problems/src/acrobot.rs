@@ -54,7 +54,7 @@ use gharial::solvers::proxddp::{ProxDdpOptions, Rollout};
 use gharial::spaces::{CartesianProduct, Manifold, SO2, VectorSpace};
 
 use crate::lqr::{control_box, terminal_state};
-use crate::{Example, rollout};
+use crate::{Example, rollout, solve2};
 
 /// Time step (s).
 pub const DT: f64 = 0.005;
@@ -169,12 +169,6 @@ impl Default for AcrobotOde {
     fn default() -> Self {
         Self::new()
     }
-}
-
-/// `M⁻¹ b` for a symmetric 2x2 `M = [m0 m1; m1 m2]`.
-fn solve2<D: ManifoldScalar>(m: &[D; 3], b: &[D; 2]) -> [D; 2] {
-    let det = m[0] * m[2] - m[1] * m[1];
-    [(m[2] * b[0] - m[1] * b[1]) / det, (m[0] * b[1] - m[1] * b[0]) / det]
 }
 
 impl AutoOdeFn for AcrobotOde {

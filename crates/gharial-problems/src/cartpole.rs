@@ -46,7 +46,7 @@ use gharial::solvers::proxddp::{ProxDdpOptions, Rollout};
 use gharial::spaces::{Manifold, VectorSpace};
 
 use crate::lqr::control_box;
-use crate::{Example, swing_guess};
+use crate::{Example, solve2, swing_guess};
 
 /// Time step (s).
 pub const DT: f64 = 0.01;
@@ -99,12 +99,6 @@ impl Default for CartpoleOde {
     fn default() -> Self {
         Self::new()
     }
-}
-
-/// `(a1, a2) = M⁻¹ b` for a symmetric 2x2 `M = [m0 m1; m1 m2]`.
-fn solve2<D: ManifoldScalar>(m: &[D; 3], b: &[D; 2]) -> [D; 2] {
-    let det = m[0] * m[2] - m[1] * m[1];
-    [(m[2] * b[0] - m[1] * b[1]) / det, (m[0] * b[1] - m[1] * b[0]) / det]
 }
 
 impl AutoOdeFn for CartpoleOde {

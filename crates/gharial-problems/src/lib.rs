@@ -194,6 +194,13 @@ pub fn rollout(problem: &Problem, us: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
     Ok(xs)
 }
 
+/// `M⁻¹ b` for a symmetric 2x2 mass matrix `M = [m0 m1; m1 m2]` (the two-degree-of-freedom
+/// models: cart-pole, acrobot), generic over the scalar.
+pub(crate) fn solve2<D: gharial::functions::autodiff::ManifoldScalar>(m: &[D; 3], b: &[D; 2]) -> [D; 2] {
+    let det = m[0] * m[2] - m[1] * m[1];
+    [(m[2] * b[0] - m[1] * b[1]) / det, (m[0] * b[1] - m[1] * b[0]) / det]
+}
+
 /// States `x_0..x_N` of a straight swing-up from hanging (`θ = π`) to upright (`θ = 0`),
 /// `θ_t = π (1 - t/N)`, `θ̇_t = -π/(N dt)` except at rest at both ends, written by
 /// `state(θ, θ̇)`: a dynamically infeasible initial guess for the swing-up problems.
