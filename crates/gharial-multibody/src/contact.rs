@@ -17,7 +17,7 @@
 
 use crate::data::{Data, check_data};
 use crate::derivatives::{rnea_derivatives_kernel, velocity_pass};
-use crate::dynamics::{factor_mass_matrix, minv_from_factor};
+use crate::dynamics::{factor_mass_matrix, mass_matrix_column, minv_from_factor};
 use crate::error::{Error, Result, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
 use crate::lie::{jlog6_blocks, log6};
@@ -297,14 +297,7 @@ pub(crate) fn mass_matrix_and_nle(model: &Model, data: &mut Data, q: &[f64], v: 
         let f = data.of[i];
         for c in jm.idx_v..jm.idx_v + jm.nv {
             data.nle[c] = data.j[c].dot(&f);
-            let yc = y.mul_motion(&data.j[c]);
-            let mut r = jm.idx_v + jm.nv - 1;
-            while r != NONE {
-                let mrc = data.j[r].dot(&yc);
-                data.m[c * nv + r] = mrc;
-                data.m[r * nv + c] = mrc;
-                r = model.dof_parent[r];
-            }
+            mass_matrix_column(model, data, c, jm.idx_v + jm.nv - 1, &y.mul_motion(&data.j[c]));
         }
         let p = model.parents[i];
         if p != 0 {

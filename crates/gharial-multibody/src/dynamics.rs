@@ -96,6 +96,20 @@ pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<MatRef<'
     Ok(data.mass_matrix())
 }
 
+/// Column `c` of the joint-space inertia matrix (and its mirror row) from the composite
+/// inertia's force `f = Y_c S_c`: `M[r][c] = S_rᵀ f` for the dof `last` of the joint
+/// and its ancestors (tree sparsity; Featherstone's CRBA).
+pub(crate) fn mass_matrix_column(model: &Model, data: &mut Data, c: usize, last: usize, f: &Force) {
+    let nv = model.nv;
+    let mut r = last;
+    while r != NONE {
+        let mrc = data.j[r].dot(f);
+        data.m[c * nv + r] = mrc;
+        data.m[r * nv + c] = mrc;
+        r = model.dof_parent[r];
+    }
+}
+
 pub(crate) fn crba_unchecked(model: &Model, data: &mut Data, q: &[f64]) {
     let nv = model.nv;
     for i in 1..model.njoints() {
@@ -107,15 +121,7 @@ pub(crate) fn crba_unchecked(model: &Model, data: &mut Data, q: &[f64]) {
         let jm = model.joints[i];
         let y = data.o_ycrb[i];
         for c in jm.idx_v..jm.idx_v + jm.nv {
-            let f = y.mul_motion(&data.j[c]);
-            // Rows of the joint itself and of its ancestors (tree sparsity).
-            let mut r = jm.idx_v + jm.nv - 1;
-            while r != NONE {
-                let mrc = data.j[r].dot(&f);
-                data.m[c * nv + r] = mrc;
-                data.m[r * nv + c] = mrc;
-                r = model.dof_parent[r];
-            }
+            mass_matrix_column(model, data, c, jm.idx_v + jm.nv - 1, &y.mul_motion(&data.j[c]));
         }
         let p = model.parents[i];
         if p != 0 {
