@@ -594,41 +594,156 @@ fn stack_buffer(req: StackReq) -> MemBuffer {
     MemBuffer::new(req)
 }
 
-/// Factorizations up to this dimension use [`small_ldlt`] instead of faer's blocked code.
-const SMALL_FACTOR: usize = 12;
+/// Calls `$f::<N>$args` when `$n` is at most 12 and evaluates to `Some` of its result,
+/// `None` otherwise. Factorizations and solves up to this dimension use the fixed-size
+/// kernels below ([`small_factor`], [`ldlt_solve_fixed`], [`llt_solve_fixed`]) instead of
+/// faer's blocked code, whose fixed cost per call dominates at these sizes.
+macro_rules! with_small_dim {
+    ($n:expr, $f:ident, $args:tt) => {
+        with_small_dim!(@arms $n, $f, $args, 1 2 3 4 5 6 7 8 9 10 11 12)
+    };
+    (@arms $n:expr, $f:ident, $args:tt, $($len:literal)*) => {
+        match $n {
+            $($len => Some($f::<$len> $args),)*
+            _ => None,
+        }
+    };
+}
 
-/// In-place `A = L D Lᵀ` of the lower triangle of a small matrix (right-looking, by
-/// columns): `D` on the diagonal, the unit lower `L` below it, as faer stores it.
-fn small_ldlt(mut a: MatMut<'_, f64>) -> Result<(), FactorError> {
-    let n = a.nrows();
-    let mut w = [0.0; SMALL_FACTOR];
-    for j in 0..n {
-        let d = a[(j, j)];
-        if d == 0.0 {
-            return Err(FactorError::Singular { index: j });
-        }
-        let col = a.rb_mut().col_mut(j).try_as_col_major_mut().expect("owned storage");
-        let below = &mut col.as_slice_mut()[j + 1..];
-        let m = below.len();
-        w[..m].copy_from_slice(below);
-        for (l, wi) in below.iter_mut().zip(&w[..m]) {
-            *l = wi / d;
-        }
-        for (c, &wc) in w[..m].iter().enumerate() {
-            let s = wc / d;
-            let cc = j + 1 + c;
-            let tgt = &mut a
-                .rb_mut()
-                .col_mut(cc)
-                .try_as_col_major_mut()
-                .expect("owned storage")
-                .as_slice_mut()[cc..];
-            for (t, wi) in tgt.iter_mut().zip(&w[c..m]) {
-                *t -= s * wi;
+/// The `N` columns of an owned `N x N` matrix as fixed-size arrays.
+#[inline(always)]
+fn columns<const N: usize>(m: MatRef<'_, f64>) -> [&[f64; N]; N] {
+    std::array::from_fn(|j| {
+        m.col(j)
+            .try_as_col_major()
+            .expect("owned storage")
+            .as_slice()
+            .try_into()
+            .expect("N rows")
+    })
+}
+
+/// In-place factorization of the lower triangle of an owned `N x N` matrix, right-looking
+/// with the matrix in registers: `A = L Lᵀ` (`cholesky`: `L` in the lower triangle, fails
+/// on a pivot that is not positive) or `A = L D Lᵀ` (`D` on the diagonal, the unit lower
+/// `L` below it; fails on a zero pivot), both as faer stores them.
+#[inline(always)]
+fn small_factor<const N: usize>(mut a: MatMut<'_, f64>, cholesky: bool) -> Result<(), FactorError> {
+    let cols = columns::<N>(a.as_ref());
+    let mut m: [[f64; N]; N] = std::array::from_fn(|j| *cols[j]);
+    for j in 0..N {
+        let d = m[j][j];
+        if cholesky {
+            if d.is_nan() || d <= 0.0 {
+                return Err(FactorError::Singular { index: j });
+            }
+            let l_jj = d.sqrt();
+            m[j][j] = l_jj;
+            for i in j + 1..N {
+                m[j][i] /= l_jj;
+            }
+            for c in j + 1..N {
+                let s = m[j][c];
+                for i in c..N {
+                    m[c][i] -= s * m[j][i];
+                }
+            }
+        } else {
+            if d == 0.0 {
+                return Err(FactorError::Singular { index: j });
+            }
+            // w = column below the pivot, l = w / d, trailing -= (w_c / d) w.
+            for c in j + 1..N {
+                let s = m[j][c] / d;
+                for i in c..N {
+                    m[c][i] -= s * m[j][i];
+                }
+            }
+            for i in j + 1..N {
+                m[j][i] /= d;
             }
         }
     }
+    for (j, mj) in m.iter().enumerate() {
+        let col: &mut [f64; N] = a
+            .rb_mut()
+            .col_mut(j)
+            .try_as_col_major_mut()
+            .expect("owned storage")
+            .as_slice_mut()
+            .try_into()
+            .expect("N rows");
+        *col = *mj;
+    }
     Ok(())
+}
+
+/// Applies `solve_vec` to every column of `rhs` (gathered into an array when the column
+/// is not contiguous).
+#[inline(always)]
+fn solve_columns<const N: usize>(mut rhs: MatMut<'_, f64>, solve_vec: impl Fn(&mut [f64; N])) {
+    for c in 0..rhs.ncols() {
+        let mut col = rhs.rb_mut().col_mut(c);
+        match col.rb_mut().try_as_col_major_mut() {
+            Some(x) => solve_vec(x.as_slice_mut().try_into().expect("N rows")),
+            None => {
+                let mut x: [f64; N] = std::array::from_fn(|i| col[i]);
+                solve_vec(&mut x);
+                (0..N).for_each(|i| col[i] = x[i]);
+            }
+        }
+    }
+}
+
+/// Solves `L D Lᵀ X = B` in place for an `N x N` factorization in faer's storage (the
+/// unit lower `L` below the diagonal, `D` on it).
+#[inline(always)]
+fn ldlt_solve_fixed<const N: usize>(f: MatRef<'_, f64>, rhs: MatMut<'_, f64>) {
+    let l = columns::<N>(f);
+    solve_columns::<N>(rhs, |x| {
+        let mut v = *x;
+        for j in 0..N {
+            let vj = v[j];
+            for i in j + 1..N {
+                v[i] -= l[j][i] * vj;
+            }
+        }
+        for j in 0..N {
+            v[j] /= l[j][j];
+        }
+        for j in (0..N).rev() {
+            let mut s = 0.0;
+            for i in j + 1..N {
+                s += l[j][i] * v[i];
+            }
+            v[j] -= s;
+        }
+        *x = v;
+    });
+}
+
+/// Solves `L Lᵀ X = B` in place for an `N x N` Cholesky factor in faer's storage.
+#[inline(always)]
+fn llt_solve_fixed<const N: usize>(f: MatRef<'_, f64>, rhs: MatMut<'_, f64>) {
+    let l = columns::<N>(f);
+    solve_columns::<N>(rhs, |x| {
+        let mut v = *x;
+        for j in 0..N {
+            let vj = v[j] / l[j][j];
+            v[j] = vj;
+            for i in j + 1..N {
+                v[i] -= l[j][i] * vj;
+            }
+        }
+        for j in (0..N).rev() {
+            let mut s = v[j];
+            for i in j + 1..N {
+                s -= l[j][i] * v[i];
+            }
+            v[j] = s / l[j][j];
+        }
+        *x = v;
+    });
 }
 
 /// Solves `L D Lᵀ x = b` in place for one vector; `l[j]` is column `j` of `L` below the
@@ -702,8 +817,8 @@ impl Ldlt {
         if !lower_sum_is_finite(self.factors.as_ref()) {
             return Err(FactorError::NonFinite);
         }
-        if n <= SMALL_FACTOR {
-            small_ldlt(self.factors.as_mut())?;
+        if let Some(res) = with_small_dim!(n, small_factor, (self.factors.as_mut(), false)) {
+            res?;
         } else {
             let stack = MemStack::new(&mut self.buf);
             match ldlt::factor::cholesky_in_place(
@@ -742,6 +857,9 @@ impl Ldlt {
     /// Solves `A X = B` in place (`rhs` holds `B` on entry, `X` on exit).
     pub fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
         let n = self.dim();
+        if with_small_dim!(n, ldlt_solve_fixed, (self.factors.as_ref(), rhs.rb_mut())).is_some() {
+            return;
+        }
         if rhs.ncols() <= 2 && n <= MAX_SOLVE_DIM {
             // Column by column with slices: faer's blocked solve costs more for few columns.
             let mut l: [&[f64]; MAX_SOLVE_DIM] = [&[]; MAX_SOLVE_DIM];
@@ -809,6 +927,9 @@ impl Llt {
         if !lower_sum_is_finite(self.factors.as_ref()) {
             return Err(FactorError::NonFinite);
         }
+        if let Some(res) = with_small_dim!(n, small_factor, (self.factors.as_mut(), true)) {
+            return res;
+        }
         let stack = MemStack::new(&mut self.buf);
         match llt::factor::cholesky_in_place(
             self.factors.as_mut(),
@@ -828,7 +949,11 @@ impl Llt {
     }
 
     /// Solves `A X = B` in place.
-    pub fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+    pub fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
+        let n = self.dim();
+        if with_small_dim!(n, llt_solve_fixed, (self.factors.as_ref(), rhs.rb_mut())).is_some() {
+            return;
+        }
         let stack = MemStack::new(&mut self.buf);
         llt::solve::solve_in_place(self.factors.as_ref(), rhs, Par::Seq, stack);
     }
@@ -1320,8 +1445,83 @@ mod tests {
     }
 
     #[test]
+    fn small_factorizations_match_faer_around_the_size_threshold() {
+        use faer::prelude::Solve;
+        // The fixed-size kernels (n <= 12) and faer's blocked code (n > 12) against faer's
+        // own dense factorizations and solves of the same matrices: the factors entry by
+        // entry, the solutions of many, few and strided right-hand sides.
+        for n in [1usize, 2, 3, 4, 7, 8, 11, 12, 13, 16] {
+            let a = spd(n, 100 + n as u64);
+            let b = filled(n, 9, n);
+            let bt = filled(5, n, n + 1);
+
+            let reference = a.as_ref().llt(faer::Side::Lower).unwrap();
+            let mut f = Llt::new(n);
+            f.factor(a.as_ref()).unwrap();
+            for j in 0..n {
+                for i in j..n {
+                    assert!(
+                        (f.l()[(i, j)] - reference.L()[(i, j)]).abs() < 1e-13,
+                        "llt n {n}: ({i}, {j})"
+                    );
+                }
+            }
+            let x_ref = reference.solve(b.as_ref());
+            let mut x = b.clone();
+            f.solve_in_place(x.as_mut());
+            let mut xt = bt.clone();
+            f.solve_in_place(xt.as_mut().transpose_mut());
+            let xt_ref = reference.solve(bt.transpose());
+            for j in 0..n {
+                for i in 0..9 {
+                    assert!((x[(j, i)] - x_ref[(j, i)]).abs() < 1e-12, "llt solve n {n}");
+                }
+                for i in 0..5 {
+                    assert!((xt[(i, j)] - xt_ref[(j, i)]).abs() < 1e-12, "llt strided solve n {n}");
+                }
+            }
+
+            // Quasi-definite [[H, Dᵀ], [D, -mu I]] (no pivoting needed).
+            let nu = n.div_ceil(2);
+            let mut k = a.clone();
+            for i in nu..n {
+                for j in nu..n {
+                    k[(i, j)] = if i == j { -0.3 } else { 0.0 };
+                }
+            }
+            let reference = k.as_ref().ldlt(faer::Side::Lower).unwrap();
+            let mut f = Ldlt::new(n);
+            let inertia = f.factor(k.as_ref()).unwrap();
+            assert_eq!((inertia.positive, inertia.negative), (nu, n - nu));
+            for j in 0..n {
+                assert!((f.d(j) - reference.D()[j]).abs() < 1e-13, "ldlt n {n}: D {j}");
+                for i in j + 1..n {
+                    assert!(
+                        (f.factors[(i, j)] - reference.L()[(i, j)]).abs() < 1e-13,
+                        "ldlt n {n}: ({i}, {j})"
+                    );
+                }
+            }
+            let x_ref = reference.solve(b.as_ref());
+            let mut x = b.clone();
+            f.solve_in_place(x.as_mut());
+            let mut xt = bt.clone();
+            f.solve_in_place(xt.as_mut().transpose_mut());
+            let xt_ref = reference.solve(bt.transpose());
+            for j in 0..n {
+                for i in 0..9 {
+                    assert!((x[(j, i)] - x_ref[(j, i)]).abs() < 1e-11, "ldlt solve n {n}");
+                }
+                for i in 0..5 {
+                    assert!((xt[(i, j)] - xt_ref[(j, i)]).abs() < 1e-11, "ldlt strided solve n {n}");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn ldlt_small_and_blocked_paths_agree_with_the_system() {
-        // Quasi-definite [[H, Dᵀ], [D, -mu I]] of sizes around SMALL_FACTOR, solved with one,
+        // Quasi-definite [[H, Dᵀ], [D, -mu I]] of sizes around 12 (the fixed-size kernels' limit), solved with one,
         // two and many right-hand sides (loop kernels and faer's blocked solve), and
         // through a non-contiguous right-hand side.
         for n in [1usize, 3, 11, 12, 13, 30, 70] {
