@@ -54,6 +54,8 @@ pub struct RiccatiSolver {
     scratch: StageScratch,
     initial: InitialStage,
     refinement: Option<Refinement>,
+    /// Whether the stages hold storage for the rollout gains.
+    rollout_storage: bool,
     factored: bool,
 }
 
@@ -94,6 +96,7 @@ impl RiccatiSolver {
             initial: InitialStage::new(dims[0].nx, problem.nc0()),
             scratch: StageScratch::new(&dims),
             refinement,
+            rollout_storage: options.rollout_gains,
             nc0: problem.nc0(),
             dims,
             stages,
@@ -222,6 +225,18 @@ impl RiccatiSolver {
         if let Some(r) = &mut self.refinement {
             r.steps = steps;
         }
+    }
+
+    /// Turns the computation of the rollout gains (50b-c) in the next backward passes on
+    /// or off; no effect on a solver created without [`RiccatiOptions::rollout_gains`],
+    /// whose storage for them was not allocated.
+    pub(crate) fn set_rollout_gains(&mut self, on: bool) {
+        let extra = if on && self.rollout_storage {
+            ExtraGains::Rollout
+        } else {
+            ExtraGains::None
+        };
+        self.stages.iter_mut().for_each(|st| st.set_extra(extra));
     }
 
     /// The per-knot workspaces: Q-function, gains and value function of every knot after

@@ -175,6 +175,13 @@ impl RiccatiStage {
         }
     }
 
+    /// Sets which extra gains the next backward passes compute (within the storage
+    /// allocated by [`new`](Self::new)).
+    pub(crate) fn set_extra(&mut self, extra: ExtraGains) {
+        debug_assert!(extra == ExtraGains::None || self.lg.nrows() == self.ny);
+        self.extra = extra;
+    }
+
     /// Knot index (used in error messages).
     pub fn index(&self) -> usize {
         self.index

@@ -5,7 +5,7 @@
 use faer::prelude::ReborrowMut;
 use faer::{Accum, Mat};
 
-use super::options::{HessianApprox, Merit, ProxDdpOptions};
+use super::options::{HessianApprox, Merit, ProxDdpOptions, Rollout};
 use crate::dynamics::Dynamics;
 use crate::error::Result;
 use crate::linalg::{Lu, matvec, norm_inf, slice, slice_mut};
@@ -346,6 +346,8 @@ impl Workspace {
         let mu_min = mu_d.min(self.min_scale * mu);
         let refine = f64::EPSILON / mu_min > 1e-2 * opts.tol;
         self.riccati.set_refinement_steps(usize::from(refine));
+        // The gains of the next co-state (50c) serve the nonlinear rollout only.
+        self.riccati.set_rollout_gains(opts.rollout == Rollout::Nonlinear);
         for t in 0..=n {
             let knot = &mut self.lq.knots[t];
             slice_mut(&mut knot.q).copy_from_slice(&self.gx[t]);
