@@ -563,26 +563,28 @@ impl Workspace {
             for (c, cd) in cs.iter().zip(datas) {
                 let nr = c.nr();
                 let mu_i = c.scale * mu;
-                let h = cd.value();
+                let h = &cd.value()[..nr];
                 let b = &self.lin_cons[t][off..off + nr];
                 let z = &mut self.zbuf[t][off..off + nr];
                 let w = &mut self.wbuf[t][off..off + nr];
+                let nu_e = &self.nus_e[t][off..off + nr];
                 match merit {
                     Merit::PrimalDual => {
+                        let nu_c = &self.cur.nus[t][off..off + nr];
+                        let dnu = &slice(&st.nus[t])[off..off + nr];
                         for i in 0..nr {
-                            let nu_a = self.cur.nus[t][off + i] + alpha * st.nus[t][off + i];
-                            z[i] = h[i] + alpha * b[i] + mu_i * (self.nus_e[t][off + i] - 0.5 * nu_a);
+                            let nu_a = nu_c[i] + alpha * dnu[i];
+                            z[i] = h[i] + alpha * b[i] + mu_i * (nu_e[i] - 0.5 * nu_a);
                         }
                         c.set.normal_cone_project(z, mu_i, w);
                         for i in 0..nr {
-                            let dnu = st.nus[t][off + i];
-                            let nu_a = self.cur.nus[t][off + i] + alpha * dnu;
-                            d += 2.0 / mu_i * w[i] * (b[i] - 0.5 * mu_i * dnu) + 0.5 * mu_i * nu_a * dnu;
+                            let nu_a = nu_c[i] + alpha * dnu[i];
+                            d += 2.0 / mu_i * w[i] * (b[i] - 0.5 * mu_i * dnu[i]) + 0.5 * mu_i * nu_a * dnu[i];
                         }
                     }
                     Merit::Primal => {
                         for i in 0..nr {
-                            z[i] = h[i] + alpha * b[i] + mu_i * self.nus_e[t][off + i];
+                            z[i] = h[i] + alpha * b[i] + mu_i * nu_e[i];
                         }
                         c.set.normal_cone_project(z, mu_i, w);
                         for i in 0..nr {
@@ -657,28 +659,30 @@ impl Workspace {
             for (c, cd) in cs.iter().zip(datas) {
                 let nr = c.nr();
                 let mu_i = c.scale * mu;
-                let h = cd.value();
+                let h = &cd.value()[..nr];
                 theta = theta.max(c.set.violation(h));
                 let z = &mut self.zbuf[t][off..off + nr];
                 let w = &mut self.wbuf[t][off..off + nr];
+                let nu_e = &self.nus_e[t][off..off + nr];
                 match merit {
                     Merit::PrimalDual => {
                         // 2 e(w) + (mu/4)|ν|² with e the Moreau envelope of the set:
                         // 2 g(proj(w)) + |N(w)|² / mu.
+                        let nu_t = &self.trial.nus[t][off..off + nr];
                         for i in 0..nr {
-                            z[i] = h[i] + mu_i * (self.nus_e[t][off + i] - 0.5 * self.trial.nus[t][off + i]);
+                            z[i] = h[i] + mu_i * (nu_e[i] - 0.5 * nu_t[i]);
                         }
                         c.set.project(z, mu_i, w);
                         m += 2.0 * c.set.penalty(w);
                         for i in 0..nr {
                             let r = z[i] - w[i];
-                            let v = self.trial.nus[t][off + i];
+                            let v = nu_t[i];
                             m += r * r / mu_i + 0.25 * mu_i * v * v;
                         }
                     }
                     Merit::Primal => {
                         for i in 0..nr {
-                            z[i] = h[i] + mu_i * self.nus_e[t][off + i];
+                            z[i] = h[i] + mu_i * nu_e[i];
                         }
                         c.set.project(z, mu_i, w);
                         m += c.set.penalty(w);
