@@ -522,9 +522,40 @@ pub fn sum_is_finite(m: MatRef<'_, f64>) -> bool {
     s.is_finite()
 }
 
+/// Calls `f` with the columns of a column-major matrix with at most [`MAX_SMALL_DIM`]
+/// columns as mutable slices; returns `false` (and does nothing) for other matrices.
+#[inline]
+fn with_columns_mut(m: MatMut<'_, f64>, f: impl FnOnce(&mut [&mut [f64]])) -> bool {
+    let n = m.ncols();
+    if m.row_stride() != 1 || n > MAX_SMALL_DIM {
+        return false;
+    }
+    let mut cols: [&mut [f64]; MAX_SMALL_DIM] = std::array::from_fn(|_| -> &mut [f64] { &mut [] });
+    let mut rest = m;
+    for c in cols.iter_mut().take(n) {
+        let (head, tail) = rest.split_at_col_mut(1);
+        *c = head.col_mut(0).try_as_col_major_mut().expect("checked").as_slice_mut();
+        rest = tail;
+    }
+    f(&mut cols[..n]);
+    true
+}
+
 /// Copies the lower triangle of a square matrix into its upper triangle.
 pub fn symmetrize_from_lower(mut m: MatMut<'_, f64>) {
     let n = m.nrows();
+    let done = with_columns_mut(m.rb_mut(), |cols| {
+        for j in 0..n {
+            let (left, right) = cols.split_at_mut(j + 1);
+            let cj = &left[j];
+            for (i, ci) in right.iter_mut().enumerate() {
+                ci[j] = cj[j + 1 + i];
+            }
+        }
+    });
+    if done {
+        return;
+    }
     for j in 0..n {
         // Column j below the diagonal is row j right of the diagonal.
         for i in (j + 1)..n {
@@ -537,12 +568,49 @@ pub fn symmetrize_from_lower(mut m: MatMut<'_, f64>) {
 /// Replaces a square matrix by its symmetric part `(M + Mᵀ) / 2`.
 pub fn symmetrize(mut m: MatMut<'_, f64>) {
     let n = m.nrows();
+    let done = with_columns_mut(m.rb_mut(), |cols| {
+        for j in 0..n {
+            let (left, right) = cols.split_at_mut(j + 1);
+            let cj = &mut left[j];
+            for (i, ci) in right.iter_mut().enumerate() {
+                let v = 0.5 * (cj[j + 1 + i] + ci[j]);
+                cj[j + 1 + i] = v;
+                ci[j] = v;
+            }
+        }
+    });
+    if done {
+        return;
+    }
     for j in 0..n {
         for i in (j + 1)..n {
             let v = 0.5 * (m[(i, j)] + m[(j, i)]);
             m[(i, j)] = v;
             m[(j, i)] = v;
         }
+    }
+}
+
+/// Lower triangle (diagonal included) of `dst = I + alpha * src` for square matrices; the
+/// strict upper triangle of `dst` is not touched.
+pub fn identity_plus_scaled_lower(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>, alpha: f64) {
+    let n = dst.nrows();
+    debug_assert_eq!((src.nrows(), src.ncols(), dst.ncols()), (n, n, n));
+    for j in 0..n {
+        let pair = (
+            src.col(j).try_as_col_major(),
+            dst.rb_mut().col_mut(j).try_as_col_major_mut(),
+        );
+        if let (Some(s), Some(d)) = pair {
+            for (di, si) in d.as_slice_mut()[j..].iter_mut().zip(&s.as_slice()[j..]) {
+                *di = alpha * si;
+            }
+        } else {
+            for i in j..n {
+                dst[(i, j)] = alpha * src[(i, j)];
+            }
+        }
+        dst[(j, j)] += 1.0;
     }
 }
 
@@ -678,20 +746,41 @@ fn small_factor<const N: usize>(mut a: MatMut<'_, f64>, cholesky: bool) -> Resul
     Ok(())
 }
 
-/// Applies `solve_vec` to every column of `rhs` (gathered into an array when the column
-/// is not contiguous).
+/// Right-hand sides solved together by the fixed-size solves: the kernels work on rows
+/// of this many columns, which the compiler maps to vector registers.
+const LANES: usize = 2;
+
+/// Applies `solve` to the columns of `rhs`, [`LANES`] at a time (the last group padded
+/// with zero columns): `x[i][w]` is row `i` of the `w`-th column of the group.
 #[inline(always)]
-fn solve_columns<const N: usize>(mut rhs: MatMut<'_, f64>, solve_vec: impl Fn(&mut [f64; N])) {
-    for c in 0..rhs.ncols() {
-        let mut col = rhs.rb_mut().col_mut(c);
-        match col.rb_mut().try_as_col_major_mut() {
-            Some(x) => solve_vec(x.as_slice_mut().try_into().expect("N rows")),
-            None => {
-                let mut x: [f64; N] = std::array::from_fn(|i| col[i]);
-                solve_vec(&mut x);
-                (0..N).for_each(|i| col[i] = x[i]);
+fn solve_columns<const N: usize>(mut rhs: MatMut<'_, f64>, solve: impl Fn(&mut [[f64; LANES]; N])) {
+    let ncols = rhs.ncols();
+    let mut c0 = 0;
+    while c0 < ncols {
+        let w = (ncols - c0).min(LANES);
+        let mut x = [[0.0; LANES]; N];
+        for k in 0..w {
+            let col = rhs.as_ref().col(c0 + k);
+            match col.try_as_col_major() {
+                Some(v) => {
+                    let v: &[f64; N] = v.as_slice().try_into().expect("N rows");
+                    (0..N).for_each(|i| x[i][k] = v[i]);
+                }
+                None => (0..N).for_each(|i| x[i][k] = col[i]),
             }
         }
+        solve(&mut x);
+        for k in 0..w {
+            let mut col = rhs.rb_mut().col_mut(c0 + k);
+            match col.rb_mut().try_as_col_major_mut() {
+                Some(v) => {
+                    let v: &mut [f64; N] = v.as_slice_mut().try_into().expect("N rows");
+                    (0..N).for_each(|i| v[i] = x[i][k]);
+                }
+                None => (0..N).for_each(|i| col[i] = x[i][k]),
+            }
+        }
+        c0 += w;
     }
 }
 
@@ -700,25 +789,31 @@ fn solve_columns<const N: usize>(mut rhs: MatMut<'_, f64>, solve_vec: impl Fn(&m
 #[inline(always)]
 fn ldlt_solve_fixed<const N: usize>(f: MatRef<'_, f64>, rhs: MatMut<'_, f64>) {
     let l = columns::<N>(f);
-    solve_columns::<N>(rhs, |x| {
-        let mut v = *x;
+    solve_columns::<N>(rhs, |v| {
         for j in 0..N {
             let vj = v[j];
             for i in j + 1..N {
-                v[i] -= l[j][i] * vj;
+                for k in 0..LANES {
+                    v[i][k] -= l[j][i] * vj[k];
+                }
             }
         }
         for j in 0..N {
-            v[j] /= l[j][j];
+            for k in 0..LANES {
+                v[j][k] /= l[j][j];
+            }
         }
         for j in (0..N).rev() {
-            let mut s = 0.0;
+            let mut s = [0.0; LANES];
             for i in j + 1..N {
-                s += l[j][i] * v[i];
+                for k in 0..LANES {
+                    s[k] += l[j][i] * v[i][k];
+                }
             }
-            v[j] -= s;
+            for k in 0..LANES {
+                v[j][k] -= s[k];
+            }
         }
-        *x = v;
     });
 }
 
@@ -726,23 +821,30 @@ fn ldlt_solve_fixed<const N: usize>(f: MatRef<'_, f64>, rhs: MatMut<'_, f64>) {
 #[inline(always)]
 fn llt_solve_fixed<const N: usize>(f: MatRef<'_, f64>, rhs: MatMut<'_, f64>) {
     let l = columns::<N>(f);
-    solve_columns::<N>(rhs, |x| {
-        let mut v = *x;
+    solve_columns::<N>(rhs, |v| {
         for j in 0..N {
-            let vj = v[j] / l[j][j];
+            let mut vj = v[j];
+            for k in 0..LANES {
+                vj[k] /= l[j][j];
+            }
             v[j] = vj;
             for i in j + 1..N {
-                v[i] -= l[j][i] * vj;
+                for k in 0..LANES {
+                    v[i][k] -= l[j][i] * vj[k];
+                }
             }
         }
         for j in (0..N).rev() {
             let mut s = v[j];
             for i in j + 1..N {
-                s -= l[j][i] * v[i];
+                for k in 0..LANES {
+                    s[k] -= l[j][i] * v[i][k];
+                }
             }
-            v[j] = s / l[j][j];
+            for k in 0..LANES {
+                v[j][k] = s[k] / l[j][j];
+            }
         }
-        *x = v;
     });
 }
 
@@ -921,9 +1023,21 @@ impl Llt {
 
     /// Factors the lower triangle of `a`; fails on a non-positive pivot.
     pub fn factor(&mut self, a: MatRef<'_, f64>) -> Result<(), FactorError> {
-        let n = self.dim();
-        debug_assert_eq!((a.nrows(), a.ncols()), (n, n));
+        debug_assert_eq!((a.nrows(), a.ncols()), (self.dim(), self.dim()));
         copy_lower(self.factors.as_mut(), a);
+        self.factor_filled()
+    }
+
+    /// The storage of the matrix to factor: write its lower triangle here, then call
+    /// [`factor_filled`](Self::factor_filled) (saves a copy).
+    pub fn matrix_mut(&mut self) -> MatMut<'_, f64> {
+        self.factors.as_mut()
+    }
+
+    /// Factors the lower triangle written through [`matrix_mut`](Self::matrix_mut); fails
+    /// on a non-positive pivot.
+    pub fn factor_filled(&mut self) -> Result<(), FactorError> {
+        let n = self.dim();
         if !lower_sum_is_finite(self.factors.as_ref()) {
             return Err(FactorError::NonFinite);
         }

@@ -303,15 +303,17 @@ impl RiccatiStage {
         let ny = self.ny;
         let mu = self.mu_dyn;
         if self.e_minus_identity {
-            // M = I + mu P' is symmetric.
+            // M = I + mu P' is symmetric: its lower triangle straight into the Cholesky
+            // factor's storage, the whole of it for LU if that fails.
+            linalg::identity_plus_scaled_lower(self.prox.llt.matrix_mut(), P_next, mu);
+            self.prox.is_llt = self.prox.llt.factor_filled().is_ok();
+            if self.prox.is_llt {
+                return Ok(());
+            }
             for j in 0..ny {
                 for i in 0..ny {
                     m[(i, j)] = mu * P_next[(i, j)] + if i == j { 1.0 } else { 0.0 };
                 }
-            }
-            self.prox.is_llt = self.prox.llt.factor(m.as_ref()).is_ok();
-            if self.prox.is_llt {
-                return Ok(());
             }
         } else {
             // G = mu E⁻¹E⁻ᵀ, from E⁻¹ computed in `m`.
