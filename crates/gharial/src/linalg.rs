@@ -1673,6 +1673,48 @@ mod tests {
     }
 
     #[test]
+    fn symmetrization_and_shifted_lower_match_their_definitions() {
+        // Column-slice paths (column-major, up to 16 columns) and the index fallbacks
+        // (more columns, transposed views), against the entrywise definitions.
+        for n in [1usize, 2, 7, 16, 17] {
+            let a = filled(n, n, n);
+            let mut big = filled(n + 1, n + 1, 3);
+            for view in 0..2 {
+                let mut sym = a.clone();
+                let mut low = a.clone();
+                if view == 0 {
+                    symmetrize(sym.as_mut());
+                    symmetrize_from_lower(low.as_mut());
+                } else {
+                    symmetrize(sym.as_mut().transpose_mut());
+                    symmetrize_from_lower(low.as_mut().transpose_mut());
+                }
+                for j in 0..n {
+                    for i in 0..n {
+                        assert_eq!(sym[(i, j)], 0.5 * (a[(i, j)] + a[(j, i)]), "symmetrize {n}");
+                        // Lower triangle of the view: of `a` or of `aᵀ`.
+                        let (r, c) = if (i >= j) == (view == 0) { (i, j) } else { (j, i) };
+                        assert_eq!(low[(i, j)], a[(r, c)], "from lower {n}, view {view}");
+                    }
+                }
+                let src = if view == 0 { a.as_ref() } else { a.transpose() };
+                let init = big.clone();
+                identity_plus_scaled_lower(big.as_mut().submatrix_mut(1, 0, n, n), src, -0.25);
+                for j in 0..n {
+                    for i in 0..n {
+                        let expected = if i >= j {
+                            -0.25 * src[(i, j)] + if i == j { 1.0 } else { 0.0 }
+                        } else {
+                            init[(1 + i, j)]
+                        };
+                        assert_eq!(big[(1 + i, j)], expected, "I + alpha A, {n}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
     fn copies_negation_and_dot() {
         let a = filled(5, 3, 1);
         let mut t = Mat::<f64>::zeros(3, 5);
