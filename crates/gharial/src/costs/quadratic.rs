@@ -23,6 +23,28 @@ pub struct QuadraticCost {
     R: Mat<f64>,
     q: Col<f64>,
     r: Col<f64>,
+    /// The diagonals of `Q` and `R` when these are diagonal (the usual weights): the
+    /// products reduce to entrywise ones, with the same results.
+    q_diag: Option<Vec<f64>>,
+    r_diag: Option<Vec<f64>>,
+    /// Whether `S` is zero (its products are skipped).
+    s_zero: bool,
+}
+
+/// The diagonal of a square matrix whose off-diagonal entries are all zero.
+fn diagonal_of(m: MatRef<'_, f64>) -> Option<Vec<f64>> {
+    let n = m.nrows();
+    let off_zero = (0..n).all(|j| (0..n).all(|i| i == j || m[(i, j)] == 0.0));
+    off_zero.then(|| (0..n).map(|i| m[(i, i)]).collect())
+}
+
+/// `y += (alpha x) ∘ d` (`Accum::Add`) or `y = (alpha x) ∘ d` (`Accum::Replace`): the
+/// product by a diagonal matrix, in the order of operations of [`matvec`].
+fn diag_matvec(y: &mut [f64], accum: Accum, d: &[f64], x: &[f64], alpha: f64) {
+    for ((yi, di), xi) in y.iter_mut().zip(d).zip(x) {
+        let v = (alpha * xi) * di;
+        *yi = if accum == Accum::Replace { v } else { *yi + v };
+    }
 }
 
 struct QuadraticWs {
@@ -48,12 +70,31 @@ impl QuadraticCost {
         crate::linalg::symmetrize(Q.as_mut());
         crate::linalg::symmetrize(R.as_mut());
         Ok(Self {
+            q_diag: diagonal_of(Q.as_ref()),
+            r_diag: diagonal_of(R.as_ref()),
+            s_zero: crate::linalg::norm_max(S.as_ref()) == 0.0,
             Q,
             S,
             R,
             q: Col::from_fn(nx, |i| q[i]),
             r: Col::from_fn(nu, |i| r[i]),
         })
+    }
+
+    /// `y (+)= alpha Q x`.
+    fn q_times(&self, y: &mut [f64], accum: Accum, x: &[f64], alpha: f64) {
+        match &self.q_diag {
+            Some(d) => diag_matvec(y, accum, d, x, alpha),
+            None => matvec(y, accum, self.Q.as_ref(), x, alpha),
+        }
+    }
+
+    /// `y (+)= alpha R u`.
+    fn r_times(&self, y: &mut [f64], accum: Accum, u: &[f64], alpha: f64) {
+        match &self.r_diag {
+            Some(d) => diag_matvec(y, accum, d, u, alpha),
+            None => matvec(y, accum, self.R.as_ref(), u, alpha),
+        }
     }
 
     /// The terminal cost `½ xᵀ Q x + qᵀ x` (`nu = 0`).
@@ -85,9 +126,11 @@ impl Cost for QuadraticCost {
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut CostData) {
         let ws: &mut QuadraticWs = downcast(&mut data.ws);
         // ℓ = ½ xᵀ(Q x + 2 S u) + ½ uᵀ R u + qᵀ x + rᵀ u.
-        matvec(&mut ws.tx, Accum::Replace, self.Q.as_ref(), x, 0.5);
-        matvec(&mut ws.tx, Accum::Add, self.S.as_ref(), u, 1.0);
-        matvec(&mut ws.tu, Accum::Replace, self.R.as_ref(), u, 0.5);
+        self.q_times(&mut ws.tx, Accum::Replace, x, 0.5);
+        if !self.s_zero {
+            matvec(&mut ws.tx, Accum::Add, self.S.as_ref(), u, 1.0);
+        }
+        self.r_times(&mut ws.tu, Accum::Replace, u, 0.5);
         let (q, r) = (slice(&self.q), slice(&self.r));
         let vx: f64 = (0..x.len()).map(|i| x[i] * (ws.tx[i] + q[i])).sum();
         let vu: f64 = (0..u.len()).map(|i| u[i] * (ws.tu[i] + r[i])).sum();
@@ -96,12 +139,14 @@ impl Cost for QuadraticCost {
     fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
         let lx = slice_mut(&mut data.lx);
         lx.copy_from_slice(slice(&self.q));
-        matvec(lx, Accum::Add, self.Q.as_ref(), x, 1.0);
-        matvec(lx, Accum::Add, self.S.as_ref(), u, 1.0);
+        self.q_times(lx, Accum::Add, x, 1.0);
         let lu = slice_mut(&mut data.lu);
         lu.copy_from_slice(slice(&self.r));
-        matvec_t(lu, Accum::Add, self.S.as_ref(), x, 1.0);
-        matvec(lu, Accum::Add, self.R.as_ref(), u, 1.0);
+        if !self.s_zero {
+            matvec(lx, Accum::Add, self.S.as_ref(), u, 1.0);
+            matvec_t(lu, Accum::Add, self.S.as_ref(), x, 1.0);
+        }
+        self.r_times(lu, Accum::Add, u, 1.0);
         crate::linalg::copy(data.lxx.as_mut(), self.Q.as_ref());
         crate::linalg::copy(data.lxu.as_mut(), self.S.as_ref());
         crate::linalg::copy(data.luu.as_mut(), self.R.as_ref());
@@ -233,6 +278,50 @@ mod tests {
         assert!(err.to_string().contains("QuadraticCost r"), "{err}");
         let err = QuadraticCost::terminal(s.as_ref(), &q).unwrap_err();
         assert!(err.to_string().contains("QuadraticCost Q columns"), "{err}");
+    }
+
+    #[test]
+    fn diagonal_weights_and_zero_cross_term_match_the_dense_formula() {
+        // The entrywise products of diagonal Q, R and the skipped zero S: against the
+        // dense formula with dual numbers, and bit for bit against the dense products on
+        // the same matrices (the same cost with its structure flags cleared).
+        let mut g = rng(31);
+        let (nx, nu) = (5, 3);
+        let qd = random_vec(&mut g, nx, 1.0);
+        let rd = random_vec(&mut g, nu, 1.0);
+        let q_mat = Mat::from_fn(nx, nx, |i, j| if i == j { qd[i].abs() + 0.5 } else { 0.0 });
+        let r_mat = Mat::from_fn(nu, nu, |i, j| if i == j { rd[i].abs() + 0.5 } else { 0.0 });
+        let s = Mat::<f64>::zeros(nx, nu);
+        let (q, r) = (random_vec(&mut g, nx, 1.0), random_vec(&mut g, nu, 1.0));
+        let cost = QuadraticCost::new(q_mat.as_ref(), s.as_ref(), r_mat.as_ref(), &q, &r).unwrap();
+        assert!(cost.q_diag.is_some() && cost.r_diag.is_some() && cost.s_zero);
+        let h = Mat::from_fn(nx + nu, nx + nu, |i, j| match (i < nx, j < nx) {
+            (true, true) => q_mat[(i, j)],
+            (false, false) => r_mat[(i - nx, j - nx)],
+            _ => 0.0,
+        });
+        let lin: Vec<f64> = q.iter().chain(&r).copied().collect();
+        let space = VectorSpace::new(nx);
+        let mut dense = cost.clone();
+        (dense.q_diag, dense.r_diag, dense.s_zero) = (None, None, false);
+        for _ in 0..4 {
+            let (x, u) = (random_vec(&mut g, nx, 1.0), random_vec(&mut g, nu, 1.0));
+            check_cost(&cost, &space, &x, &u, CheckOptions::default()).assert_ok();
+            dual_check_cost(&cost, &x, &u, |z| quad_ref(z, &h, &lin), true, 1e-12);
+            let (mut a, mut b) = (cost.create_data(), dense.create_data());
+            cost.evaluate(&x, &u, &mut a);
+            dense.evaluate(&x, &u, &mut b);
+            cost.derivatives(&x, &u, &mut a);
+            dense.derivatives(&x, &u, &mut b);
+            assert_eq!(a.value, b.value);
+            assert_eq!(a.lx(), b.lx());
+            assert_eq!(a.lu(), b.lu());
+        }
+        // A single nonzero off-diagonal entry keeps the dense products.
+        let mut q_full = q_mat.clone();
+        q_full[(0, 1)] = 0.25;
+        let c = QuadraticCost::new(q_full.as_ref(), s.as_ref(), r_mat.as_ref(), &q, &r).unwrap();
+        assert!(c.q_diag.is_none() && c.r_diag.is_some());
     }
 
     #[test]
