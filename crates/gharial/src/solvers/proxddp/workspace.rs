@@ -533,15 +533,12 @@ impl Workspace {
         }
         for t in 0..n {
             let f = self.data.stages[t].dyn_value();
-            let a = &self.lin_dyn[t];
-            for i in 0..f.len() {
-                d += eq_slope(
-                    f[i],
-                    a[i],
-                    self.lams_e[t + 1][i],
-                    self.cur.lams[t + 1][i],
-                    st.lambdas[t + 1][i],
-                );
+            let m = f.len();
+            let a = &self.lin_dyn[t][..m];
+            let (le, l) = (&self.lams_e[t + 1][..m], &self.cur.lams[t + 1][..m]);
+            let dl = &slice(&st.lambdas[t + 1])[..m];
+            for i in 0..m {
+                d += eq_slope(f[i], a[i], le[i], l[i], dl[i]);
             }
         }
         d
