@@ -112,6 +112,16 @@ pub struct ProxDdpOptions {
     /// The subproblem counts as solved when the merit slope along the Newton direction
     /// is below `dphi_thresh · max(1, |merit|)` (round-off level; default `1e-13`).
     pub dphi_thresh: f64,
+    /// Watchdog (Chamberlain et al. 1982, as in IPOPT): after this many consecutive
+    /// shortened steps (`α < 1`) in one subproblem, full steps are taken tentatively, so
+    /// that Newton steps are not cut short by the curvature of the merit function (the
+    /// Maratos effect). 0 disables it (default 10, as IPOPT).
+    pub watchdog_trigger: usize,
+    /// Tentative full steps of a watchdog phase (default 3): the phase succeeds when a
+    /// full step reaches the Armijo decrease of the merit relative to the point the phase
+    /// started from; otherwise that point is restored and searched as usual, and the
+    /// trigger of the subproblem doubles.
+    pub watchdog_trials: usize,
     /// Wall-time budget; the best iterate so far is returned when it runs out.
     pub max_time: Option<Duration>,
     /// Threads for stage-wise evaluation (default 1).
@@ -147,6 +157,8 @@ impl Default for ProxDdpOptions {
             implicit_newton_iters: 20,
             implicit_newton_tol: 1e-12,
             dphi_thresh: 1e-13,
+            watchdog_trigger: 10,
+            watchdog_trials: 3,
             max_time: None,
             num_threads: 1,
             verbose: false,
