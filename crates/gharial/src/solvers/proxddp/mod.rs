@@ -35,6 +35,12 @@ use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 /// point (or than 1), as in IPOPT.
 const THETA_MAX_FACTOR: f64 = 1e4;
 
+/// Smallest factor of the primal tolerance `eta` after a successful outer step: with
+/// small penalties (`mu = 1e-6`), `mu^α_η` would ask one multiplier update for a
+/// hundred-thousand-fold smaller infeasibility, and a miss at round-off level (the
+/// nonlinear rollout's floor is about `eps |x| / mu`) would decrease `mu` needlessly.
+const MIN_ETA_FACTOR: f64 = 1e-2;
+
 /// The ProxDDP solver.
 ///
 /// ```text
@@ -244,7 +250,7 @@ impl ProxDdp {
                 if success {
                     ws.accept_multipliers();
                     omega *= bcl_rate(mu).powf(opts.bcl_alpha_omega);
-                    eta *= bcl_rate(mu).powf(opts.bcl_alpha_eta);
+                    eta *= bcl_rate(mu).powf(opts.bcl_alpha_eta).max(MIN_ETA_FACTOR);
                 } else {
                     mu = (mu * opts.mu_update_factor).max(opts.mu_lower_bound);
                     mu_d = opts.dyn_al_scale * mu;

@@ -71,9 +71,11 @@ pub struct ProxDdpOptions {
     /// (`α_ω` of Algorithm 2, default 1).
     pub bcl_alpha_omega: f64,
     /// BCL exponent of the primal tolerance `eta` after a successful outer step
-    /// (`α_η`, default 0.5: with the small penalties ProxDDP uses, `mu^0.9` would ask
-    /// one multiplier update to reduce the infeasibility by six orders of magnitude at
-    /// `mu = 1e-6`, turning normal progress into a penalty decrease).
+    /// (`α_η`, default 0.9, Conn, Gould and Toint's value): with a large penalty
+    /// (`mu_init = 0.1` or 1), a smaller exponent keeps `eta` loose for many outer steps
+    /// while the subproblems are solved ever more accurately (`omega` shrinks by `mu`
+    /// each time), and `mu` is not decreased when the infeasibility stalls. The factor
+    /// `mu^α_η` is bounded below by `1e-2` (small penalties).
     pub bcl_alpha_eta: f64,
     /// BCL exponent of `omega` after a failed outer step (`β_ω`, default 1).
     pub bcl_beta_omega: f64,
@@ -139,7 +141,7 @@ impl Default for ProxDdpOptions {
             mu_lower_bound: 1e-8,
             dyn_al_scale: 1.0,
             bcl_alpha_omega: 1.0,
-            bcl_alpha_eta: 0.5,
+            bcl_alpha_eta: 0.9,
             bcl_beta_omega: 1.0,
             bcl_beta_eta: 0.1,
             max_iters: 300,
