@@ -90,7 +90,7 @@ fn pendulum_swings_up() {
 }
 
 #[test]
-#[ignore = "slow: with the force limits active ProxDDP needs ~480 iterations (6.4 s in release)"]
+#[ignore = "slow: with the force limits active ProxDDP needs ~490 iterations (3 to 4 s in release)"]
 fn cartpole_swings_up() {
     let sols = converges("cartpole", &[Rollout::Nonlinear]);
     let x = sols[0].xs.last().unwrap();
