@@ -367,6 +367,8 @@ impl ProxDdp {
                         // The phase failed: back to its starting point, searched as usual.
                         std::mem::swap(&mut ws.cur, &mut ws.watch);
                         watchdog.fail();
+                        // The merit values of the tentative steps no longer apply.
+                        nonmonotone.reset(w.phi);
                         match ws.evaluate_current(problem) {
                             Some(c) => cost = c,
                             None => {
