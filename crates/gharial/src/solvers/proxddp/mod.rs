@@ -12,7 +12,8 @@
 //! Beyond the paper: per-constraint AL scaling and a separate dynamics scaling
 //! (appendix C), a general initial constraint (65), implicit dynamics in the nonlinear
 //! rollout (Newton-Raphson), warm starts from any primal-dual point, an exact-Hessian
-//! option, a filter with a correct dominance test, and a wall-time budget.
+//! option, a filter with a correct dominance test, a watchdog against the Maratos effect
+//! (tentative full steps after repeated short ones, as in IPOPT), and a wall-time budget.
 
 mod options;
 mod workspace;
@@ -33,6 +34,12 @@ use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 /// Trials of the filter may be at most this factor more infeasible than the initial
 /// point (or than 1), as in IPOPT.
 const THETA_MAX_FACTOR: f64 = 1e4;
+
+/// Smallest factor of the primal tolerance `eta` after a successful outer step: with
+/// small penalties (`mu = 1e-6`), `mu^α_η` would ask one multiplier update for a
+/// hundred-thousand-fold smaller infeasibility, and a miss at round-off level (the
+/// nonlinear rollout's floor is about `eps |x| / mu`) would decrease `mu` needlessly.
+const MIN_ETA_FACTOR: f64 = 1e-2;
 
 /// The ProxDDP solver.
 ///
@@ -190,7 +197,9 @@ impl ProxDdp {
         // Upper bound on the infeasibility of accepted trials (IPOPT's θ_max).
         ws.trial.copy_from(&ws.cur);
         let (_, theta_init) = ws.trial_merit(problem, opts.merit, mu, mu_d);
-        filter.set_theta_max(THETA_MAX_FACTOR * theta_init.max(1.0));
+        let theta_max = THETA_MAX_FACTOR * theta_init.max(1.0);
+        filter.set_theta_max(theta_max);
+        let mut watchdog = Watchdog::new(opts.watchdog_trigger);
         'outer: while status != Status::NonFinite {
             res = ws.estimates_and_residuals(problem, mu, mu_d);
             if !(res.prim.is_finite() && res.dual.is_finite()) {
@@ -241,7 +250,7 @@ impl ProxDdp {
                 if success {
                     ws.accept_multipliers();
                     omega *= bcl_rate(mu).powf(opts.bcl_alpha_omega);
-                    eta *= bcl_rate(mu).powf(opts.bcl_alpha_eta);
+                    eta *= bcl_rate(mu).powf(opts.bcl_alpha_eta).max(MIN_ETA_FACTOR);
                 } else {
                     mu = (mu * opts.mu_update_factor).max(opts.mu_lower_bound);
                     mu_d = opts.dyn_al_scale * mu;
@@ -252,6 +261,7 @@ impl ProxDdp {
                 eta = eta.max(opts.tol);
                 // The merit function changed: past values and filter entries no longer apply.
                 filter.clear();
+                watchdog = Watchdog::new(opts.watchdog_trigger);
                 nonmonotone = Nonmonotone::new(match opts.step_acceptance {
                     options::StepAcceptance::NonmonotoneLinesearch => opts.nonmonotone_eta,
                     _ => 0.0,
@@ -319,6 +329,14 @@ impl ProxDdp {
             }
             let alpha_model =
                 (!roundoff).then(|| ws.model_step(problem, opts.merit, mu, mu_d, opts.linesearch.alpha_min));
+            if !roundoff && watchdog.phase.is_none() && watchdog.due() {
+                ws.watch.copy_from(&ws.cur);
+                watchdog.phase = Some(WatchdogPhase {
+                    phi: phi0,
+                    dphi: dphi0,
+                    left: opts.watchdog_trials,
+                });
+            }
             let mut trial = |alpha: f64| -> (f64, f64) {
                 let ok = match opts.rollout {
                     Rollout::Linear => {
@@ -336,7 +354,37 @@ impl ProxDdp {
                 }
                 ws.trial_merit(problem, opts.merit, mu, mu_d)
             };
-            let ls = match opts.step_acceptance {
+            let ls = match (opts.step_acceptance, watchdog.phase) {
+                (_, Some(w)) if !roundoff => {
+                    let (phi, theta) = trial(1.0);
+                    let bounded = phi.is_finite() && theta.is_finite() && theta <= theta_max;
+                    if bounded && phi <= w.phi + opts.linesearch.c1 * w.dphi.min(0.0) {
+                        // The phase succeeded: the merit decreased enough from its start.
+                        watchdog.succeed();
+                    } else if bounded && w.left > 0 {
+                        watchdog.phase = Some(WatchdogPhase { left: w.left - 1, ..w });
+                    } else {
+                        // The phase failed: back to its starting point, searched as usual.
+                        std::mem::swap(&mut ws.cur, &mut ws.watch);
+                        watchdog.fail();
+                        // The merit values of the tentative steps no longer apply.
+                        nonmonotone.reset(w.phi);
+                        match ws.evaluate_current(problem) {
+                            Some(c) => cost = c,
+                            None => {
+                                status = Status::NonFinite;
+                                break;
+                            }
+                        }
+                        continue;
+                    }
+                    LinesearchResult {
+                        alpha: 1.0,
+                        phi,
+                        accepted: true,
+                        trials: 1,
+                    }
+                }
                 _ if roundoff => {
                     let (phi, _) = trial(1.0);
                     LinesearchResult {
@@ -346,12 +394,12 @@ impl ProxDdp {
                         trials: 1,
                     }
                 }
-                StepAcceptance::Filter => {
+                (StepAcceptance::Filter, _) => {
                     // Within the outer loop's feasibility target, the merit alone decides.
                     filter.set_theta_min(eta);
                     filter.search(&mut trial, (phi0, theta0), dphi0, alpha_model, &opts.linesearch)
                 }
-                StepAcceptance::Linesearch | StepAcceptance::NonmonotoneLinesearch => {
+                (StepAcceptance::Linesearch | StepAcceptance::NonmonotoneLinesearch, _) => {
                     let reference = nonmonotone.reference(phi0);
                     armijo(|a| trial(a).0, phi0, dphi0, reference, alpha_model, &opts.linesearch)
                 }
@@ -385,6 +433,7 @@ impl ProxDdp {
             }
             // The last trial evaluated is the accepted one.
             ws.accept_trial();
+            watchdog.count(ls.alpha);
             iter += 1;
             nonmonotone.update(ls.phi);
             preg *= opts.preg_decrease;
@@ -450,6 +499,57 @@ impl ProxDdp {
 /// outer loop could update the multipliers forever without a Newton step.
 fn bcl_rate(mu: f64) -> f64 {
     mu.min(0.1)
+}
+
+/// A watchdog phase: the merit and slope at its starting point (kept in
+/// `Workspace::watch`), and the tentative full steps left.
+#[derive(Debug, Clone, Copy)]
+struct WatchdogPhase {
+    phi: f64,
+    dphi: f64,
+    left: usize,
+}
+
+/// The watchdog of one subproblem (see [`ProxDdpOptions::watchdog_trigger`]).
+#[derive(Debug)]
+struct Watchdog {
+    /// Shortened steps that start a phase (0: never).
+    trigger: usize,
+    /// Consecutive shortened steps.
+    shortened: usize,
+    phase: Option<WatchdogPhase>,
+}
+
+impl Watchdog {
+    fn new(trigger: usize) -> Self {
+        Self {
+            trigger,
+            shortened: 0,
+            phase: None,
+        }
+    }
+
+    fn due(&self) -> bool {
+        self.trigger > 0 && self.shortened >= self.trigger
+    }
+
+    /// Counts an accepted step of length `alpha` outside a phase.
+    fn count(&mut self, alpha: f64) {
+        if self.phase.is_none() {
+            self.shortened = if alpha < 1.0 { self.shortened + 1 } else { 0 };
+        }
+    }
+
+    fn succeed(&mut self) {
+        self.phase = None;
+        self.shortened = 0;
+    }
+
+    fn fail(&mut self) {
+        self.phase = None;
+        self.shortened = 0;
+        self.trigger = self.trigger.saturating_mul(2);
+    }
 }
 
 fn push_record(sol: &mut Solution, record: IterationRecord, verbose: bool) {

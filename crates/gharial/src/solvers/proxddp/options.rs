@@ -71,9 +71,11 @@ pub struct ProxDdpOptions {
     /// (`α_ω` of Algorithm 2, default 1).
     pub bcl_alpha_omega: f64,
     /// BCL exponent of the primal tolerance `eta` after a successful outer step
-    /// (`α_η`, default 0.5: with the small penalties ProxDDP uses, `mu^0.9` would ask
-    /// one multiplier update to reduce the infeasibility by six orders of magnitude at
-    /// `mu = 1e-6`, turning normal progress into a penalty decrease).
+    /// (`α_η`, default 0.9, Conn, Gould and Toint's value): with a large penalty
+    /// (`mu_init = 0.1` or 1), a smaller exponent keeps `eta` loose for many outer steps
+    /// while the subproblems are solved ever more accurately (`omega` shrinks by `mu`
+    /// each time), and `mu` is not decreased when the infeasibility stalls. The factor
+    /// `mu^α_η` is bounded below by `1e-2` (small penalties).
     pub bcl_alpha_eta: f64,
     /// BCL exponent of `omega` after a failed outer step (`β_ω`, default 1).
     pub bcl_beta_omega: f64,
@@ -112,6 +114,16 @@ pub struct ProxDdpOptions {
     /// The subproblem counts as solved when the merit slope along the Newton direction
     /// is below `dphi_thresh · max(1, |merit|)` (round-off level; default `1e-13`).
     pub dphi_thresh: f64,
+    /// Watchdog (Chamberlain et al. 1982, as in IPOPT): after this many consecutive
+    /// shortened steps (`α < 1`) in one subproblem, full steps are taken tentatively, so
+    /// that Newton steps are not cut short by the curvature of the merit function (the
+    /// Maratos effect). 0 disables it (default 10, as IPOPT).
+    pub watchdog_trigger: usize,
+    /// Tentative full steps of a watchdog phase (default 3): the phase succeeds when a
+    /// full step reaches the Armijo decrease of the merit relative to the point the phase
+    /// started from; otherwise that point is restored and searched as usual, and the
+    /// trigger of the subproblem doubles.
+    pub watchdog_trials: usize,
     /// Wall-time budget; the best iterate so far is returned when it runs out.
     pub max_time: Option<Duration>,
     /// Threads for stage-wise evaluation (default 1).
@@ -129,7 +141,7 @@ impl Default for ProxDdpOptions {
             mu_lower_bound: 1e-8,
             dyn_al_scale: 1.0,
             bcl_alpha_omega: 1.0,
-            bcl_alpha_eta: 0.5,
+            bcl_alpha_eta: 0.9,
             bcl_beta_omega: 1.0,
             bcl_beta_eta: 0.1,
             max_iters: 300,
@@ -147,6 +159,8 @@ impl Default for ProxDdpOptions {
             implicit_newton_iters: 20,
             implicit_newton_tol: 1e-12,
             dphi_thresh: 1e-13,
+            watchdog_trigger: 10,
+            watchdog_trials: 3,
             max_time: None,
             num_threads: 1,
             verbose: false,

@@ -67,6 +67,8 @@ pub(super) struct Workspace {
     pub trial: Point,
     /// Best iterate (smallest max(prim, dual)) for the time budget.
     pub best: Point,
+    /// The point a watchdog phase started from (restored if the phase fails).
+    pub watch: Point,
     pub best_err: f64,
     /// Outer multipliers `λ_e`, `ν_e` (Algorithm 2).
     pub lams_e: Vec<Vec<f64>>,
@@ -150,6 +152,7 @@ impl Workspace {
         Ok(Self {
             trial: cur.clone(),
             best: cur.clone(),
+            watch: cur.clone(),
             best_err: f64::INFINITY,
             lams_e: cur.lams.clone(),
             nus_e: cur.nus.clone(),
