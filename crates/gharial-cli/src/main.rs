@@ -16,7 +16,7 @@ mod bench_solve;
 mod solve;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use gharial::solvers::proxddp::Rollout;
+use gharial::solvers::proxddp::{Merit, Rollout, StepAcceptance};
 
 #[derive(Parser)]
 #[command(name = "gharial", version, about = "Constrained trajectory optimization for robots")]
@@ -39,6 +39,45 @@ impl From<RolloutArg> for Rollout {
         match r {
             RolloutArg::Linear => Rollout::Linear,
             RolloutArg::Nonlinear => Rollout::Nonlinear,
+        }
+    }
+}
+
+/// Step acceptance of the solver.
+#[derive(Clone, Copy, ValueEnum)]
+enum AcceptanceArg {
+    /// Armijo backtracking on the merit function.
+    Linesearch,
+    /// Armijo backtracking against the average of past merit values.
+    Nonmonotone,
+    /// Filter on (merit, primal infeasibility).
+    Filter,
+}
+
+impl From<AcceptanceArg> for StepAcceptance {
+    fn from(a: AcceptanceArg) -> Self {
+        match a {
+            AcceptanceArg::Linesearch => StepAcceptance::Linesearch,
+            AcceptanceArg::Nonmonotone => StepAcceptance::NonmonotoneLinesearch,
+            AcceptanceArg::Filter => StepAcceptance::Filter,
+        }
+    }
+}
+
+/// Merit function of the step acceptance.
+#[derive(Clone, Copy, ValueEnum)]
+enum MeritArg {
+    /// The primal-dual augmented Lagrangian (17).
+    PrimalDual,
+    /// The primal augmented Lagrangian (35).
+    Primal,
+}
+
+impl From<MeritArg> for Merit {
+    fn from(m: MeritArg) -> Self {
+        match m {
+            MeritArg::PrimalDual => Merit::PrimalDual,
+            MeritArg::Primal => Merit::Primal,
         }
     }
 }
@@ -66,6 +105,12 @@ enum Command {
         /// Forward pass.
         #[arg(long, value_enum)]
         rollout: Option<RolloutArg>,
+        /// Step acceptance.
+        #[arg(long, value_enum)]
+        step_acceptance: Option<AcceptanceArg>,
+        /// Merit function of the step acceptance.
+        #[arg(long, value_enum)]
+        merit: Option<MeritArg>,
         /// Threads for stage-wise evaluation.
         #[arg(long)]
         threads: Option<usize>,
@@ -181,6 +226,8 @@ fn main() {
             mu_init,
             max_iters,
             rollout,
+            step_acceptance,
+            merit,
             threads,
             verbose,
             output,
@@ -192,6 +239,8 @@ fn main() {
                 mu_init,
                 max_iters,
                 rollout: rollout.map(Rollout::from),
+                step_acceptance: step_acceptance.map(StepAcceptance::from),
+                merit: merit.map(Merit::from),
                 threads,
                 verbose,
                 output,

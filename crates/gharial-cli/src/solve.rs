@@ -3,7 +3,7 @@
 
 use std::io::Write;
 
-use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions, Rollout};
+use gharial::solvers::proxddp::{Merit, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::solvers::{InitialGuess, IterationRecord, Solution};
 use gharial_problems::Example;
 use serde_json::json;
@@ -23,6 +23,10 @@ pub struct SolveArgs {
     pub max_iters: Option<usize>,
     /// Rollout.
     pub rollout: Option<Rollout>,
+    /// Step acceptance.
+    pub step_acceptance: Option<StepAcceptance>,
+    /// Merit function.
+    pub merit: Option<Merit>,
     /// Threads for stage-wise evaluation.
     pub threads: Option<usize>,
     /// Live iteration log (with outer updates) instead of the table printed afterwards.
@@ -58,6 +62,12 @@ pub fn options(example: &Example, args: &SolveArgs) -> ProxDdpOptions {
     if let Some(v) = args.rollout {
         o.rollout = v;
     }
+    if let Some(v) = args.step_acceptance {
+        o.step_acceptance = v;
+    }
+    if let Some(v) = args.merit {
+        o.merit = v;
+    }
     if let Some(v) = args.threads {
         o.num_threads = v;
     }
@@ -89,11 +99,12 @@ pub fn run(args: &SolveArgs) -> i32 {
         p.nu(0)
     );
     out!(
-        "solver    ProxDDP (tol {:e}, mu_init {:e}, rollout {:?}, step acceptance {:?}, threads {})",
+        "solver    ProxDDP (tol {:e}, mu_init {:e}, rollout {:?}, step acceptance {:?}, merit {:?}, threads {})",
         opts.tol,
         opts.mu_init,
         opts.rollout,
         opts.step_acceptance,
+        opts.merit,
         opts.num_threads
     );
     let mut solver = ProxDdp::new(opts.clone());
@@ -184,6 +195,7 @@ pub fn solution_json(example: &Example, opts: &ProxDdpOptions, sol: &Solution) -
         "settings": {
             "tol": opts.tol, "mu_init": opts.mu_init, "max_iters": opts.max_iters,
             "rollout": format!("{:?}", opts.rollout), "step_acceptance": format!("{:?}", opts.step_acceptance),
+            "merit": format!("{:?}", opts.merit),
             "num_threads": opts.num_threads,
         },
         "status": sol.status.to_string(),

@@ -103,3 +103,34 @@ fn an_unconverged_solve_exits_with_code_one() {
     assert_eq!(o.status.code(), Some(1), "{}", stdout(&o));
     assert!(stdout(&o).contains("maximum iterations"), "{}", stdout(&o));
 }
+
+#[test]
+fn step_acceptance_and_merit_overrides_reach_the_solver() {
+    let path = std::env::temp_dir().join(format!("gharial-cli-accept-{}.json", std::process::id()));
+    let path_str = path.to_str().expect("UTF-8 temp path");
+    let o = gharial(&[
+        "solve",
+        "lqr-bounds-term",
+        "--step-acceptance",
+        "nonmonotone",
+        "--merit",
+        "primal",
+        "--output",
+        path_str,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    assert_eq!(doc["settings"]["step_acceptance"], "NonmonotoneLinesearch");
+    assert_eq!(doc["settings"]["merit"], "Primal");
+    assert_eq!(doc["converged"], true);
+    let ex = gharial_problems::build("lqr-bounds-term").unwrap();
+    let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
+    let (lambdas, nus) = (vectors(&doc["lambdas"]), vectors(&doc["nus"]));
+    let kkt = kkt_residuals(&ex.problem, &xs, &us, &lambdas, &nus).unwrap();
+    assert!(kkt.max() < ex.proxddp.tol, "{kkt:?}");
+
+    let o = gharial(&["solve", "lqr", "--step-acceptance", "nope"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("filter"), "{}", stderr(&o));
+}
