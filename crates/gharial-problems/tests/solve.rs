@@ -90,7 +90,6 @@ fn pendulum_swings_up() {
 }
 
 #[test]
-#[ignore = "slow: with the force limits active ProxDDP needs 242 iterations (about 2 s in release)"]
 fn cartpole_swings_up() {
     let sols = converges("cartpole", &[Rollout::Nonlinear]);
     let x = sols[0].xs.last().unwrap();
