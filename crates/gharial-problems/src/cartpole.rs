@@ -27,8 +27,9 @@
 //! kinks of the penalty and the monotone rules accept only short steps for hundreds of
 //! iterations; the nonmonotone reference lets the merit rise for a few steps (measured:
 //! 242 iterations nonlinear and 186 linear, instead of 492 and 1780 with the default
-//! filter on the primal-dual merit). Without the force limits (`F_MAX = 100`) the default
-//! filter converges in 161 iterations. This is the slow-line-search issue with active
+//! filter on the primal-dual merit; from `mu_init` 1e-3 and 1e-1: 346 and 791, the
+//! filter from 1e-1 not in 800). Without the force limits (`F_MAX = 100`) the
+//! default filter converges in 161 iterations. This is the slow-line-search issue with active
 //! inequality constraints of the crate README, "Known solver issues".
 //!
 //! # Jacobians
