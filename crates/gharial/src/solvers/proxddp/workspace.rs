@@ -477,7 +477,13 @@ impl Workspace {
             let a = &mut self.lin_dyn[t];
             matvec(a, Accum::Replace, sd.dyn_jx.as_ref(), slice(&st.xs[t]), 1.0);
             matvec(a, Accum::Add, sd.dyn_ju.as_ref(), slice(&st.us[t]), 1.0);
-            matvec(a, Accum::Add, sd.dyn_jy.as_ref(), slice(&st.xs[t + 1]), 1.0);
+            if sd.dyn_jy_is_minus_identity {
+                for (ai, yi) in a.iter_mut().zip(slice(&st.xs[t + 1])) {
+                    *ai -= yi;
+                }
+            } else {
+                matvec(a, Accum::Add, sd.dyn_jy.as_ref(), slice(&st.xs[t + 1]), 1.0);
+            }
         }
         for t in 0..=n {
             let datas = self.data.constraint_data(t);
