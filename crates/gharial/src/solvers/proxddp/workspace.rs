@@ -359,7 +359,10 @@ impl Workspace {
                 slice_mut(&mut knot.r).copy_from_slice(&self.gu[t]);
                 crate::linalg::copy(knot.A.as_mut(), sd.dyn_jx.as_ref());
                 crate::linalg::copy(knot.B.as_mut(), sd.dyn_ju.as_ref());
-                crate::linalg::copy(knot.E.as_mut(), sd.dyn_jy.as_ref());
+                // The knot was made with E = -I, which nothing else writes.
+                if !sd.dyn_jy_is_minus_identity {
+                    crate::linalg::copy(knot.E.as_mut(), sd.dyn_jy.as_ref());
+                }
                 for i in 0..knot.nx_next {
                     knot.f[i] = mu_d * (self.lams_p[t + 1][i] - self.cur.lams[t + 1][i]);
                 }
