@@ -500,6 +500,50 @@ fn backward_vectors_resolves_new_vectors() {
     assert!(e.primal <= 1e-9 && e.dual <= 1e-9, "parallel {e:?}");
 }
 
+/// Knots whose constraints act on the controls alone (`C = 0`, products with it skipped)
+/// mixed with general knots: serial and parallel solutions, also after new vectors, agree
+/// with the dense KKT solve.
+#[test]
+fn control_only_constraints_match_the_dense_solution() {
+    for (seed, general_e) in [(11, false), (12, true)] {
+        let mut p = feature_problem(seed, general_e, 1e-3);
+        for k in p.knots.iter_mut().step_by(2) {
+            k.C = faer::Mat::zeros(k.nc, k.nx);
+        }
+        assert!(p.knots.iter().any(|k| k.nc > 0 && k.C.norm_max() == 0.0));
+        let reference = dense::solve(&p).unwrap();
+        let e = rel_err(&riccati(&p, 1), &reference);
+        assert!(e.primal <= 1e-9 && e.dual <= 1e-9, "serial {e:?}");
+        let e = rel_err(&parallel(&p, 3, 1), &reference);
+        assert!(e.primal <= 1e-9 && e.dual <= 1e-9, "parallel {e:?}");
+        let mut changed = p.clone();
+        let mut rng = SplitMix64::new(seed + 100);
+        for k in &mut changed.knots {
+            for i in 0..k.d.nrows() {
+                k.d[i] += rng.uniform(-1.0, 1.0);
+            }
+            for i in 0..k.q.nrows() {
+                k.q[i] += rng.uniform(-1.0, 1.0);
+            }
+        }
+        let reference = dense::solve(&changed).unwrap();
+        let mut solver = RiccatiSolver::with_options(
+            &p,
+            RiccatiOptions {
+                rollout_gains: false,
+                refinement_steps: 1,
+            },
+        )
+        .unwrap();
+        let mut sol = LqSolution::new(&p);
+        solver.backward(&p, 0.0).unwrap();
+        solver.backward_vectors(&changed).unwrap();
+        solver.forward(&changed, &mut sol).unwrap();
+        let e = rel_err(&sol, &reference);
+        assert!(e.primal <= 1e-9 && e.dual <= 1e-9, "new vectors {e:?}");
+    }
+}
+
 /// `backward_with` and `value_from_gains`: plugging the unconstrained LQR gains
 /// `k = -Q_uu⁻¹Q_u`, `K = -Q_uu⁻¹Q_ux` (computed here by an LU solve of each `Q_uu`) into
 /// the sweep gives the dense solution of an unconstrained problem; the built-in stage solve

@@ -83,8 +83,10 @@ pub struct RiccatiStage {
     // Step 3: Q-function [Q_xx Q_xu; Q_ux Q_uu] and [Q_x; Q_u].
     qmat: Mat<f64>,
     qvec: Col<f64>,
-    // Step 4: stage KKT factorization and gains [k K; ζ Z].
+    // Step 4: stage KKT factorization and gains [k K; ζ Z]; whether the knot's C is
+    // zero (as for constraints on the controls alone), so that its products are skipped.
     kkt: KktFactor,
+    c_is_zero: bool,
     gains: Mat<f64>,
     // Step 5: value function.
     P: Mat<f64>,
@@ -161,6 +163,7 @@ impl RiccatiStage {
                 bk: BunchKaufman::with_max_rhs(nk, (1 + nx).max(nu)),
                 use_bk: false,
             },
+            c_is_zero: false,
             gains: Mat::zeros(nk, 1 + nx),
             P: Mat::zeros(nx, nx),
             p: Col::zeros(nx),
@@ -469,6 +472,8 @@ impl RiccatiStage {
     ) -> Result<(), LqError> {
         let (nx, nu, nc) = (self.nx, self.nu, self.nc);
         let nk = nu + nc;
+        // Exact zeros only (a NaN in C keeps the products, which report it).
+        self.c_is_zero = (0..nx).all(|j| linalg::norm_l1(col_of(&knot.C, j)) == 0.0);
         if nk > 0 {
             let f = &mut self.kkt;
             f.use_bk = (0..nc).any(|i| knot.mu_c[i] == 0.0);
@@ -564,7 +569,7 @@ impl RiccatiStage {
                     1.0,
                 );
             }
-            if nc > 0 {
+            if nc > 0 && !self.c_is_zero {
                 matmul_lower(self.P.as_mut(), Accum::Add, knot.C.transpose(), fb.subrows(nu, nc), 1.0);
             }
         }
@@ -677,7 +682,9 @@ impl RiccatiStage {
                 &ff[..nu],
                 1.0,
             );
-            matvec_t(p, Accum::Add, knot.C.as_ref(), &ff[nu..], 1.0);
+            if !self.c_is_zero {
+                matvec_t(p, Accum::Add, knot.C.as_ref(), &ff[nu..], 1.0);
+            }
         }
         if !p.iter().sum::<f64>().is_finite() {
             return Err(LqError::NonFinite {

@@ -42,6 +42,9 @@ pub struct StageData {
     pub dyn_ju: Mat<f64>,
     /// `df/dy` (`ndx_next x ndx_next`); `-I` for explicit dynamics on vector spaces.
     pub dyn_jy: Mat<f64>,
+    /// Whether `dyn_jy` is `-I` at every point (explicit dynamics on a vector space), so
+    /// that products with it reduce to negations.
+    pub dyn_jy_is_minus_identity: bool,
     /// One data object per path constraint, in the stage's order.
     pub constraints: Vec<StageFunctionData>,
     /// `d(φ ⊖ y)/dφ` for explicit dynamics (scratch).
@@ -62,6 +65,7 @@ impl StageData {
         for i in 0..ndx2 {
             dyn_jy[(i, i)] = -1.0;
         }
+        let dyn_jy_is_minus_identity = matches!(stage.dynamics, Dynamics::Explicit(_)) && sn.is_vector_space();
         Self {
             cost: stage.cost.create_data(),
             dynamics,
@@ -69,6 +73,7 @@ impl StageData {
             dyn_jx: Mat::zeros(ndx2, ndx),
             dyn_ju: Mat::zeros(ndx2, nu),
             dyn_jy,
+            dyn_jy_is_minus_identity,
             constraints: stage.constraints().iter().map(|c| c.func.create_data()).collect(),
             jdiff_phi: Mat::zeros(ndx2, ndx2),
             lambda_phi: vec![0.0; ndx2],
@@ -407,6 +412,10 @@ impl ProblemData {
             // The co-state entering from the previous stage, or the initial condition.
             if t == 0 {
                 matvec_t(g, Accum::Add, self.init.jx.as_ref(), &lambdas[0], 1.0);
+            } else if self.stages[t - 1].dyn_jy_is_minus_identity {
+                for (gi, li) in g.iter_mut().zip(&lambdas[t]) {
+                    *gi -= li;
+                }
             } else {
                 matvec_t(g, Accum::Add, self.stages[t - 1].dyn_jy.as_ref(), &lambdas[t], 1.0);
             }

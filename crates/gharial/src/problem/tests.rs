@@ -285,3 +285,54 @@ fn kkt_stationarity_in_u_is_the_single_shooting_gradient() {
         kkt.stationarity
     );
 }
+
+#[test]
+fn lagrangian_gradient_matches_the_jacobian_products() {
+    let n = 6;
+    let p = problem(n);
+    let (xs, us) = trajectory(n);
+    let mut d = ProblemData::new(&p, 1).unwrap();
+    d.evaluate(&p, &xs, &us);
+    d.compute_derivatives(&p, &xs, &us);
+    // Explicit dynamics on a vector space: df/dy = -I is used as a negation.
+    assert!(d.stages.iter().all(|s| s.dyn_jy_is_minus_identity));
+    let lambdas: Vec<Vec<f64>> = (0..=n)
+        .map(|t| vec![0.3 * t as f64 - 1.0, 0.7 - 0.2 * t as f64])
+        .collect();
+    let nus: Vec<Vec<f64>> = (0..=n)
+        .map(|t| vec![0.1 * t as f64 + 0.4; p.constraints(t).iter().map(|c| c.nr()).sum()])
+        .collect();
+    let mut gx = vec![vec![0.0; 2]; n + 1];
+    let mut gu = vec![vec![0.0; 1]; n];
+    d.lagrangian_gradient(&p, &lambdas, &nus, &mut gx, &mut gu);
+    // Reference: every product written out entry by entry with the stored Jacobians.
+    for t in 0..=n {
+        for i in 0..2 {
+            let mut g = if t < n {
+                d.stages[t].cost.lx()[i]
+            } else {
+                d.terminal_cost.lx()[i]
+            };
+            if t < n {
+                let sd = &d.stages[t];
+                g += (0..2).map(|k| sd.dyn_jx[(k, i)] * lambdas[t + 1][k]).sum::<f64>();
+                g += sd.constraints[0].jx[(0, i)] * nus[t][0];
+            }
+            g += if t == 0 {
+                (0..2).map(|k| d.init.jx[(k, i)] * lambdas[0][k]).sum::<f64>()
+            } else {
+                (0..2)
+                    .map(|k| d.stages[t - 1].dyn_jy[(k, i)] * lambdas[t][k])
+                    .sum::<f64>()
+            };
+            assert!((gx[t][i] - g).abs() < 1e-14, "gx[{t}][{i}] = {} vs {g}", gx[t][i]);
+        }
+        if t < n {
+            let sd = &d.stages[t];
+            let g = sd.cost.lu()[0]
+                + (0..2).map(|k| sd.dyn_ju[(k, 0)] * lambdas[t + 1][k]).sum::<f64>()
+                + sd.constraints[0].ju[(0, 0)] * nus[t][0];
+            assert!((gu[t][0] - g).abs() < 1e-14);
+        }
+    }
+}

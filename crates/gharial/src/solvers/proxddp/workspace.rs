@@ -362,7 +362,10 @@ impl Workspace {
                 slice_mut(&mut knot.r).copy_from_slice(&self.gu[t]);
                 crate::linalg::copy(knot.A.as_mut(), sd.dyn_jx.as_ref());
                 crate::linalg::copy(knot.B.as_mut(), sd.dyn_ju.as_ref());
-                crate::linalg::copy(knot.E.as_mut(), sd.dyn_jy.as_ref());
+                // The knot was made with E = -I, which nothing else writes.
+                if !sd.dyn_jy_is_minus_identity {
+                    crate::linalg::copy(knot.E.as_mut(), sd.dyn_jy.as_ref());
+                }
                 for i in 0..knot.nx_next {
                     knot.f[i] = mu_d * (self.lams_p[t + 1][i] - self.cur.lams[t + 1][i]);
                 }
@@ -480,7 +483,13 @@ impl Workspace {
             let a = &mut self.lin_dyn[t];
             matvec(a, Accum::Replace, sd.dyn_jx.as_ref(), slice(&st.xs[t]), 1.0);
             matvec(a, Accum::Add, sd.dyn_ju.as_ref(), slice(&st.us[t]), 1.0);
-            matvec(a, Accum::Add, sd.dyn_jy.as_ref(), slice(&st.xs[t + 1]), 1.0);
+            if sd.dyn_jy_is_minus_identity {
+                for (ai, yi) in a.iter_mut().zip(slice(&st.xs[t + 1])) {
+                    *ai -= yi;
+                }
+            } else {
+                matvec(a, Accum::Add, sd.dyn_jy.as_ref(), slice(&st.xs[t + 1]), 1.0);
+            }
         }
         for t in 0..=n {
             let datas = self.data.constraint_data(t);
