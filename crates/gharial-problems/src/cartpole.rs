@@ -29,8 +29,7 @@
 //! 242 iterations nonlinear and 186 linear, instead of 492 and 1780 with the default
 //! filter on the primal-dual merit; from `mu_init` 1e-3 and 1e-1: 346 and 791, the
 //! filter from 1e-1 not in 800). Without the force limits (`F_MAX = 100`) the
-//! default filter converges in 161 iterations. This is the slow-line-search issue with active
-//! inequality constraints of the crate README, "Known solver issues".
+//! default filter converges in 161 iterations (crate README, "Solver issues found").
 //!
 //! # Jacobians
 //! Hand-written: with `a = M⁻¹ b`, `da/dz = M⁻¹ (db/dz - (dM/dz) a)`, where only `θ`

@@ -11,10 +11,9 @@
 //! nx = nu = 3, N = 20, x0 = (0.2, 0.3, -0.1). Variants: control bounds
 //! `|u|_∞ ≤ 0.15` (`-bounds`), terminal equality `x_N = (0.1, 0.1, 0.1)` (`-term`),
 //! both (`-bounds-term`, the paper's Fig. 3). Initial guess: `u = 0` and its rollout.
-//! Settings: `mu_init = 1e-6` (Fig. 3), except `lqr-bounds`: `mu_init = 1e-1` (the
-//! value of the authors' `lqr.py`; from `1e-6` the line search crawls, see the crate
-//! README, "Known solver issues"); nonlinear rollout (the paper's choice for explicit
-//! dynamics; on a linear system both rollouts coincide), tol `1e-6`.
+//! Settings: `mu_init = 1e-6` (Fig. 3; with the bounds active the free full step of
+//! each subproblem crosses into the active set at once: 4 iterations); nonlinear rollout (the paper's
+//! choice for explicit dynamics; on a linear system both rollouts coincide), tol `1e-6`.
 //!
 //! # `clqr`
 //!
@@ -128,7 +127,7 @@ pub fn paper(variant: LqrVariant) -> Result<Example> {
         us0,
         dt: None,
         proxddp: ProxDdpOptions {
-            mu_init: if variant == LqrVariant::Bounds { 1e-1 } else { 1e-6 },
+            mu_init: 1e-6,
             rollout: Rollout::Nonlinear,
             max_iters: 100,
             ..Default::default()

@@ -191,13 +191,6 @@ fn converges_with(name: &str, mu_init: f64, rollout: Rollout) {
     assert!(kkt.max() < ex.proxddp.tol, "{name}: {kkt:?}");
 }
 
-/// With a small penalty the full Newton step crosses into the active set at once (it is
-/// taken whole at the start of each subproblem).
-#[test]
-fn lqr_bounds_from_mu_1e_6() {
-    converges_with("lqr-bounds", 1e-6, Rollout::Nonlinear);
-}
-
 /// The paper's `mu_init = 0.1` (Fig. 10): the primal tolerance shrinks by `mu^0.9` after
 /// each multiplier update, so the penalty decreases once the infeasibility stalls.
 #[test]
