@@ -8,7 +8,7 @@ use faer::{Accum, Mat};
 use super::options::{HessianApprox, Merit, ProxDdpOptions, Rollout};
 use crate::dynamics::Dynamics;
 use crate::error::Result;
-use crate::linalg::{Lu, as_mat_mut, matvec, norm_inf, slice, slice_mut};
+use crate::linalg::{Lu, matvec, norm_inf, slice, slice_mut};
 use crate::lq::{LqKnot, LqProblem, LqSolution, RiccatiOptions, RiccatiSolver};
 use crate::problem::{DynamicsData, Problem, ProblemData};
 use crate::solvers::InitialGuess;
@@ -323,7 +323,7 @@ impl Workspace {
                     w[i] = self.nus_p[t][off + i] - self.cur.nus[t][off + i];
                 }
                 c.set
-                    .apply_normal_cone_jacobian(&self.zbuf[t][off..off + nr], mu_i, crate::linalg::as_mat_mut(w));
+                    .apply_normal_cone_jacobian_vec(&self.zbuf[t][off..off + nr], mu_i, w);
                 for i in 0..nr {
                     self.nus_g[t][off + i] = self.nus_p[t][off + i] - w[i];
                 }
@@ -607,7 +607,7 @@ impl Workspace {
                             for i in 0..nr {
                                 w[i] = b[i] - 0.5 * mu_i * dnu[i];
                             }
-                            c.set.apply_normal_cone_jacobian(z, mu_i, as_mat_mut(w));
+                            c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
                             for i in 0..nr {
                                 dd += 2.0 / mu_i * w[i] * (b[i] - 0.5 * mu_i * dnu[i]) + 0.5 * mu_i * dnu[i] * dnu[i];
                             }
@@ -624,7 +624,7 @@ impl Workspace {
                         if with_curv {
                             // z' = b.
                             w.copy_from_slice(b);
-                            c.set.apply_normal_cone_jacobian(z, mu_i, as_mat_mut(w));
+                            c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
                             for i in 0..nr {
                                 dd += w[i] * b[i] / mu_i;
                             }
