@@ -175,6 +175,11 @@ impl ConstraintSet for BoxConstraint {
             *o = v.max(self.lower.get(i)).min(self.upper.get(i));
         }
     }
+    fn normal_cone_project(&self, z: &[f64], _mu: f64, out: &mut [f64]) {
+        for (i, (o, &v)) in out.iter_mut().zip(z).enumerate() {
+            *o = v - v.max(self.lower.get(i)).min(self.upper.get(i));
+        }
+    }
     fn apply_projection_jacobian(&self, z: &[f64], _mu: f64, m: MatMut<'_, f64>) {
         zero_rows(m, |i| self.lower.get(i) < z[i] && z[i] < self.upper.get(i));
     }
