@@ -59,6 +59,14 @@ pub trait ConstraintSet: Send + Sync + Debug {
     /// In place `m ← (I - P(z)) m`: the Jacobian of the normal-cone projection.
     fn apply_normal_cone_jacobian(&self, z: &[f64], mu: f64, m: MatMut<'_, f64>);
 
+    /// In place `v ← (I - P(z)) v` for one vector: [`apply_normal_cone_jacobian`]
+    /// on a single column, which sets with a diagonal Jacobian do without a matrix view.
+    ///
+    /// [`apply_normal_cone_jacobian`]: ConstraintSet::apply_normal_cone_jacobian
+    fn apply_normal_cone_jacobian_vec(&self, z: &[f64], mu: f64, v: &mut [f64]) {
+        self.apply_normal_cone_jacobian(z, mu, crate::linalg::as_mat_mut(v));
+    }
+
     /// Violation of `z ∈ C` in the infinity norm: `|z - proj_C(z)|_∞` for indicator
     /// sets (0 for penalties, which are never violated).
     fn violation(&self, z: &[f64]) -> f64;

@@ -85,6 +85,13 @@ impl ConstraintSet for NegativeOrthant {
     fn apply_normal_cone_jacobian(&self, z: &[f64], _mu: f64, m: MatMut<'_, f64>) {
         zero_rows(m, |i| z[i] >= 0.0);
     }
+    fn apply_normal_cone_jacobian_vec(&self, z: &[f64], _mu: f64, v: &mut [f64]) {
+        for (vi, &zi) in v.iter_mut().zip(z) {
+            if zi < 0.0 {
+                *vi = 0.0;
+            }
+        }
+    }
     fn violation(&self, z: &[f64]) -> f64 {
         z.iter().fold(0.0_f64, |a, &v| a.max(v))
     }
@@ -168,11 +175,23 @@ impl ConstraintSet for BoxConstraint {
             *o = v.max(self.lower.get(i)).min(self.upper.get(i));
         }
     }
+    fn normal_cone_project(&self, z: &[f64], _mu: f64, out: &mut [f64]) {
+        for (i, (o, &v)) in out.iter_mut().zip(z).enumerate() {
+            *o = v - v.max(self.lower.get(i)).min(self.upper.get(i));
+        }
+    }
     fn apply_projection_jacobian(&self, z: &[f64], _mu: f64, m: MatMut<'_, f64>) {
         zero_rows(m, |i| self.lower.get(i) < z[i] && z[i] < self.upper.get(i));
     }
     fn apply_normal_cone_jacobian(&self, z: &[f64], _mu: f64, m: MatMut<'_, f64>) {
         zero_rows(m, |i| !(self.lower.get(i) < z[i] && z[i] < self.upper.get(i)));
+    }
+    fn apply_normal_cone_jacobian_vec(&self, z: &[f64], _mu: f64, v: &mut [f64]) {
+        for (i, (vi, &zi)) in v.iter_mut().zip(z).enumerate() {
+            if self.lower.get(i) < zi && zi < self.upper.get(i) {
+                *vi = 0.0;
+            }
+        }
     }
     fn violation(&self, z: &[f64]) -> f64 {
         z.iter().enumerate().fold(0.0_f64, |a, (i, &v)| {

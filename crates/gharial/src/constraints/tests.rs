@@ -252,6 +252,17 @@ fn check_jacobians(name: &str, c: &dyn ConstraintSet, z: &[f64], g: &mut SmallRn
     let mut qm = m.clone();
     c.apply_normal_cone_jacobian(z, MU, qm.as_mut());
     assert_close(&format!("{name}: (I - P) m"), &qm, &(&q * &m), 1e-14);
+    let mut v: Vec<f64> = (0..n).map(|_| g.random_range(-1.0..1.0)).collect();
+    let qv = &q * crate::linalg::col(&v);
+    c.apply_normal_cone_jacobian_vec(z, MU, &mut v);
+    for i in 0..n {
+        assert!(
+            (v[i] - qv[i]).abs() <= 1e-14,
+            "{name}: (I - P) v row {i}: {} vs {}",
+            v[i],
+            qv[i]
+        );
+    }
 }
 
 #[test]

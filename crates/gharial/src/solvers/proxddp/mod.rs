@@ -328,7 +328,7 @@ impl ProxDdp {
                 roundoff_inner = f64::INFINITY;
             }
             let alpha_model =
-                (!roundoff).then(|| ws.model_step(problem, opts.merit, mu, mu_d, opts.linesearch.alpha_min));
+                (!roundoff).then(|| ws.model_step(problem, opts.merit, mu, mu_d, dphi0, opts.linesearch.alpha_min));
             if !roundoff && watchdog.phase.is_none() && watchdog.due() {
                 ws.watch.copy_from(&ws.cur);
                 watchdog.phase = Some(WatchdogPhase {

@@ -323,7 +323,7 @@ impl Workspace {
                     w[i] = self.nus_p[t][off + i] - self.cur.nus[t][off + i];
                 }
                 c.set
-                    .apply_normal_cone_jacobian(&self.zbuf[t][off..off + nr], mu_i, crate::linalg::as_mat_mut(w));
+                    .apply_normal_cone_jacobian_vec(&self.zbuf[t][off..off + nr], mu_i, w);
                 for i in 0..nr {
                     self.nus_g[t][off + i] = self.nus_p[t][off + i] - w[i];
                 }
@@ -513,7 +513,7 @@ impl Workspace {
         self.cost_slope
             + alpha * self.cost_curv
             + self.equality_slope(problem, merit, mu_d, alpha)
-            + self.constraint_slope(problem, merit, mu, alpha)
+            + self.constraint_slope(problem, merit, mu, alpha, false).0
     }
 
     /// The part of [`model_slope`](Self::model_slope) from the initial condition and the
@@ -557,14 +557,26 @@ impl Workspace {
     }
 
     /// The part of [`model_slope`](Self::model_slope) from the path and terminal
-    /// constraints.
-    fn constraint_slope(&mut self, problem: &Problem, merit: Merit, mu: f64, alpha: f64) -> f64 {
+    /// constraints, and its derivative in `α` on the current piece (the active
+    /// curvature, 0 unless `with_curv`). With `z(α)` affine, the slope is `Σ (2/mu) N(z)·z'` plus an affine
+    /// multiplier term, so its derivative is `Σ (2/mu) (J_N z')·z'` plus a constant:
+    /// piecewise constant for polyhedral sets, smooth between kinks for cones.
+    fn constraint_slope(
+        &mut self,
+        problem: &Problem,
+        merit: Merit,
+        mu: f64,
+        alpha: f64,
+        with_curv: bool,
+    ) -> (f64, f64) {
         let n = problem.horizon();
         let st = &self.step;
         let mut d = 0.0;
+        let mut dd = 0.0;
         // Constraints: with w(α) the shifted, linearised residual, the merit term is
-        // 2 e(w) + (mu/4)|ν(α)|² (primal-dual) or e(w) (primal), e the Moreau envelope
-        // of the set, whose gradient is N(w) / mu with N the normal-cone projection.
+        // 2 e(w) + (mu/4)|ν(α)|² (primal-dual (17)) or e(w) (primal (35)), e the Moreau
+        // envelope of the set, whose gradient is N(w) / mu with N the normal-cone
+        // projection.
         for t in 0..=n {
             let cs = problem.constraints(t);
             let datas = self.data.constraint_data(t);
@@ -590,6 +602,16 @@ impl Workspace {
                             let nu_a = nu_c[i] + alpha * dnu[i];
                             d += 2.0 / mu_i * w[i] * (b[i] - 0.5 * mu_i * dnu[i]) + 0.5 * mu_i * nu_a * dnu[i];
                         }
+                        if with_curv {
+                            // z' = b - (mu/2) δν, reusing w for J_N z'.
+                            for i in 0..nr {
+                                w[i] = b[i] - 0.5 * mu_i * dnu[i];
+                            }
+                            c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
+                            for i in 0..nr {
+                                dd += 2.0 / mu_i * w[i] * (b[i] - 0.5 * mu_i * dnu[i]) + 0.5 * mu_i * dnu[i] * dnu[i];
+                            }
+                        }
                     }
                     Merit::Primal => {
                         for i in 0..nr {
@@ -599,32 +621,97 @@ impl Workspace {
                         for i in 0..nr {
                             d += w[i] * b[i] / mu_i;
                         }
+                        if with_curv {
+                            // z' = b.
+                            w.copy_from_slice(b);
+                            c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
+                            for i in 0..nr {
+                                dd += w[i] * b[i] / mu_i;
+                            }
+                        }
                     }
                 }
                 off += nr;
             }
         }
-        d
+        (d, dd)
     }
 
-    /// Step length minimising the local model of the merit function on `(0, 1]`
-    /// (bisection on its nondecreasing derivative): it lands where the constraints that
-    /// the step activates stop the decrease, which a backtracking search from `α = 1`
-    /// approaches only geometrically. `dphi0 = model_slope(0)` must be negative.
-    pub fn model_step(&mut self, problem: &Problem, merit: Merit, mu: f64, mu_d: f64, alpha_min: f64) -> f64 {
+    /// Step length minimising the local model of the merit function on `(0, 1]`: the
+    /// root of its nondecreasing derivative `g`, where the constraints that the step
+    /// activates stop the decrease (a backtracking search from `α = 1` approaches it
+    /// only geometrically). `dphi0 = g(0)` must be negative.
+    ///
+    /// The result is that of bisecting `g` on `[0, 1]` to relative width `1e-3` (the
+    /// right end of the final interval), but most midpoints are decided without
+    /// evaluating `g`: a bracket `g(a) ≤ 0 < g(b)` of the root decides every midpoint
+    /// outside `(a, b)` by monotonicity. The bracket is shrunk by Newton steps on the
+    /// piece of the last evaluated point (with the derivative of `g` there, the active
+    /// curvature), which land on the root once they reach its piece since `g` is
+    /// piecewise linear for polyhedral sets; a Newton step that leaves the bracket, or a
+    /// bracket that has not halved since the last Newton step, evaluates the midpoint
+    /// itself as plain bisection does.
+    pub fn model_step(
+        &mut self,
+        problem: &Problem,
+        merit: Merit,
+        mu: f64,
+        mu_d: f64,
+        dphi0: f64,
+        alpha_min: f64,
+    ) -> f64 {
         // The smooth part of the slope (cost and equality rows) is affine in α: two
-        // evaluations give it for every α of the bisection.
+        // evaluations give it for every α.
         let e0 = self.equality_slope(problem, merit, mu_d, 0.0);
         let e1 = self.equality_slope(problem, merit, mu_d, 1.0);
         let (c0, c1) = (self.cost_slope + e0, self.cost_curv + (e1 - e0));
-        let slope = |ws: &mut Self, alpha: f64| c0 + alpha * c1 + ws.constraint_slope(problem, merit, mu, alpha);
-        if slope(self, 1.0) <= 0.0 {
+        let slope = |ws: &mut Self, alpha: f64| {
+            let (d, dd) = ws.constraint_slope(problem, merit, mu, alpha, true);
+            (c0 + alpha * c1 + d, c1 + dd)
+        };
+        let (mut g, mut dg) = slope(self, 1.0);
+        if g <= 0.0 {
             return 1.0;
         }
+        // g vanishes at the root up to the rounding of its terms, a small multiple of
+        // its rise over [0, 1]; a point with |g| below this is taken as the root.
+        let g_tol = 1e-12 * (g - dphi0);
+        let (mut a, mut b, mut alpha) = (0.0_f64, 1.0_f64, 1.0_f64);
+        let mut root: Option<f64> = None;
+        let mut width_at_newton = f64::INFINITY;
         let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
         while hi - lo > 1e-3 * hi.max(alpha_min) {
             let mid = 0.5 * (lo + hi);
-            if slope(self, mid) <= 0.0 {
+            // Whether g(mid) ≤ 0.
+            let left = loop {
+                if mid <= a {
+                    break true;
+                }
+                if mid >= b {
+                    break false;
+                }
+                if let Some(r) = root {
+                    break mid <= r;
+                }
+                let newton = alpha - g / dg;
+                alpha = if dg > 0.0 && newton > a && newton < b && b - a <= 0.5 * width_at_newton {
+                    width_at_newton = b - a;
+                    newton
+                } else {
+                    width_at_newton = f64::INFINITY;
+                    mid
+                };
+                (g, dg) = slope(self, alpha);
+                if g <= 0.0 {
+                    a = alpha;
+                } else {
+                    b = alpha;
+                }
+                if g.abs() <= g_tol {
+                    root = Some(alpha);
+                }
+            };
+            if left {
                 lo = mid;
             } else {
                 hi = mid;
@@ -888,4 +975,198 @@ impl Workspace {
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use faer::Mat;
+
+    use super::*;
+    use crate::constraints::{BoxConstraint, ConstraintSet, EqualityConstraintSet, SecondOrderCone};
+    use crate::costs::QuadraticCost;
+    use crate::dynamics::LinearDiscreteDynamics;
+    use crate::functions::{ControlError, StateError, Unary};
+    use crate::lq::random::SplitMix64;
+    use crate::problem::{StageConstraint, StageModel};
+    use crate::spaces::VectorSpace;
+
+    const NX: usize = 3;
+    const NU: usize = 3;
+    const N: usize = 5;
+
+    /// A random linear-quadratic problem with the set on every control, and for the
+    /// equality set also the terminal state pinned.
+    fn problem(set: Arc<dyn ConstraintSet>, rng: &mut SplitMix64) -> Problem {
+        let sp = VectorSpace::new(NX);
+        let a = Mat::from_fn(NX, NX, |i, j| {
+            f64::from(u8::from(i == j)) + 0.3 * rng.uniform(-1.0, 1.0)
+        });
+        let b = Mat::from_fn(NX, NU, |_, _| rng.uniform(-1.0, 1.0));
+        let c: Vec<f64> = (0..NX).map(|_| rng.uniform(-0.1, 0.1)).collect();
+        let dynamics = Dynamics::Explicit(Arc::new(
+            LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &c).unwrap(),
+        ));
+        let q = Mat::<f64>::identity(NX, NX);
+        let r = Mat::<f64>::identity(NU, NU);
+        let s = Mat::<f64>::zeros(NX, NU);
+        let qv: Vec<f64> = (0..NX).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        let rv: Vec<f64> = (0..NU).map(|_| rng.uniform(-1.0, 1.0)).collect();
+        let cost = Arc::new(QuadraticCost::new(q.as_ref(), s.as_ref(), r.as_ref(), &qv, &rv).unwrap());
+        let mut stage = StageModel::new(cost, dynamics).unwrap();
+        let f = Arc::new(ControlError::new(&sp, &[0.0; NU]).unwrap());
+        let equality = set.is_equality();
+        stage.add_constraint(StageConstraint::new("u", f, set)).unwrap();
+        let term = Arc::new(QuadraticCost::terminal(q.as_ref(), &qv).unwrap());
+        let mut p = Problem::new(&[0.5; NX], vec![stage; N], term).unwrap();
+        if equality {
+            let xt: Vec<f64> = (0..NX).map(|_| rng.uniform(-1.0, 1.0)).collect();
+            let f = Arc::new(Unary::new(Arc::new(StateError::new(Arc::new(sp), &xt).unwrap()), 0));
+            p.add_terminal_constraint(StageConstraint::new("x_N", f, Arc::new(EqualityConstraintSet)))
+                .unwrap();
+        }
+        p
+    }
+
+    fn fill(v: &mut [f64], rng: &mut SplitMix64) {
+        v.iter_mut().for_each(|x| *x = rng.uniform(-1.0, 1.0));
+    }
+
+    fn scale_step(st: &mut LqSolution, s: f64) {
+        for c in st
+            .xs
+            .iter_mut()
+            .chain(&mut st.us)
+            .chain(&mut st.lambdas)
+            .chain(&mut st.nus)
+        {
+            slice_mut(c).iter_mut().for_each(|x| *x *= s);
+        }
+    }
+
+    /// Root of the model slope on `[0, hi]` by bisection to absolute width 1e-13.
+    fn fine_root(ws: &mut Workspace, p: &Problem, merit: Merit, mu: f64, mu_d: f64, mut hi: f64) -> f64 {
+        let mut lo = 0.0;
+        while hi - lo > 1e-13 {
+            let mid = 0.5 * (lo + hi);
+            if ws.model_slope(p, merit, mu, mu_d, mid) <= 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        hi
+    }
+
+    /// The model step against plain bisection of the full model slope (every midpoint
+    /// evaluated) and against the root to 1e-13, and the active curvature against
+    /// central differences, at random points and steps scaled so
+    /// that the root lies inside (0, 1), with the constraint activity changing along the
+    /// step for the box and the cone.
+    #[test]
+    fn model_step_matches_bisection_of_the_model_slope() {
+        let mut rng = SplitMix64::new(17);
+        let sets: [(&str, Arc<dyn ConstraintSet>); 3] = [
+            ("box", Arc::new(BoxConstraint::new(&[-0.3; NU], &[0.3; NU]).unwrap())),
+            ("equality", Arc::new(EqualityConstraintSet)),
+            ("cone", Arc::new(SecondOrderCone::new(NU).unwrap())),
+        ];
+        let (mu, mu_d, alpha_min) = (0.05, 0.05, 1e-8);
+        for (name, set) in sets {
+            let mut kinked = 0;
+            for trial in 0..12 {
+                let p = problem(set.clone(), &mut rng);
+                let merit = if trial % 2 == 0 {
+                    Merit::PrimalDual
+                } else {
+                    Merit::Primal
+                };
+                let mut ws = Workspace::new(&p, &ProxDdpOptions::default()).unwrap();
+                let cur = &mut ws.cur;
+                for v in cur
+                    .xs
+                    .iter_mut()
+                    .chain(&mut cur.us)
+                    .chain(&mut cur.lams)
+                    .chain(&mut cur.nus)
+                {
+                    fill(v, &mut rng);
+                }
+                for v in ws.lams_e.iter_mut().chain(&mut ws.nus_e) {
+                    fill(v, &mut rng);
+                }
+                ws.evaluate_current(&p).unwrap();
+                let st = &mut ws.step;
+                for c in st
+                    .xs
+                    .iter_mut()
+                    .chain(&mut st.us)
+                    .chain(&mut st.lambdas)
+                    .chain(&mut st.nus)
+                {
+                    fill(slice_mut(c), &mut rng);
+                }
+                ws.prepare_model(&p);
+                if ws.model_slope(&p, merit, mu, mu_d, 0.0) > 0.0 {
+                    scale_step(&mut ws.step, -1.0);
+                    ws.prepare_model(&p);
+                }
+                assert!(
+                    ws.model_slope(&p, merit, mu, mu_d, 0.0) < 0.0,
+                    "{name}: not a descent step"
+                );
+                // Scale the step so that the root lands at a random point of (0.1, 0.9).
+                let mut top = 1.0;
+                while ws.model_slope(&p, merit, mu, mu_d, top) <= 0.0 {
+                    top *= 2.0;
+                }
+                let r0 = fine_root(&mut ws, &p, merit, mu, mu_d, top);
+                scale_step(&mut ws.step, r0 / rng.uniform(0.1, 0.9));
+                ws.prepare_model(&p);
+
+                let dphi0 = ws.model_slope(&p, merit, mu, mu_d, 0.0);
+                let got = ws.model_step(&p, merit, mu, mu_d, dphi0, alpha_min);
+                let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+                while hi - lo > 1e-3 * hi.max(alpha_min) {
+                    let mid = 0.5 * (lo + hi);
+                    if ws.model_slope(&p, merit, mu, mu_d, mid) <= 0.0 {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                assert_eq!(got, hi, "{name} trial {trial}: model step differs from bisection");
+                let root = fine_root(&mut ws, &p, merit, mu, mu_d, 1.0);
+                assert!(
+                    root <= got + 1e-12 && got - root <= 1e-3 * got,
+                    "{name} trial {trial}: root {root} outside the bisection interval ending at {got}"
+                );
+                // The active curvature against central differences of the slope.
+                for _ in 0..5 {
+                    let (a, h) = (rng.uniform(0.0, 1.0), 1e-6);
+                    let (d, dd) = ws.constraint_slope(&p, merit, mu, a, true);
+                    let fd = (ws.constraint_slope(&p, merit, mu, a + h, false).0
+                        - ws.constraint_slope(&p, merit, mu, a - h, false).0)
+                        / (2.0 * h);
+                    assert!(
+                        (dd - fd).abs() <= 1e-5 * (1.0 + dd.abs() + d.abs()),
+                        "{name} trial {trial}: curvature {dd} vs finite difference {fd} at {a}"
+                    );
+                }
+                // Kinks inside (0, 1): the model's curvature differs at the two ends.
+                let h = 1e-7;
+                let curv = |ws: &mut Workspace, a: f64| {
+                    (ws.model_slope(&p, merit, mu, mu_d, a + h) - ws.model_slope(&p, merit, mu, mu_d, a)) / h
+                };
+                let (k0, k1) = (curv(&mut ws, 0.0), curv(&mut ws, 1.0 - h));
+                if (k1 - k0).abs() > 1e-4 * k0.abs().max(k1.abs()) {
+                    kinked += 1;
+                }
+            }
+            if name != "equality" {
+                assert!(kinked >= 6, "{name}: only {kinked} of 12 trials have kinks in (0, 1)");
+            }
+        }
+    }
 }
