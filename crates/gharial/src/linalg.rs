@@ -556,16 +556,22 @@ pub fn symmetrize(mut m: MatMut<'_, f64>) {
 /// loops of the symmetrization kernels unroll without bounds checks).
 #[inline]
 fn columns_fixed<const N: usize>(m: MatRef<'_, f64>) -> [[f64; N]; N] {
-    std::array::from_fn(|j| {
-        let c: &[f64; N] = m
-            .col(j)
-            .try_as_col_major()
-            .expect("checked")
-            .as_slice()
-            .try_into()
-            .expect("N rows");
-        *c
-    })
+    let mut a = [[0.0; N]; N];
+    for (j, aj) in a.iter_mut().enumerate() {
+        *aj = *col_fixed::<N>(m, j);
+    }
+    a
+}
+
+/// Column `j` of a column-major matrix with `N` rows as a fixed-size array.
+#[inline]
+fn col_fixed<const N: usize>(m: MatRef<'_, f64>, j: usize) -> &[f64; N] {
+    m.col(j)
+        .try_as_col_major()
+        .expect("checked")
+        .as_slice()
+        .try_into()
+        .expect("N rows")
 }
 
 /// Column `j` of a column-major matrix with `N` rows as a fixed-size array.
@@ -612,6 +618,12 @@ fn symmetrize_fixed<const N: usize>(mut m: MatMut<'_, f64>) {
 pub fn identity_plus_scaled_lower(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>, alpha: f64) {
     let n = dst.nrows();
     debug_assert_eq!((src.nrows(), src.ncols(), dst.ncols()), (n, n, n));
+    if src.row_stride() == 1
+        && dst.row_stride() == 1
+        && with_fixed_len!(n, identity_plus_scaled_lower_fixed, (dst.rb_mut(), src, alpha))
+    {
+        return;
+    }
     for j in 0..n {
         let pair = (
             src.col(j).try_as_col_major(),
@@ -627,6 +639,20 @@ pub fn identity_plus_scaled_lower(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>
             }
         }
         dst[(j, j)] += 1.0;
+    }
+}
+
+/// [`identity_plus_scaled_lower`] of column-major `N x N` matrices: fixed-size columns,
+/// the same products and diagonal sums.
+#[inline]
+fn identity_plus_scaled_lower_fixed<const N: usize>(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>, alpha: f64) {
+    for j in 0..N {
+        let s = col_fixed::<N>(src, j);
+        let d = col_fixed_mut::<N>(dst.rb_mut(), j);
+        for i in j..N {
+            d[i] = alpha * s[i];
+        }
+        d[j] += 1.0;
     }
 }
 
