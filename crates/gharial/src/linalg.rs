@@ -522,38 +522,10 @@ pub fn sum_is_finite(m: MatRef<'_, f64>) -> bool {
     s.is_finite()
 }
 
-/// Calls `f` with the columns of a column-major matrix with at most [`MAX_SMALL_DIM`]
-/// columns as mutable slices; returns `false` (and does nothing) for other matrices.
-#[inline]
-fn with_columns_mut(m: MatMut<'_, f64>, f: impl FnOnce(&mut [&mut [f64]])) -> bool {
-    let n = m.ncols();
-    if m.row_stride() != 1 || n > MAX_SMALL_DIM {
-        return false;
-    }
-    let mut cols: [&mut [f64]; MAX_SMALL_DIM] = std::array::from_fn(|_| -> &mut [f64] { &mut [] });
-    let mut rest = m;
-    for c in cols.iter_mut().take(n) {
-        let (head, tail) = rest.split_at_col_mut(1);
-        *c = head.col_mut(0).try_as_col_major_mut().expect("checked").as_slice_mut();
-        rest = tail;
-    }
-    f(&mut cols[..n]);
-    true
-}
-
 /// Copies the lower triangle of a square matrix into its upper triangle.
 pub fn symmetrize_from_lower(mut m: MatMut<'_, f64>) {
     let n = m.nrows();
-    let done = with_columns_mut(m.rb_mut(), |cols| {
-        for j in 0..n {
-            let (left, right) = cols.split_at_mut(j + 1);
-            let cj = &left[j];
-            for (i, ci) in right.iter_mut().enumerate() {
-                ci[j] = cj[j + 1 + i];
-            }
-        }
-    });
-    if done {
+    if m.row_stride() == 1 && with_fixed_len!(n, symmetrize_from_lower_fixed, (m.rb_mut())) {
         return;
     }
     for j in 0..n {
@@ -568,18 +540,7 @@ pub fn symmetrize_from_lower(mut m: MatMut<'_, f64>) {
 /// Replaces a square matrix by its symmetric part `(M + Mᵀ) / 2`.
 pub fn symmetrize(mut m: MatMut<'_, f64>) {
     let n = m.nrows();
-    let done = with_columns_mut(m.rb_mut(), |cols| {
-        for j in 0..n {
-            let (left, right) = cols.split_at_mut(j + 1);
-            let cj = &mut left[j];
-            for (i, ci) in right.iter_mut().enumerate() {
-                let v = 0.5 * (cj[j + 1 + i] + ci[j]);
-                cj[j + 1 + i] = v;
-                ci[j] = v;
-            }
-        }
-    });
-    if done {
+    if m.row_stride() == 1 && with_fixed_len!(n, symmetrize_fixed, (m.rb_mut())) {
         return;
     }
     for j in 0..n {
@@ -591,11 +552,78 @@ pub fn symmetrize(mut m: MatMut<'_, f64>) {
     }
 }
 
+/// The columns of a column-major `N x N` matrix, copied into an array (fixed size: the
+/// loops of the symmetrization kernels unroll without bounds checks).
+#[inline]
+fn columns_fixed<const N: usize>(m: MatRef<'_, f64>) -> [[f64; N]; N] {
+    let mut a = [[0.0; N]; N];
+    for (j, aj) in a.iter_mut().enumerate() {
+        *aj = *col_fixed::<N>(m, j);
+    }
+    a
+}
+
+/// Column `j` of a column-major matrix with `N` rows as a fixed-size array.
+#[inline]
+fn col_fixed<const N: usize>(m: MatRef<'_, f64>, j: usize) -> &[f64; N] {
+    m.col(j)
+        .try_as_col_major()
+        .expect("checked")
+        .as_slice()
+        .try_into()
+        .expect("N rows")
+}
+
+/// Column `j` of a column-major matrix with `N` rows as a fixed-size array.
+#[inline]
+fn col_fixed_mut<'a, const N: usize>(m: MatMut<'a, f64>, j: usize) -> &'a mut [f64; N] {
+    m.col_mut(j)
+        .try_as_col_major_mut()
+        .expect("checked")
+        .as_slice_mut()
+        .try_into()
+        .expect("N rows")
+}
+
+/// [`symmetrize_from_lower`] of a column-major `N x N` matrix: the columns read once,
+/// the strict upper triangle written from that copy.
+#[inline]
+fn symmetrize_from_lower_fixed<const N: usize>(mut m: MatMut<'_, f64>) {
+    let low = columns_fixed::<N>(m.as_ref());
+    for i in 1..N {
+        let c = col_fixed_mut::<N>(m.rb_mut(), i);
+        for j in 0..i {
+            c[j] = low[j][i];
+        }
+    }
+}
+
+/// [`symmetrize`] of a column-major `N x N` matrix, from a copy of its columns (the same
+/// sums `(m_ij + m_ji) / 2` as the generic loop).
+#[inline]
+fn symmetrize_fixed<const N: usize>(mut m: MatMut<'_, f64>) {
+    let a = columns_fixed::<N>(m.as_ref());
+    for j in 0..N {
+        let c = col_fixed_mut::<N>(m.rb_mut(), j);
+        for i in 0..N {
+            if i != j {
+                c[i] = 0.5 * (a[j][i] + a[i][j]);
+            }
+        }
+    }
+}
+
 /// Lower triangle (diagonal included) of `dst = I + alpha * src` for square matrices; the
 /// strict upper triangle of `dst` is not touched.
 pub fn identity_plus_scaled_lower(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>, alpha: f64) {
     let n = dst.nrows();
     debug_assert_eq!((src.nrows(), src.ncols(), dst.ncols()), (n, n, n));
+    if src.row_stride() == 1
+        && dst.row_stride() == 1
+        && with_fixed_len!(n, identity_plus_scaled_lower_fixed, (dst.rb_mut(), src, alpha))
+    {
+        return;
+    }
     for j in 0..n {
         let pair = (
             src.col(j).try_as_col_major(),
@@ -611,6 +639,20 @@ pub fn identity_plus_scaled_lower(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>
             }
         }
         dst[(j, j)] += 1.0;
+    }
+}
+
+/// [`identity_plus_scaled_lower`] of column-major `N x N` matrices: fixed-size columns,
+/// the same products and diagonal sums.
+#[inline]
+fn identity_plus_scaled_lower_fixed<const N: usize>(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>, alpha: f64) {
+    for j in 0..N {
+        let s = col_fixed::<N>(src, j);
+        let d = col_fixed_mut::<N>(dst.rb_mut(), j);
+        for i in j..N {
+            d[i] = alpha * s[i];
+        }
+        d[j] += 1.0;
     }
 }
 
@@ -1674,9 +1716,9 @@ mod tests {
 
     #[test]
     fn symmetrization_and_shifted_lower_match_their_definitions() {
-        // Column-slice paths (column-major, up to 16 columns) and the index fallbacks
+        // Fixed-size paths (column-major, every size up to 16) and the index fallbacks
         // (more columns, transposed views), against the entrywise definitions.
-        for n in [1usize, 2, 7, 16, 17] {
+        for n in 1usize..=17 {
             let a = filled(n, n, n);
             let mut big = filled(n + 1, n + 1, 3);
             for view in 0..2 {

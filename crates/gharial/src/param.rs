@@ -41,6 +41,11 @@ impl ParamVec {
         self.values[i].store(v.to_bits(), Ordering::Relaxed);
     }
 
+    /// The entries in order (one pass, no index checks).
+    pub fn iter(&self) -> impl ExactSizeIterator<Item = f64> + '_ {
+        self.values.iter().map(|v| f64::from_bits(v.load(Ordering::Relaxed)))
+    }
+
     /// Copies all entries into `out` (`out.len() == self.len()`).
     pub fn read(&self, out: &mut [f64]) {
         for (o, v) in out.iter_mut().zip(self.values.iter()) {
@@ -86,6 +91,8 @@ mod tests {
         assert_eq!(p.get(1), 7.0);
         p.write(&[0.0, 0.5, f64::MIN_POSITIVE]).unwrap();
         assert_eq!(p.to_vec(), vec![0.0, 0.5, f64::MIN_POSITIVE]);
+        assert_eq!(p.iter().collect::<Vec<_>>(), p.to_vec());
+        assert_eq!(p.iter().len(), 3);
         assert!(p.write(&[1.0]).is_err());
     }
 }

@@ -159,43 +159,61 @@ impl BoxConstraint {
     }
 }
 
+impl BoxConstraint {
+    /// The bounds `(lower_i, upper_i)` paired with the entries of `z` (one pass over the
+    /// parameter vectors, no index checks).
+    fn with_bounds<'a>(&'a self, z: &'a [f64]) -> impl Iterator<Item = (f64, f64, f64)> + 'a {
+        debug_assert_eq!(z.len(), self.lower.len());
+        self.lower
+            .iter()
+            .zip(self.upper.iter())
+            .zip(z)
+            .map(|((l, u), &v)| (l, u, v))
+    }
+
+    /// Zeroes the rows `i` of `m` for which `zero(lower_i, upper_i, z_i)`.
+    fn zero_rows_where(&self, z: &[f64], mut m: MatMut<'_, f64>, zero: impl Fn(f64, f64, f64) -> bool) {
+        for (i, (l, u, v)) in self.with_bounds(z).enumerate() {
+            if zero(l, u, v) {
+                m.as_mut().row_mut(i).fill(0.0);
+            }
+        }
+    }
+}
+
 impl ConstraintSet for BoxConstraint {
     fn dim(&self) -> Option<usize> {
         Some(self.lower.len())
     }
     fn penalty(&self, z: &[f64]) -> f64 {
-        let inside = z
-            .iter()
-            .enumerate()
-            .all(|(i, &v)| self.lower.get(i) <= v && v <= self.upper.get(i));
+        let inside = self.with_bounds(z).all(|(l, u, v)| l <= v && v <= u);
         if inside { 0.0 } else { f64::INFINITY }
     }
     fn project(&self, z: &[f64], _mu: f64, out: &mut [f64]) {
-        for (i, (o, &v)) in out.iter_mut().zip(z).enumerate() {
-            *o = v.max(self.lower.get(i)).min(self.upper.get(i));
+        for (o, (l, u, v)) in out.iter_mut().zip(self.with_bounds(z)) {
+            *o = v.max(l).min(u);
         }
     }
     fn normal_cone_project(&self, z: &[f64], _mu: f64, out: &mut [f64]) {
-        for (i, (o, &v)) in out.iter_mut().zip(z).enumerate() {
-            *o = v - v.max(self.lower.get(i)).min(self.upper.get(i));
+        for (o, (l, u, v)) in out.iter_mut().zip(self.with_bounds(z)) {
+            *o = v - v.max(l).min(u);
         }
     }
     fn apply_projection_jacobian(&self, z: &[f64], _mu: f64, m: MatMut<'_, f64>) {
-        zero_rows(m, |i| self.lower.get(i) < z[i] && z[i] < self.upper.get(i));
+        self.zero_rows_where(z, m, |l, u, v| !(l < v && v < u));
     }
     fn apply_normal_cone_jacobian(&self, z: &[f64], _mu: f64, m: MatMut<'_, f64>) {
-        zero_rows(m, |i| !(self.lower.get(i) < z[i] && z[i] < self.upper.get(i)));
+        self.zero_rows_where(z, m, |l, u, v| l < v && v < u);
     }
     fn apply_normal_cone_jacobian_vec(&self, z: &[f64], _mu: f64, v: &mut [f64]) {
-        for (i, (vi, &zi)) in v.iter_mut().zip(z).enumerate() {
-            if self.lower.get(i) < zi && zi < self.upper.get(i) {
+        for (vi, (l, u, zi)) in v.iter_mut().zip(self.with_bounds(z)) {
+            if l < zi && zi < u {
                 *vi = 0.0;
             }
         }
     }
     fn violation(&self, z: &[f64]) -> f64 {
-        z.iter().enumerate().fold(0.0_f64, |a, (i, &v)| {
-            a.max(v - self.upper.get(i)).max(self.lower.get(i) - v)
-        })
+        self.with_bounds(z)
+            .fold(0.0_f64, |a, (l, u, v)| a.max(v - u).max(l - v))
     }
 }
