@@ -1600,6 +1600,32 @@ mod tests {
         assert_eq!(f.factor(a.as_ref()), Err(FactorError::Singular { index: 2 }));
     }
 
+    /// Solves `b` (contiguous right-hand sides) and `btᵀ` (strided ones) in place with
+    /// `solve` and compares them with the reference solutions `x_ref` and `xt_ref`.
+    fn assert_solves_match(
+        mut solve: impl FnMut(MatMut<'_, f64>),
+        b: &Mat<f64>,
+        bt: &Mat<f64>,
+        x_ref: &Mat<f64>,
+        xt_ref: &Mat<f64>,
+        tol: f64,
+        what: &str,
+    ) {
+        let mut x = b.clone();
+        solve(x.as_mut());
+        let mut xt = bt.clone();
+        solve(xt.as_mut().transpose_mut());
+        let n = b.nrows();
+        for j in 0..n {
+            for i in 0..b.ncols() {
+                assert!((x[(j, i)] - x_ref[(j, i)]).abs() < tol, "{what} solve n {n}");
+            }
+            for i in 0..bt.nrows() {
+                assert!((xt[(i, j)] - xt_ref[(j, i)]).abs() < tol, "{what} strided solve n {n}");
+            }
+        }
+    }
+
     #[test]
     fn small_factorizations_match_faer_around_the_size_threshold() {
         use faer::prelude::Solve;
@@ -1622,20 +1648,8 @@ mod tests {
                     );
                 }
             }
-            let x_ref = reference.solve(b.as_ref());
-            let mut x = b.clone();
-            f.solve_in_place(x.as_mut());
-            let mut xt = bt.clone();
-            f.solve_in_place(xt.as_mut().transpose_mut());
-            let xt_ref = reference.solve(bt.transpose());
-            for j in 0..n {
-                for i in 0..9 {
-                    assert!((x[(j, i)] - x_ref[(j, i)]).abs() < 1e-12, "llt solve n {n}");
-                }
-                for i in 0..5 {
-                    assert!((xt[(i, j)] - xt_ref[(j, i)]).abs() < 1e-12, "llt strided solve n {n}");
-                }
-            }
+            let (x_ref, xt_ref) = (reference.solve(b.as_ref()), reference.solve(bt.transpose()));
+            assert_solves_match(|m| f.solve_in_place(m), &b, &bt, &x_ref, &xt_ref, 1e-12, "llt");
 
             // Quasi-definite [[H, Dᵀ], [D, -mu I]] (no pivoting needed).
             let nu = n.div_ceil(2);
@@ -1658,20 +1672,8 @@ mod tests {
                     );
                 }
             }
-            let x_ref = reference.solve(b.as_ref());
-            let mut x = b.clone();
-            f.solve_in_place(x.as_mut());
-            let mut xt = bt.clone();
-            f.solve_in_place(xt.as_mut().transpose_mut());
-            let xt_ref = reference.solve(bt.transpose());
-            for j in 0..n {
-                for i in 0..9 {
-                    assert!((x[(j, i)] - x_ref[(j, i)]).abs() < 1e-11, "ldlt solve n {n}");
-                }
-                for i in 0..5 {
-                    assert!((xt[(i, j)] - xt_ref[(j, i)]).abs() < 1e-11, "ldlt strided solve n {n}");
-                }
-            }
+            let (x_ref, xt_ref) = (reference.solve(b.as_ref()), reference.solve(bt.transpose()));
+            assert_solves_match(|m| f.solve_in_place(m), &b, &bt, &x_ref, &xt_ref, 1e-11, "ldlt");
         }
     }
 
