@@ -723,14 +723,7 @@ macro_rules! with_small_dim {
 /// The `N` columns of an owned `N x N` matrix as fixed-size arrays.
 #[inline(always)]
 fn columns<const N: usize>(m: MatRef<'_, f64>) -> [&[f64; N]; N] {
-    std::array::from_fn(|j| {
-        m.col(j)
-            .try_as_col_major()
-            .expect("owned storage")
-            .as_slice()
-            .try_into()
-            .expect("N rows")
-    })
+    std::array::from_fn(|j| col_fixed::<N>(m, j))
 }
 
 /// In-place factorization of the lower triangle of an owned `N x N` matrix, right-looking
@@ -739,8 +732,7 @@ fn columns<const N: usize>(m: MatRef<'_, f64>) -> [&[f64; N]; N] {
 /// `L` below it; fails on a zero pivot), both as faer stores them.
 #[inline(always)]
 fn small_factor<const N: usize>(mut a: MatMut<'_, f64>, cholesky: bool) -> Result<(), FactorError> {
-    let cols = columns::<N>(a.as_ref());
-    let mut m: [[f64; N]; N] = std::array::from_fn(|j| *cols[j]);
+    let mut m = columns_fixed::<N>(a.as_ref());
     for j in 0..N {
         let d = m[j][j];
         if cholesky {
@@ -1580,16 +1572,7 @@ mod tests {
             }
             for cols in [1, 3, 8] {
                 let b = filled(n, cols, cols + n);
-                let mut x = b.clone();
-                f.solve_in_place(x.as_mut());
-                assert!(residual(a.as_ref(), x.as_ref(), b.as_ref()) < 1e-10, "n {n}");
-                let bt = filled(cols, n, cols);
-                let mut xt = bt.clone();
-                f.solve_in_place(xt.as_mut().transpose_mut());
-                assert!(
-                    residual(a.as_ref(), xt.transpose(), bt.transpose()) < 1e-10,
-                    "n {n}, transposed"
-                );
+                assert_solves_system(|m| f.solve_in_place(m), a.as_ref(), &b, cols, 1e-10);
             }
         }
         let mut f = Llt::new(3);
@@ -1598,6 +1581,25 @@ mod tests {
         a[(2, 1)] = 0.0;
         a[(2, 0)] = 0.0;
         assert_eq!(f.factor(a.as_ref()), Err(FactorError::Singular { index: 2 }));
+    }
+
+    /// Solves `a x = b` in place with `solve`, and the strided system whose right-hand
+    /// sides are the rows of `filled(cols, n, cols)`, and checks both residuals.
+    fn assert_solves_system(
+        mut solve: impl FnMut(MatMut<'_, f64>),
+        a: MatRef<'_, f64>,
+        b: &Mat<f64>,
+        cols: usize,
+        tol: f64,
+    ) {
+        let n = a.nrows();
+        let mut x = b.clone();
+        solve(x.as_mut());
+        assert!(residual(a, x.as_ref(), b.as_ref()) < tol, "n {n}, {cols} columns");
+        let bt = filled(cols, n, cols);
+        let mut xt = bt.clone();
+        solve(xt.as_mut().transpose_mut());
+        assert!(residual(a, xt.transpose(), bt.transpose()) < tol, "n {n}, transposed");
     }
 
     /// Solves `b` (contiguous right-hand sides) and `btᵀ` (strided ones) in place with
@@ -1695,19 +1697,7 @@ mod tests {
             assert_eq!((inertia.positive, inertia.negative), (nu, n - nu));
             for cols in [1, 2, 9] {
                 let b = filled(n, cols, cols);
-                let mut x = b.clone();
-                f.solve_in_place(x.as_mut());
-                assert!(
-                    residual(k.as_ref(), x.as_ref(), b.as_ref()) < 1e-9,
-                    "n {n}, {cols} columns"
-                );
-                let bt = filled(cols, n, cols);
-                let mut xt = bt.clone();
-                f.solve_in_place(xt.as_mut().transpose_mut());
-                assert!(
-                    residual(k.as_ref(), xt.transpose(), bt.transpose()) < 1e-9,
-                    "n {n}, transposed"
-                );
+                assert_solves_system(|m| f.solve_in_place(m), k.as_ref(), &b, cols, 1e-9);
             }
         }
         // A zero pivot is reported by the small path too.
