@@ -31,8 +31,9 @@
 //! acrobot-bounds:  ℓ_N = ½ 10 |x_N ⊖ x*|²,   |τ| ≤ 0.6            (Fig. 7)
 //! ```
 //! `x0 = ((-1, 0), (1, 0), 0, 0)` (hanging). Initial guess `τ = 0` and its rollout.
-//! Settings: dynamics AL scale `1e-3` (paper), nonlinear rollout (the linear rollout does
-//! not converge in 300 iterations on either problem, measured), `mu_init = 1e-3` for
+//! Settings: dynamics AL scale `1e-3` (the paper's, and the solver's default), nonlinear
+//! rollout (the linear rollout does not converge in 300 iterations on either problem,
+//! measured), `mu_init = 1e-3` for
 //! `acrobot` (paper) and `1e-1` for `acrobot-bounds`. The torque limit 0.6 N·m is just
 //! below the largest torque of the unconstrained optimum (0.615 N·m).
 //!
@@ -306,7 +307,6 @@ pub fn build(variant: AcrobotVariant) -> Result<Example> {
         us0,
         dt: Some(DT),
         proxddp: ProxDdpOptions {
-            dyn_al_scale: 1e-3,
             rollout: Rollout::Nonlinear,
             ..if variant == AcrobotVariant::Bounds {
                 ProxDdpOptions {

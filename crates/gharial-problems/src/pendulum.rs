@@ -25,8 +25,8 @@
 //! to lift the tip (measured: no convergence in 300 iterations from the rollout of
 //! `τ = 0` with `mu_init = 1`, nor from that of `τ = 1 N·m` with `mu_init` from 1 to
 //! 1e-3).
-//! Settings: the paper's (Fig. 4), `mu_init = 1` and the nonlinear rollout (24
-//! iterations; linear rollout: 26). From `mu_init = 1e-2` both rollouts converge in 22.
+//! Settings: the paper's (Fig. 4), `mu_init = 1` and the nonlinear rollout (19
+//! iterations; linear rollout: 18). From `mu_init = 1e-2`: 17 and 16.
 //!
 //! # Jacobians
 //! Hand-written (two nonzero entries); checked against the generic model with dual

@@ -552,7 +552,7 @@ fn constraint_and_dynamics_scalings_do_not_change_the_solution() {
             &base,
             ProxDdpOptions {
                 tol: 1e-9,
-                verbose: true,
+                dyn_al_scale: 1.0,
                 ..Default::default()
             },
             &xs,

@@ -65,7 +65,11 @@ pub struct ProxDdpOptions {
     /// Lower bound on `mu` (default `1e-8`).
     pub mu_lower_bound: f64,
     /// Scale of the dynamics and initial-condition penalty relative to `mu`
-    /// (appendix C; default 1).
+    /// (appendix C; default `1e-3`, the paper's value for its acrobot and aligator's
+    /// default). A small scale keeps the LQ step close to exact on the dynamics rows, so
+    /// that a linear model is feasible after one step; measured against a scale of 1:
+    /// quadrotor 108 → 81 iterations, quadrotor-slalom 173 → 103, pendulum 24 → 19,
+    /// peers-lqr 2 → 1.
     pub dyn_al_scale: f64,
     /// BCL exponent of the inner tolerance `omega` after a successful outer step
     /// (`α_ω` of Algorithm 2, default 1).
@@ -139,7 +143,7 @@ impl Default for ProxDdpOptions {
             mu_init: 1e-2,
             mu_update_factor: 0.01,
             mu_lower_bound: 1e-8,
-            dyn_al_scale: 1.0,
+            dyn_al_scale: 1e-3,
             bcl_alpha_omega: 1.0,
             bcl_alpha_eta: 0.9,
             bcl_beta_omega: 1.0,
