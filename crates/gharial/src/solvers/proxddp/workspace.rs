@@ -100,7 +100,7 @@ pub(super) struct Workspace {
     /// Implicit-dynamics Newton solves of the nonlinear rollout, per stage.
     implicit_lu: Vec<Option<Lu>>,
     /// Smallest constraint scale of the problem (1 without constraints): the smallest
-    /// penalty of the Newton system is `min(mu_d, min_scale * mu)`.
+    /// constraint penalty of the Newton system is `min_scale * mu`.
     min_scale: f64,
     pub lq: LqProblem,
     pub step: LqSolution,
@@ -345,9 +345,9 @@ impl Workspace {
         // The Riccati recursion determines the step to about ε / mu relative (module docs
         // of `crate::lq`, "Accuracy"); one refinement step restores ε but costs about a
         // third of the forward and backward passes. Refine only when ε / mu could reach
-        // a hundredth of the tolerance.
-        let mu_min = mu_d.min(self.min_scale * mu);
-        let refine = f64::EPSILON / mu_min > 1e-2 * opts.tol;
+        // a hundredth of the tolerance. Only the constraint rows count: the dynamics
+        // penalty enters the recursion as `(I + mu_d P')⁻¹ P'`, exact as `mu_d → 0`.
+        let refine = f64::EPSILON / (self.min_scale * mu) > 1e-2 * opts.tol;
         self.riccati.set_refinement_steps(usize::from(refine));
         // The gains of the next co-state (50c) serve the nonlinear rollout only.
         self.riccati.set_rollout_gains(opts.rollout == Rollout::Nonlinear);
