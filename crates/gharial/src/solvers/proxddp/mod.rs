@@ -449,7 +449,7 @@ impl ProxDdp {
                 status = Status::MaxIterations;
                 break;
             }
-            match ws.evaluate_current(problem) {
+            match ws.derivatives_at_accepted(problem) {
                 Some(c) => cost = c,
                 None => {
                     status = Status::NonFinite;

@@ -235,6 +235,18 @@ impl Workspace {
         Some(c)
     }
 
+    /// After [`accept_trial`](Self::accept_trial): `data` holds the values of the accepted
+    /// trial, the last point evaluated, so only the first derivatives are computed;
+    /// returns the cost, or `None` if a value is not finite.
+    pub fn derivatives_at_accepted(&mut self, problem: &Problem) -> Option<f64> {
+        let c = self.data.cost;
+        if !self.values_finite() || !c.is_finite() {
+            return None;
+        }
+        self.data.compute_derivatives(problem, &self.cur.xs, &self.cur.us);
+        Some(c)
+    }
+
     fn values_finite(&self) -> bool {
         let d = &self.data;
         d.init.value().iter().all(|v| v.is_finite())
