@@ -99,6 +99,9 @@ enum Command {
         /// Initial augmented-Lagrangian penalty.
         #[arg(long)]
         mu_init: Option<f64>,
+        /// Dynamics penalty relative to the penalty (appendix C of the ProxDDP paper).
+        #[arg(long)]
+        dyn_al_scale: Option<f64>,
         /// Iteration limit.
         #[arg(long)]
         max_iters: Option<usize>,
@@ -224,6 +227,7 @@ fn main() {
             solver,
             tol,
             mu_init,
+            dyn_al_scale,
             max_iters,
             rollout,
             step_acceptance,
@@ -237,6 +241,7 @@ fn main() {
                 solver,
                 tol,
                 mu_init,
+                dyn_al_scale,
                 max_iters,
                 rollout: rollout.map(Rollout::from),
                 step_acceptance: step_acceptance.map(StepAcceptance::from),

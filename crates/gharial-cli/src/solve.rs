@@ -19,6 +19,8 @@ pub struct SolveArgs {
     pub tol: Option<f64>,
     /// Initial AL penalty.
     pub mu_init: Option<f64>,
+    /// Dynamics penalty scale.
+    pub dyn_al_scale: Option<f64>,
     /// Iteration limit.
     pub max_iters: Option<usize>,
     /// Rollout.
@@ -55,6 +57,9 @@ pub fn options(example: &Example, args: &SolveArgs) -> ProxDdpOptions {
     if let Some(v) = args.mu_init {
         o.mu_init = v;
         o.mu_lower_bound = o.mu_lower_bound.min(v);
+    }
+    if let Some(v) = args.dyn_al_scale {
+        o.dyn_al_scale = v;
     }
     if let Some(v) = args.max_iters {
         o.max_iters = v;
@@ -193,7 +198,8 @@ pub fn solution_json(example: &Example, opts: &ProxDdpOptions, sol: &Solution) -
         "solver": "proxddp",
         "dt": example.dt,
         "settings": {
-            "tol": opts.tol, "mu_init": opts.mu_init, "max_iters": opts.max_iters,
+            "tol": opts.tol, "mu_init": opts.mu_init, "dyn_al_scale": opts.dyn_al_scale,
+            "max_iters": opts.max_iters,
             "rollout": format!("{:?}", opts.rollout), "step_acceptance": format!("{:?}", opts.step_acceptance),
             "merit": format!("{:?}", opts.merit),
             "num_threads": opts.num_threads,

@@ -92,6 +92,10 @@ fn bad_input_gives_a_message_and_a_failure_code() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("tol"), "{}", stderr(&o));
 
+    let o = gharial(&["solve", "lqr", "--dyn-al-scale=0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("dyn_al_scale"), "{}", stderr(&o));
+
     let o = gharial(&["solve", "lqr", "--solver", "nope"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("proxddp"));
@@ -105,7 +109,7 @@ fn an_unconverged_solve_exits_with_code_one() {
 }
 
 #[test]
-fn step_acceptance_and_merit_overrides_reach_the_solver() {
+fn step_acceptance_merit_and_dynamics_scale_overrides_reach_the_solver() {
     let path = std::env::temp_dir().join(format!("gharial-cli-accept-{}.json", std::process::id()));
     let path_str = path.to_str().expect("UTF-8 temp path");
     let o = gharial(&[
@@ -115,6 +119,8 @@ fn step_acceptance_and_merit_overrides_reach_the_solver() {
         "nonmonotone",
         "--merit",
         "primal",
+        "--dyn-al-scale",
+        "0.5",
         "--output",
         path_str,
     ]);
@@ -123,6 +129,7 @@ fn step_acceptance_and_merit_overrides_reach_the_solver() {
     std::fs::remove_file(&path).unwrap();
     assert_eq!(doc["settings"]["step_acceptance"], "NonmonotoneLinesearch");
     assert_eq!(doc["settings"]["merit"], "Primal");
+    assert_eq!(doc["settings"]["dyn_al_scale"], 0.5);
     assert_eq!(doc["converged"], true);
     let ex = gharial_problems::build("lqr-bounds-term").unwrap();
     let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
