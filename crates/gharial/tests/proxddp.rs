@@ -898,3 +898,69 @@ fn swing_up_with_a_stiff_dynamics_penalty_converges_without_exploding_iterates()
         assert!((sol.xs[100][0] + 1.0).abs() < 1e-6);
     }
 }
+
+/// Bitwise equality of two solutions (iterates, multipliers, iteration counts).
+fn assert_same_solution(a: &gharial::solvers::Solution, b: &gharial::solvers::Solution, what: &str) {
+    assert_eq!((a.status, a.iterations), (b.status, b.iterations), "{what}");
+    assert_eq!((&a.xs, &a.us), (&b.xs, &b.us), "{what}: primal");
+    assert_eq!((&a.lambdas, &a.nus), (&b.lambdas, &b.nus), "{what}: multipliers");
+}
+
+/// The LQ knots keep the constant cost Hessians and dynamics Jacobians during a solve;
+/// a second solve with the same solver must write them anew, whether the problem is
+/// unchanged, has other models of the same dimensions, or has parameters changed in
+/// place (a named cost stack's weight, a tracking target).
+#[test]
+fn reused_solver_matches_a_fresh_one_when_models_or_weights_change() {
+    use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
+    let lq = random_lq(4, 2, 20, 21);
+    let target = reachable_target(&lq, 0.5);
+    let p = ocp(&lq, Some(0.5), Some(&target));
+    let (xs, us) = zero_guess(&p);
+    let mut solver = ProxDdp::new(ProxDdpOptions::default());
+    solver.setup(&p).unwrap();
+    let first = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().clone();
+    assert_eq!(first.status, Status::Converged);
+    let again = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().clone();
+    assert_same_solution(&again, &first, "same problem");
+    // Other dynamics and costs of the same dimensions, given to the same solver.
+    let other = ocp(&random_lq(4, 2, 20, 22), Some(0.5), Some(&target));
+    let reused = solver.solve(&other, InitialGuess::primal(&xs, &us)).unwrap().clone();
+    assert_same_solution(
+        &reused,
+        &solve(&other, ProxDdpOptions::default(), &xs, &us),
+        "other models",
+    );
+    assert_ne!(reused.us, first.us);
+    // Parameters changed in place between solves of one problem.
+    let sp = space(&lq);
+    let x_cost = Arc::new(QuadraticStateCost::diagonal(sp.clone(), &[0.0; 4], &[1.0, 2.0, 1.0, 0.5], 2).unwrap());
+    let u_cost = Arc::new(QuadraticControlCost::diagonal(sp.as_ref(), &[0.1, -0.1], &[0.3, 0.2]).unwrap());
+    let stack = Arc::new(
+        CostStack::new(sp.as_ref(), 2)
+            .with("x", x_cost.clone(), 1.0)
+            .unwrap()
+            .with("u", u_cost.clone(), 1.0)
+            .unwrap(),
+    );
+    let mut q = ocp(&lq, Some(0.5), None);
+    for (t, st) in q.stages_mut().iter_mut().enumerate() {
+        st.cost = if t % 2 == 0 { stack.clone() } else { u_cost.clone() };
+    }
+    let mut solver = ProxDdp::new(ProxDdpOptions::default());
+    solver.setup(&q).unwrap();
+    let before = solver.solve(&q, InitialGuess::primal(&xs, &us)).unwrap().clone();
+    stack.set_weight("u", 5.0).unwrap();
+    u_cost.set_target(&[0.2, 0.3]).unwrap();
+    x_cost.set_target(&[0.1, 0.0, -0.1, 0.2]).unwrap();
+    let after = solver.solve(&q, InitialGuess::primal(&xs, &us)).unwrap().clone();
+    assert_same_solution(
+        &after,
+        &solve(&q, ProxDdpOptions::default(), &xs, &us),
+        "changed weights",
+    );
+    assert_eq!(after.status, Status::Converged);
+    let kkt = kkt_residuals(&q, &after.xs, &after.us, &after.lambdas, &after.nus).unwrap();
+    assert!(kkt.max() < 1e-6, "{kkt:?}");
+    assert_ne!(before.us, after.us);
+}

@@ -94,4 +94,19 @@ pub trait Cost: Send + Sync {
     /// Writes the gradient and Hessian into `data`. `evaluate` has been called at the
     /// same point before.
     fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData);
+
+    /// Whether the Hessian is the same at every point (default: false), so that callers
+    /// may keep the one written by a first [`Cost::derivatives`] and call
+    /// [`Cost::gradient`] afterwards. A cost whose Hessian depends on parameters that
+    /// change in place may only say true if they change between solves.
+    fn hessian_is_constant(&self) -> bool {
+        false
+    }
+
+    /// Writes the gradient into `data.lx`, `data.lu`; the Hessian blocks may be left as
+    /// they are. `evaluate` has been called at the same point before, and
+    /// [`Cost::derivatives`] on the same data at some point. Default: `derivatives`.
+    fn gradient(&self, x: &[f64], u: &[f64], data: &mut CostData) {
+        self.derivatives(x, u, data);
+    }
 }

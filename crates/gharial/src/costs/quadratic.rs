@@ -137,6 +137,15 @@ impl Cost for QuadraticCost {
         data.value = vx + vu;
     }
     fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
+        self.gradient(x, u, data);
+        crate::linalg::copy(data.lxx.as_mut(), self.Q.as_ref());
+        crate::linalg::copy(data.lxu.as_mut(), self.S.as_ref());
+        crate::linalg::copy(data.luu.as_mut(), self.R.as_ref());
+    }
+    fn hessian_is_constant(&self) -> bool {
+        true
+    }
+    fn gradient(&self, x: &[f64], u: &[f64], data: &mut CostData) {
         let lx = slice_mut(&mut data.lx);
         lx.copy_from_slice(slice(&self.q));
         self.q_times(lx, Accum::Add, x, 1.0);
@@ -147,9 +156,6 @@ impl Cost for QuadraticCost {
             matvec_t(lu, Accum::Add, self.S.as_ref(), x, 1.0);
         }
         self.r_times(lu, Accum::Add, u, 1.0);
-        crate::linalg::copy(data.lxx.as_mut(), self.Q.as_ref());
-        crate::linalg::copy(data.lxu.as_mut(), self.S.as_ref());
-        crate::linalg::copy(data.luu.as_mut(), self.R.as_ref());
     }
 }
 
@@ -202,12 +208,18 @@ impl Cost for ConstantCost {
     fn evaluate(&self, _x: &[f64], _u: &[f64], data: &mut CostData) {
         data.value = self.value;
     }
-    fn derivatives(&self, _x: &[f64], _u: &[f64], data: &mut CostData) {
-        data.lx.fill(0.0);
-        data.lu.fill(0.0);
+    fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
+        self.gradient(x, u, data);
         data.lxx.fill(0.0);
         data.lxu.fill(0.0);
         data.luu.fill(0.0);
+    }
+    fn hessian_is_constant(&self) -> bool {
+        true
+    }
+    fn gradient(&self, _x: &[f64], _u: &[f64], data: &mut CostData) {
+        data.lx.fill(0.0);
+        data.lu.fill(0.0);
     }
 }
 

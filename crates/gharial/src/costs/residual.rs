@@ -217,6 +217,20 @@ impl Cost for QuadraticResidualCost {
         self.w.apply_mat(ws.fd.ju.as_ref(), ws.hju.as_mut());
         assemble(self.f.as_ref(), x, u, self.exact, ws, out);
     }
+    /// `Jᵀ W J` is constant when the Jacobians are (`W` is fixed at construction) and
+    /// no second-order term `vhp(W r)` is added.
+    fn hessian_is_constant(&self) -> bool {
+        self.f.jacobians_are_constant() && !(self.exact && self.f.has_vhp())
+    }
+    fn gradient(&self, x: &[f64], u: &[f64], data: &mut CostData) {
+        if !self.hessian_is_constant() {
+            return self.derivatives(x, u, data);
+        }
+        // `J` is the one of the first `derivatives` call; `g = W r` is from `evaluate`.
+        let (out, ws) = split(data);
+        matvec_t(slice_mut(out.lx), Accum::Replace, ws.fd.jx.as_ref(), &ws.g, 1.0);
+        matvec_t(slice_mut(out.lu), Accum::Replace, ws.fd.ju.as_ref(), &ws.g, 1.0);
+    }
 }
 
 /// `ℓ(x, u) = ½ (x ⊖ x_ref)ᵀ W (x ⊖ x_ref)` on any manifold, with a movable target.
@@ -346,6 +360,12 @@ macro_rules! delegate_cost {
             }
             fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
                 self.inner.derivatives(x, u, data)
+            }
+            fn hessian_is_constant(&self) -> bool {
+                self.inner.hessian_is_constant()
+            }
+            fn gradient(&self, x: &[f64], u: &[f64], data: &mut CostData) {
+                self.inner.gradient(x, u, data)
             }
         }
     };

@@ -265,6 +265,10 @@ impl ImplicitDynamics for ExplicitAsImplicit {
         matmul(data.ju.as_mut(), Accum::Replace, ws.jd.as_ref(), ws.ed.ju.as_ref(), 1.0);
         sn.jdifference(y, ws.ed.xnext(), Arg::First, data.jy.as_mut());
     }
+    /// On a vector space of next states `f = φ(x, u) - y`: `φ_x`, `φ_u` and `-I`.
+    fn jacobians_are_constant(&self) -> bool {
+        self.dynamics.jacobians_are_constant() && self.space_next().is_vector_space()
+    }
 }
 
 #[cfg(test)]

@@ -75,6 +75,9 @@ impl ExplicitDynamics for LinearDiscreteDynamics {
         crate::linalg::copy(data.jx.as_mut(), self.a.as_ref());
         crate::linalg::copy(data.ju.as_mut(), self.b.as_ref());
     }
+    fn jacobians_are_constant(&self) -> bool {
+        true
+    }
 }
 
 /// The linear ODE `ẋ = A x + B u + c` on `R^n` (`A: n x n`).

@@ -108,6 +108,13 @@ pub trait ExplicitDynamics: Send + Sync {
     /// the same point before.
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut ExplicitDynamicsData);
 
+    /// Whether `jacobians` writes the same `jx`, `ju` at every point (linear dynamics;
+    /// default: false), so that callers may skip it after a first call on the same data.
+    /// `vhp` must then not depend on a call of `jacobians` at the same point.
+    fn jacobians_are_constant(&self) -> bool {
+        false
+    }
+
     /// Whether [`ExplicitDynamics::vhp`] computes the second-order term.
     fn has_vhp(&self) -> bool {
         false
@@ -222,6 +229,12 @@ pub trait ImplicitDynamics: Send + Sync {
     /// called at the same point before.
     fn jacobians(&self, x: &[f64], u: &[f64], y: &[f64], data: &mut ImplicitDynamicsData);
 
+    /// Whether `jacobians` writes the same `jx`, `ju`, `jy` at every point (default:
+    /// false); see [`ExplicitDynamics::jacobians_are_constant`].
+    fn jacobians_are_constant(&self) -> bool {
+        false
+    }
+
     /// Whether [`ImplicitDynamics::vhp`] computes the second-order term.
     fn has_vhp(&self) -> bool {
         false
@@ -271,6 +284,16 @@ impl Dynamics {
         match self {
             Dynamics::Explicit(d) => d.nu(),
             Dynamics::Implicit(d) => d.nu(),
+        }
+    }
+
+    /// Whether the Jacobians of the implicit form `f(x, u, y)` are the same at every
+    /// point: constant model Jacobians, and for explicit dynamics next states in a
+    /// vector space (`f = φ(x, u) - y`).
+    pub fn jacobians_are_constant(&self) -> bool {
+        match self {
+            Dynamics::Explicit(d) => d.jacobians_are_constant() && d.space_next().is_vector_space(),
+            Dynamics::Implicit(d) => d.jacobians_are_constant(),
         }
     }
 

@@ -123,6 +123,9 @@ impl StageFunction for Slice {
     fn has_vhp(&self) -> bool {
         self.f.has_vhp()
     }
+    fn jacobians_are_constant(&self) -> bool {
+        self.f.jacobians_are_constant()
+    }
     fn vhp(&self, x: &[f64], u: &[f64], lambda: &[f64], data: &mut StageFunctionData) {
         let ws: &mut InnerWs = downcast(&mut data.ws);
         ws.lambda.fill(0.0);
@@ -209,6 +212,9 @@ impl StageFunction for LinearComposition {
     fn has_vhp(&self) -> bool {
         self.f.has_vhp()
     }
+    fn jacobians_are_constant(&self) -> bool {
+        self.f.jacobians_are_constant()
+    }
     fn vhp(&self, x: &[f64], u: &[f64], lambda: &[f64], data: &mut StageFunctionData) {
         let ws: &mut InnerWs = downcast(&mut data.ws);
         matvec_t(&mut ws.lambda, Accum::Replace, self.m.as_ref(), lambda, 1.0);
@@ -289,6 +295,9 @@ impl StageFunction for FunctionStack {
     }
     fn has_vhp(&self) -> bool {
         self.fs.iter().any(|f| f.has_vhp())
+    }
+    fn jacobians_are_constant(&self) -> bool {
+        self.fs.iter().all(|f| f.jacobians_are_constant())
     }
     fn vhp(&self, x: &[f64], u: &[f64], lambda: &[f64], data: &mut StageFunctionData) {
         let datas: &mut Vec<StageFunctionData> = downcast(&mut data.ws);

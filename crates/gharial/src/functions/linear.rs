@@ -78,6 +78,9 @@ impl StageFunction for LinearFunction {
         data.jx.copy_from(&self.a);
         data.ju.copy_from(&self.b);
     }
+    fn jacobians_are_constant(&self) -> bool {
+        true
+    }
 }
 
 /// `r(x) = A x + c` with `A: nr x nx`, `c: nr`, as a [`UnaryFunction`].
@@ -120,6 +123,9 @@ impl UnaryFunction for LinearUnaryFunction {
     }
     fn jacobian(&self, _x: &[f64], data: &mut StageFunctionData) {
         data.jx.copy_from(&self.a);
+    }
+    fn jacobian_is_constant(&self) -> bool {
+        true
     }
 }
 

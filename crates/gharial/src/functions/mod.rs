@@ -115,6 +115,13 @@ pub trait StageFunction: Send + Sync {
     /// the same point before.
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData);
 
+    /// Whether `jacobians` writes the same `jx`, `ju` at every point (affine functions;
+    /// default: false), so that callers may skip it after a first call on the same data.
+    /// `vhp` must then not depend on a call of `jacobians` at the same point.
+    fn jacobians_are_constant(&self) -> bool {
+        false
+    }
+
     /// Whether [`StageFunction::vhp`] computes the second-order term (otherwise it is
     /// zero, which is exact for linear functions and the Gauss-Newton approximation
     /// for others).
@@ -154,6 +161,12 @@ pub trait UnaryFunction: Send + Sync {
 
     /// Writes `dr/dx` into `data.jx`.
     fn jacobian(&self, x: &[f64], data: &mut StageFunctionData);
+
+    /// Whether `jacobian` writes the same `jx` at every point (default: false); see
+    /// [`StageFunction::jacobians_are_constant`].
+    fn jacobian_is_constant(&self) -> bool {
+        false
+    }
 
     /// Whether [`UnaryFunction::vhp`] computes the second-order term.
     fn has_vhp(&self) -> bool {
@@ -209,6 +222,9 @@ impl StageFunction for Unary {
     fn jacobians(&self, x: &[f64], _u: &[f64], data: &mut StageFunctionData) {
         self.f.jacobian(x, data);
         data.ju.fill(0.0);
+    }
+    fn jacobians_are_constant(&self) -> bool {
+        self.f.jacobian_is_constant()
     }
     fn has_vhp(&self) -> bool {
         self.f.has_vhp()

@@ -110,6 +110,10 @@ impl UnaryFunction for StateError {
         self.target.read(&mut ws.x_ref);
         self.space.jdifference(&ws.x_ref, x, Arg::Second, data.jx.as_mut());
     }
+    /// The identity on vector spaces, whatever the target.
+    fn jacobian_is_constant(&self) -> bool {
+        self.space.is_vector_space()
+    }
 }
 
 /// The control error `r(x, u) = u - u_ref` (`nr = nu`): `dr/dx = 0`, `dr/du = I`.
@@ -171,6 +175,9 @@ impl StageFunction for ControlError {
     fn jacobians(&self, _x: &[f64], _u: &[f64], data: &mut StageFunctionData) {
         data.jx.fill(0.0);
         set_identity(data.ju.as_mut());
+    }
+    fn jacobians_are_constant(&self) -> bool {
+        true
     }
 }
 

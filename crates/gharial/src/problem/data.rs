@@ -115,8 +115,22 @@ impl StageData {
         self.cost.value
     }
 
-    fn derivatives(&mut self, stage: &StageModel, x: &[f64], u: &[f64], y: &[f64]) {
-        stage.cost.derivatives(x, u, &mut self.cost);
+    /// With `reuse`, the blocks that the models declare constant hold the values of an
+    /// earlier call and only the varying ones are computed.
+    fn derivatives(&mut self, stage: &StageModel, x: &[f64], u: &[f64], y: &[f64], reuse: bool) {
+        if reuse && stage.cost.hessian_is_constant() {
+            stage.cost.gradient(x, u, &mut self.cost);
+        } else {
+            stage.cost.derivatives(x, u, &mut self.cost);
+        }
+        for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
+            if !(reuse && c.func.jacobians_are_constant()) {
+                c.func.jacobians(x, u, cd);
+            }
+        }
+        if reuse && stage.dynamics.jacobians_are_constant() {
+            return;
+        }
         match (&stage.dynamics, &mut self.dynamics) {
             (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
                 m.jacobians(x, u, d);
@@ -151,9 +165,6 @@ impl StageData {
                 crate::linalg::copy(self.dyn_jy.as_mut(), d.jy.as_ref());
             }
             _ => unreachable!("stage data created for another dynamics kind"),
-        }
-        for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
-            c.func.jacobians(x, u, cd);
         }
     }
 
@@ -206,6 +217,10 @@ pub struct ProblemData {
     pub init: StageFunctionData,
     /// Total cost of the last evaluation.
     pub cost: f64,
+    /// Whether the derivative blocks that models declare constant (cost Hessians,
+    /// Jacobians of dynamics and constraints) have been written since the data was made
+    /// or last invalidated.
+    constants_written: bool,
     pool: Option<rayon::ThreadPool>,
 }
 
@@ -256,6 +271,7 @@ impl ProblemData {
             terminal_constraints: constraint_data(problem.terminal_constraints()),
             init,
             cost: 0.0,
+            constants_written: false,
             pool,
         })
     }
@@ -314,26 +330,45 @@ impl ProblemData {
 
     /// Computes first derivatives (and cost Hessians) at the point of the last
     /// [`ProblemData::evaluate`].
+    ///
+    /// Blocks that the models declare constant ([`crate::costs::Cost::hessian_is_constant`],
+    /// `jacobians_are_constant` of dynamics and functions) are written by the first call
+    /// only and kept by later ones: call
+    /// [`ProblemData::invalidate_constant_derivatives`] before passing a problem with
+    /// other models or after changing their parameters.
     pub fn compute_derivatives(&mut self, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) {
         let stages = problem.stages();
-        self.for_each_stage(|t, sd| sd.derivatives(&stages[t], &xs[t], &us[t], &xs[t + 1]));
+        let reuse = self.constants_written;
+        self.for_each_stage(|t, sd| sd.derivatives(&stages[t], &xs[t], &us[t], &xs[t + 1], reuse));
         let n = stages.len();
-        problem
-            .terminal_cost()
-            .derivatives(&xs[n], &[], &mut self.terminal_cost);
+        let terminal_cost = problem.terminal_cost();
+        if reuse && terminal_cost.hessian_is_constant() {
+            terminal_cost.gradient(&xs[n], &[], &mut self.terminal_cost);
+        } else {
+            terminal_cost.derivatives(&xs[n], &[], &mut self.terminal_cost);
+        }
         for (c, cd) in problem
             .terminal_constraints()
             .iter()
             .zip(self.terminal_constraints.iter_mut())
         {
-            c.func.jacobians(&xs[n], &[], cd);
+            if !(reuse && c.func.jacobians_are_constant()) {
+                c.func.jacobians(&xs[n], &[], cd);
+            }
         }
+        self.constants_written = true;
         match problem.initial_condition() {
             InitialCondition::Fixed(x0) => problem
                 .space(0)
                 .jdifference(x0, &xs[0], Arg::Second, self.init.jx.as_mut()),
             InitialCondition::Constraint(f) => f.jacobian(&xs[0], &mut self.init),
         }
+    }
+
+    /// Makes the next [`ProblemData::compute_derivatives`] write every block again,
+    /// including those the models declare constant.
+    pub fn invalidate_constant_derivatives(&mut self) {
+        self.constants_written = false;
     }
 
     /// Computes the multiplier-weighted second derivatives of dynamics and constraints

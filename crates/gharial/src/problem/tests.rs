@@ -336,3 +336,134 @@ fn lagrangian_gradient_matches_the_jacobian_products() {
         }
     }
 }
+
+/// A problem whose every model declares constant derivative blocks: quadratic and
+/// tracking costs, linear dynamics (explicit, and implicit through
+/// `ExplicitAsImplicit`), affine path and terminal constraints.
+fn constant_blocks_problem(seed: u64, n: usize) -> Problem {
+    use crate::costs::{QuadraticControlCost, QuadraticCost, QuadraticStateCost};
+    use crate::dynamics::{ExplicitAsImplicit, LinearDiscreteDynamics};
+    use crate::functions::testing::{random_mat, random_vec, rng};
+    use crate::functions::{ControlError, LinearFunction, StateError, Unary};
+    let (nx, nu) = (3, 2);
+    let mut g = rng(seed);
+    let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(nx));
+    let stages = (0..n)
+        .map(|t| {
+            let lin = Arc::new(
+                LinearDiscreteDynamics::new(
+                    random_mat(&mut g, nx, nx, 1.0).as_ref(),
+                    random_mat(&mut g, nx, nu, 1.0).as_ref(),
+                    &random_vec(&mut g, nx, 1.0),
+                )
+                .unwrap(),
+            );
+            let dynamics = if t % 2 == 0 {
+                Dynamics::Explicit(lin)
+            } else {
+                Dynamics::Implicit(Arc::new(ExplicitAsImplicit::new(lin)))
+            };
+            let cost: Arc<dyn Cost> = if t % 3 == 0 {
+                Arc::new(
+                    QuadraticControlCost::diagonal(space.as_ref(), &random_vec(&mut g, nu, 1.0), &[0.5, 2.0]).unwrap(),
+                )
+            } else {
+                let w = random_mat(&mut g, nx + nu, nx + nu, 1.0);
+                let h = w.transpose() * &w;
+                Arc::new(
+                    QuadraticCost::new(
+                        h.as_ref().submatrix(0, 0, nx, nx),
+                        h.as_ref().submatrix(0, nx, nx, nu),
+                        h.as_ref().submatrix(nx, nx, nu, nu),
+                        &random_vec(&mut g, nx, 1.0),
+                        &random_vec(&mut g, nu, 1.0),
+                    )
+                    .unwrap(),
+                )
+            };
+            let affine = LinearFunction::new(
+                random_mat(&mut g, 2, nx, 1.0).as_ref(),
+                random_mat(&mut g, 2, nu, 1.0).as_ref(),
+                &random_vec(&mut g, 2, 1.0),
+            )
+            .unwrap();
+            let u_err = ControlError::new(space.as_ref(), &random_vec(&mut g, nu, 1.0)).unwrap();
+            StageModel::new(cost, dynamics)
+                .unwrap()
+                .with_constraint(StageConstraint::new("affine", Arc::new(affine), Arc::new(AnySet)))
+                .unwrap()
+                .with_constraint(StageConstraint::new("u", Arc::new(u_err), Arc::new(AnySet)))
+                .unwrap()
+        })
+        .collect();
+    let x_ref = random_vec(&mut g, nx, 1.0);
+    let term = Arc::new(QuadraticStateCost::diagonal(space.clone(), &x_ref, &[1.0, 2.0, 3.0], 0).unwrap());
+    let x_err = Unary::new(Arc::new(StateError::new(space, &x_ref).unwrap()), 0);
+    Problem::new(&random_vec(&mut g, nx, 1.0), stages, term)
+        .unwrap()
+        .with_terminal_constraint(StageConstraint::new("x_N", Arc::new(x_err), Arc::new(AnySet)))
+        .unwrap()
+}
+
+/// Every derivative block of `a` and `b`, bit for bit.
+fn assert_same_derivatives(a: &ProblemData, b: &ProblemData, what: &str) {
+    for (t, (sa, sb)) in a.stages.iter().zip(&b.stages).enumerate() {
+        let (ca, cb) = (&sa.cost, &sb.cost);
+        assert_eq!((ca.lx(), ca.lu()), (cb.lx(), cb.lu()), "{what}: stage {t} gradient");
+        assert_eq!(
+            (&ca.lxx, &ca.lxu, &ca.luu),
+            (&cb.lxx, &cb.lxu, &cb.luu),
+            "{what}: stage {t} Hessian"
+        );
+        assert_eq!(
+            (&sa.dyn_jx, &sa.dyn_ju, &sa.dyn_jy),
+            (&sb.dyn_jx, &sb.dyn_ju, &sb.dyn_jy),
+            "{what}: stage {t} dynamics"
+        );
+        for (k, (da, db)) in sa.constraints.iter().zip(&sb.constraints).enumerate() {
+            assert_eq!((&da.jx, &da.ju), (&db.jx, &db.ju), "{what}: stage {t} constraint {k}");
+        }
+    }
+    let (ta, tb) = (&a.terminal_cost, &b.terminal_cost);
+    assert_eq!((ta.lx(), &ta.lxx), (tb.lx(), &tb.lxx), "{what}: terminal cost");
+    for (da, db) in a.terminal_constraints.iter().zip(&b.terminal_constraints) {
+        assert_eq!(&da.jx, &db.jx, "{what}: terminal constraint");
+    }
+}
+
+#[test]
+fn constant_blocks_kept_across_points_equal_a_fresh_evaluation() {
+    let n = 6;
+    let p = constant_blocks_problem(70, n);
+    for st in p.stages() {
+        assert!(st.cost.hessian_is_constant() && st.dynamics.jacobians_are_constant());
+        assert!(st.constraints().iter().all(|c| c.func.jacobians_are_constant()));
+    }
+    assert!(p.terminal_cost().hessian_is_constant());
+    let mut g = crate::functions::testing::rng(72);
+    let mut point = |k: usize, m: usize| -> Vec<Vec<f64>> {
+        (0..m)
+            .map(|_| crate::functions::testing::random_vec(&mut g, k, 1.0))
+            .collect()
+    };
+    let (xs, us, xs2, us2) = (point(3, n + 1), point(2, n), point(3, n + 1), point(2, n));
+    // Derivatives at a first point, then at a second one, keeping the constant blocks.
+    let mut kept = ProblemData::new(&p, 1).unwrap();
+    kept.evaluate(&p, &xs, &us);
+    kept.compute_derivatives(&p, &xs, &us);
+    kept.evaluate(&p, &xs2, &us2);
+    kept.compute_derivatives(&p, &xs2, &us2);
+    let mut fresh = ProblemData::new(&p, 1).unwrap();
+    fresh.evaluate(&p, &xs2, &us2);
+    fresh.compute_derivatives(&p, &xs2, &us2);
+    assert_same_derivatives(&kept, &fresh, "kept blocks");
+    // Other models of the same dimensions: after invalidation, every block is new.
+    let q = constant_blocks_problem(71, n);
+    kept.invalidate_constant_derivatives();
+    kept.evaluate(&q, &xs, &us);
+    kept.compute_derivatives(&q, &xs, &us);
+    let mut fresh = ProblemData::new(&q, 1).unwrap();
+    fresh.evaluate(&q, &xs, &us);
+    fresh.compute_derivatives(&q, &xs, &us);
+    assert_same_derivatives(&kept, &fresh, "other models");
+}

@@ -102,6 +102,10 @@ pub(super) struct Workspace {
     /// Smallest constraint scale of the problem (1 without constraints): the smallest
     /// constraint penalty of the Newton system is `min_scale * mu`.
     min_scale: f64,
+    /// Whether the knots hold the constant blocks of this solve (cost Hessians and
+    /// dynamics Jacobians that the models declare constant), so that `build_lq` need
+    /// not copy them again.
+    knot_constants: bool,
     pub lq: LqProblem,
     pub step: LqSolution,
     pub riccati: RiccatiSolver,
@@ -173,6 +177,7 @@ impl Workspace {
             tbuf: vecs(&ndxs),
             implicit_lu,
             min_scale,
+            knot_constants: false,
             lq,
             step,
             riccati,
@@ -182,7 +187,13 @@ impl Workspace {
     }
 
     /// Loads a guess; missing multipliers are zero. `λ_e`, `ν_e` start at the guess.
+    ///
+    /// Every solve starts a new problem for the workspace: the problem given to it may
+    /// have other models than the last one (of the same dimensions), or parameters
+    /// changed in place, so the constant derivative blocks are written anew.
     pub fn load_guess(&mut self, guess: &InitialGuess<'_>) {
+        self.data.invalidate_constant_derivatives();
+        self.knot_constants = false;
         for (a, b) in self.cur.xs.iter_mut().zip(guess.xs) {
             a.copy_from_slice(b);
         }
@@ -363,26 +374,36 @@ impl Workspace {
         self.riccati.set_refinement_steps(usize::from(refine));
         // The gains of the next co-state (50c) serve the nonlinear rollout only.
         self.riccati.set_rollout_gains(opts.rollout == Rollout::Nonlinear);
+        // Blocks that are constant during the solve and that nothing else writes stay in
+        // the knots from the first build: A, B of constant dynamics Jacobians, and
+        // Q, S, R of constant cost Hessians unless the exact Hessian adds to them.
+        let keep = self.knot_constants;
+        let keep_hessian = keep && opts.hessian != HessianApprox::Exact;
         for t in 0..=n {
             let knot = &mut self.lq.knots[t];
             slice_mut(&mut knot.q).copy_from_slice(&self.gx[t]);
             if t < n {
                 let sd = &self.data.stages[t];
-                crate::linalg::copy(knot.Q.as_mut(), sd.cost.lxx.as_ref());
-                crate::linalg::copy(knot.S.as_mut(), sd.cost.lxu.as_ref());
-                crate::linalg::copy(knot.R.as_mut(), sd.cost.luu.as_ref());
+                let stage = &problem.stages()[t];
+                if !(keep_hessian && stage.cost.hessian_is_constant()) {
+                    crate::linalg::copy(knot.Q.as_mut(), sd.cost.lxx.as_ref());
+                    crate::linalg::copy(knot.S.as_mut(), sd.cost.lxu.as_ref());
+                    crate::linalg::copy(knot.R.as_mut(), sd.cost.luu.as_ref());
+                }
                 slice_mut(&mut knot.r).copy_from_slice(&self.gu[t]);
-                crate::linalg::copy(knot.A.as_mut(), sd.dyn_jx.as_ref());
-                crate::linalg::copy(knot.B.as_mut(), sd.dyn_ju.as_ref());
-                // The knot was made with E = -I, which nothing else writes.
-                if !sd.dyn_jy_is_minus_identity {
-                    crate::linalg::copy(knot.E.as_mut(), sd.dyn_jy.as_ref());
+                if !(keep && stage.dynamics.jacobians_are_constant()) {
+                    crate::linalg::copy(knot.A.as_mut(), sd.dyn_jx.as_ref());
+                    crate::linalg::copy(knot.B.as_mut(), sd.dyn_ju.as_ref());
+                    // The knot was made with E = -I, which nothing else writes.
+                    if !sd.dyn_jy_is_minus_identity {
+                        crate::linalg::copy(knot.E.as_mut(), sd.dyn_jy.as_ref());
+                    }
                 }
                 for i in 0..knot.nx_next {
                     knot.f[i] = mu_d * (self.lams_p[t + 1][i] - self.cur.lams[t + 1][i]);
                 }
                 knot.mu_dyn = mu_d;
-            } else {
+            } else if !(keep_hessian && problem.terminal_cost().hessian_is_constant()) {
                 crate::linalg::copy(knot.Q.as_mut(), self.data.terminal_cost.lxx.as_ref());
             }
             // Constraint rows: C = J_N h_x, D = J_N h_u, d = mu_i (ν⁺ - ν), mu_c = mu_i.
@@ -411,6 +432,7 @@ impl Workspace {
         if opts.hessian == HessianApprox::Exact {
             self.add_second_order(problem);
         }
+        self.knot_constants = true;
     }
 
     /// Adds the multiplier-weighted second derivatives (37d)-(37i) to the knots. Cross
