@@ -47,6 +47,9 @@ pub struct StageData {
     pub dyn_jy_is_minus_identity: bool,
     /// One data object per path constraint, in the stage's order.
     pub constraints: Vec<StageFunctionData>,
+    /// Per path constraint: whether its `jx` is constant and zero (a constraint on the
+    /// controls only), so that products with it can be skipped.
+    constraint_jx_zero: Vec<bool>,
     /// `d(φ ⊖ y)/dφ` for explicit dynamics (scratch).
     jdiff_phi: Mat<f64>,
     /// Scratch for the co-state mapped through `jdiff_phi`.
@@ -54,6 +57,12 @@ pub struct StageData {
 }
 
 impl StageData {
+    /// Whether the state Jacobian of path constraint `k` is constant and zero (known
+    /// after the first [`ProblemData::compute_derivatives`]).
+    pub fn constraint_jx_is_zero(&self, k: usize) -> bool {
+        self.constraint_jx_zero[k]
+    }
+
     fn new(stage: &StageModel) -> Self {
         let (s, sn) = (stage.space(), stage.space_next());
         let (ndx, ndx2, nu) = (s.ndx(), sn.ndx(), stage.nu());
@@ -75,6 +84,7 @@ impl StageData {
             dyn_jy,
             dyn_jy_is_minus_identity,
             constraints: stage.constraints().iter().map(|c| c.func.create_data()).collect(),
+            constraint_jx_zero: vec![false; stage.constraints().len()],
             jdiff_phi: Mat::zeros(ndx2, ndx2),
             lambda_phi: vec![0.0; ndx2],
         }
@@ -123,9 +133,16 @@ impl StageData {
         } else {
             stage.cost.derivatives(x, u, &mut self.cost);
         }
-        for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
-            if !(reuse && c.func.jacobians_are_constant()) {
+        for ((c, cd), zero) in stage
+            .constraints()
+            .iter()
+            .zip(self.constraints.iter_mut())
+            .zip(self.constraint_jx_zero.iter_mut())
+        {
+            let constant = c.func.jacobians_are_constant();
+            if !(reuse && constant) {
                 c.func.jacobians(x, u, cd);
+                *zero = constant && crate::linalg::norm_max(cd.jx.as_ref()) == 0.0;
             }
         }
         if reuse && stage.dynamics.jacobians_are_constant() {
@@ -430,9 +447,16 @@ impl ProblemData {
                 matvec_t(g, Accum::Add, sd.dyn_jx.as_ref(), &lambdas[t + 1], 1.0);
                 matvec_t(&mut gu[t], Accum::Add, sd.dyn_ju.as_ref(), &lambdas[t + 1], 1.0);
                 let mut off = 0;
-                for (c, cd) in problem.stages()[t].constraints().iter().zip(&sd.constraints) {
+                for (k, (c, cd)) in problem.stages()[t]
+                    .constraints()
+                    .iter()
+                    .zip(&sd.constraints)
+                    .enumerate()
+                {
                     let v = &nus[t][off..off + c.nr()];
-                    matvec_t(g, Accum::Add, cd.jx.as_ref(), v, 1.0);
+                    if !sd.constraint_jx_zero[k] {
+                        matvec_t(g, Accum::Add, cd.jx.as_ref(), v, 1.0);
+                    }
                     matvec_t(&mut gu[t], Accum::Add, cd.ju.as_ref(), v, 1.0);
                     off += c.nr();
                 }

@@ -457,6 +457,44 @@ fn constant_blocks_kept_across_points_equal_a_fresh_evaluation() {
     fresh.evaluate(&p, &xs2, &us2);
     fresh.compute_derivatives(&p, &xs2, &us2);
     assert_same_derivatives(&kept, &fresh, "kept blocks");
+    // The control constraint's state Jacobian is known to be zero, the affine one's not;
+    // the Lagrangian gradient that skips the zero block equals the full products.
+    for sd in &kept.stages {
+        assert!(!sd.constraint_jx_is_zero(0) && sd.constraint_jx_is_zero(1));
+    }
+    let lambdas = point(3, n + 1);
+    let nus: Vec<Vec<f64>> = (0..=n)
+        .map(|t| {
+            (0..p.constraints(t).iter().map(|c| c.nr()).sum())
+                .map(|i| 0.3 * i as f64 - 0.2)
+                .collect()
+        })
+        .collect();
+    let (mut gx, mut gu) = (vec![vec![0.0; 3]; n + 1], vec![vec![0.0; 2]; n]);
+    kept.lagrangian_gradient(&p, &lambdas, &nus, &mut gx, &mut gu);
+    for t in 0..n {
+        let sd = &kept.stages[t];
+        for i in 0..3 {
+            let mut g = sd.cost.lx()[i] + (0..3).map(|k| sd.dyn_jx[(k, i)] * lambdas[t + 1][k]).sum::<f64>();
+            let mut off = 0;
+            for cd in &sd.constraints {
+                g += (0..cd.jx.nrows()).map(|k| cd.jx[(k, i)] * nus[t][off + k]).sum::<f64>();
+                off += cd.jx.nrows();
+            }
+            g += if t == 0 {
+                (0..3).map(|k| kept.init.jx[(k, i)] * lambdas[0][k]).sum::<f64>()
+            } else {
+                (0..3)
+                    .map(|k| kept.stages[t - 1].dyn_jy[(k, i)] * lambdas[t][k])
+                    .sum::<f64>()
+            };
+            assert!(
+                (gx[t][i] - g).abs() < 1e-13 * (1.0 + g.abs()),
+                "gx[{t}][{i}] = {} vs {g}",
+                gx[t][i]
+            );
+        }
+    }
     // Other models of the same dimensions: after invalidation, every block is new.
     let q = constant_blocks_problem(71, n);
     kept.invalidate_constant_derivatives();

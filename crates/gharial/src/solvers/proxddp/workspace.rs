@@ -410,13 +410,17 @@ impl Workspace {
             let cs = problem.constraints(t);
             let datas = self.data.constraint_data(t);
             let mut off = 0;
-            for (c, d) in cs.iter().zip(datas) {
+            for (k, (c, d)) in cs.iter().zip(datas).enumerate() {
                 let nr = c.nr();
                 let mu_i = c.scale * mu;
                 let z = &self.zbuf[t][off..off + nr];
                 let mut crows = knot.C.as_mut().subrows_mut(off, nr);
-                crate::linalg::copy(crows.rb_mut(), d.jx.as_ref());
-                c.set.apply_normal_cone_jacobian(z, mu_i, crows);
+                if t < n && self.data.stages[t].constraint_jx_is_zero(k) {
+                    crows.fill(0.0);
+                } else {
+                    crate::linalg::copy(crows.rb_mut(), d.jx.as_ref());
+                    c.set.apply_normal_cone_jacobian(z, mu_i, crows);
+                }
                 if knot.nu > 0 {
                     let mut drows = knot.D.as_mut().subrows_mut(off, nr);
                     crate::linalg::copy(drows.rb_mut(), d.ju.as_ref());
