@@ -181,6 +181,25 @@ impl LqKnot {
     /// Checks that every field has the shape the knot's dimensions announce.
     pub fn check_shapes(&self, knot: usize) -> Result<(), LqError> {
         let (nx, nu, nc, ny) = (self.nx, self.nu, self.nc, self.nx_next);
+        let dims = |m: &Mat<f64>, rows: usize, cols: usize| m.nrows() == rows && m.ncols() == cols;
+        // The common case in one pass of comparisons (this runs at every Riccati solve);
+        // the named error is built only when a shape is wrong.
+        if dims(&self.Q, nx, nx)
+            && dims(&self.S, nx, nu)
+            && dims(&self.R, nu, nu)
+            && dims(&self.A, ny, nx)
+            && dims(&self.B, ny, nu)
+            && dims(&self.E, ny, ny)
+            && dims(&self.C, nc, nx)
+            && dims(&self.D, nc, nu)
+            && self.q.nrows() == nx
+            && self.r.nrows() == nu
+            && self.f.nrows() == ny
+            && self.d.nrows() == nc
+            && self.mu_c.nrows() == nc
+        {
+            return Ok(());
+        }
         let mats: [(&'static str, &Mat<f64>, usize, usize); 8] = [
             ("Q", &self.Q, nx, nx),
             ("S", &self.S, nx, nu),
