@@ -532,10 +532,14 @@ impl Workspace {
         for t in 0..=n {
             let datas = self.data.constraint_data(t);
             let mut off = 0;
-            for cd in datas {
+            for (k, cd) in datas.iter().enumerate() {
                 let nr = cd.value.nrows();
                 let b = &mut self.lin_cons[t][off..off + nr];
-                matvec(b, Accum::Replace, cd.jx.as_ref(), slice(&st.xs[t]), 1.0);
+                if t < n && self.data.stages[t].constraint_jx_is_zero(k) {
+                    b.fill(0.0);
+                } else {
+                    matvec(b, Accum::Replace, cd.jx.as_ref(), slice(&st.xs[t]), 1.0);
+                }
                 if t < n {
                     matvec(b, Accum::Add, cd.ju.as_ref(), slice(&st.us[t]), 1.0);
                 }
