@@ -79,9 +79,9 @@ pub fn time_solves(
 }
 
 /// `gharial bench solve`: iterations, time and time per iteration of every example, at
-/// its recommended settings (with `rollout` if given), and the largest KKT residual of
-/// the solution recomputed by [`kkt_residuals`].
-pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>) -> i32 {
+/// its recommended settings (with `rollout` and `active_set_iters` if given), and the
+/// largest KKT residual of the solution recomputed by [`kkt_residuals`].
+pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>, active_set_iters: Option<usize>) -> i32 {
     let names: Vec<String> = if names.is_empty() {
         gharial_problems::catalogue()
             .iter()
@@ -118,6 +118,9 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>) -> i
         let mut opts = ex.proxddp.clone();
         if let Some(r) = rollout {
             opts.rollout = r;
+        }
+        if let Some(k) = active_set_iters {
+            opts.active_set_iters = k;
         }
         match time_solves(&ex.problem, &ex.xs0, &ex.us0, &opts, repeats) {
             Ok(t) => {

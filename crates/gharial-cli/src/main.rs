@@ -102,6 +102,9 @@ enum Command {
         /// Dynamics penalty relative to the penalty (appendix C of the ProxDDP paper).
         #[arg(long)]
         dyn_al_scale: Option<f64>,
+        /// Active-set prediction iterations per step (0: the plain Newton step).
+        #[arg(long)]
+        active_set_iters: Option<usize>,
         /// Iteration limit.
         #[arg(long)]
         max_iters: Option<usize>,
@@ -143,6 +146,9 @@ enum BenchCommand {
         /// Forward pass (default: each problem's recommended one).
         #[arg(long, value_enum)]
         rollout: Option<RolloutArg>,
+        /// Active-set prediction iterations per step (default: each problem's setting).
+        #[arg(long)]
+        active_set_iters: Option<usize>,
     },
     /// The LQR family of the peer harness, as JSON lines in its format.
     Peers {
@@ -228,6 +234,7 @@ fn main() {
             tol,
             mu_init,
             dyn_al_scale,
+            active_set_iters,
             max_iters,
             rollout,
             step_acceptance,
@@ -242,6 +249,7 @@ fn main() {
                 tol,
                 mu_init,
                 dyn_al_scale,
+                active_set_iters,
                 max_iters,
                 rollout: rollout.map(Rollout::from),
                 step_acceptance: step_acceptance.map(StepAcceptance::from),
@@ -258,8 +266,14 @@ fn main() {
                     problems,
                     repeats,
                     rollout,
+                    active_set_iters,
                 },
-        } => std::process::exit(bench_solve::examples(&problems, repeats, rollout.map(Rollout::from))),
+        } => std::process::exit(bench_solve::examples(
+            &problems,
+            repeats,
+            rollout.map(Rollout::from),
+            active_set_iters,
+        )),
         Command::Bench {
             which:
                 BenchCommand::Peers {

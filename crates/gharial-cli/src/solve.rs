@@ -21,6 +21,8 @@ pub struct SolveArgs {
     pub mu_init: Option<f64>,
     /// Dynamics penalty scale.
     pub dyn_al_scale: Option<f64>,
+    /// Active-set prediction iterations per step.
+    pub active_set_iters: Option<usize>,
     /// Iteration limit.
     pub max_iters: Option<usize>,
     /// Rollout.
@@ -60,6 +62,9 @@ pub fn options(example: &Example, args: &SolveArgs) -> ProxDdpOptions {
     }
     if let Some(v) = args.dyn_al_scale {
         o.dyn_al_scale = v;
+    }
+    if let Some(v) = args.active_set_iters {
+        o.active_set_iters = v;
     }
     if let Some(v) = args.max_iters {
         o.max_iters = v;
@@ -199,6 +204,7 @@ pub fn solution_json(example: &Example, opts: &ProxDdpOptions, sol: &Solution) -
         "dt": example.dt,
         "settings": {
             "tol": opts.tol, "mu_init": opts.mu_init, "dyn_al_scale": opts.dyn_al_scale,
+            "active_set_iters": opts.active_set_iters,
             "max_iters": opts.max_iters,
             "rollout": format!("{:?}", opts.rollout), "step_acceptance": format!("{:?}", opts.step_acceptance),
             "merit": format!("{:?}", opts.merit),

@@ -1,6 +1,6 @@
 //! `ProxDdp::solve` allocates nothing after `setup`, counted with a global allocator, for
-//! every rollout and step acceptance, on a nonlinear problem with path and terminal
-//! constraints.
+//! every rollout and step acceptance, with and without the active-set prediction, on a
+//! nonlinear problem with path and terminal constraints.
 
 #[path = "support/counting_alloc.rs"]
 mod counting_alloc;
@@ -125,11 +125,16 @@ fn solve_does_not_allocate_after_setup() {
                 StepAcceptance::NonmonotoneLinesearch,
                 StepAcceptance::Filter,
             ] {
-                for hessian in [HessianApprox::GaussNewton, HessianApprox::Exact] {
+                for (hessian, active_set_iters) in [
+                    (HessianApprox::GaussNewton, 0),
+                    (HessianApprox::Exact, 0),
+                    (HessianApprox::GaussNewton, 10),
+                ] {
                     let opts = ProxDdpOptions {
                         rollout,
                         step_acceptance,
                         hessian,
+                        active_set_iters,
                         max_iters: 20,
                         ..Default::default()
                     };
@@ -143,7 +148,7 @@ fn solve_does_not_allocate_after_setup() {
                     assert!(iterations > 3, "the solves must do real work");
                     assert_eq!(
                         count, 0,
-                        "implicit {implicit} {rollout:?} {step_acceptance:?} {hessian:?}"
+                        "implicit {implicit} {rollout:?} {step_acceptance:?} {hessian:?} K {active_set_iters}"
                     );
                 }
             }

@@ -279,6 +279,12 @@ impl ProxDdp {
 
             // Newton step: LQ subproblem (42)-(46), with inertia correction.
             ws.build_lq(problem, opts, mu, mu_d);
+            // Whether the step may be refined by the active-set prediction (only within
+            // the outer loop's feasibility target, where the linearisation of the
+            // subproblem is trusted as the filter trusts the merit), and whether the knots
+            // hold its constraint rows.
+            let mut predict = opts.active_set_iters > 0 && res.prim <= eta;
+            let mut predicted = false;
             let dphi0 = loop {
                 match ws.riccati.backward(&ws.lq, preg) {
                     Ok(()) => {}
@@ -299,8 +305,22 @@ impl ProxDdp {
                     status = Status::NonFinite;
                     break 'outer;
                 }
+                if predict {
+                    predict = false;
+                    match predict_active_set(ws, problem, opts.active_set_iters, mu, preg) {
+                        Some(p) => predicted = p,
+                        // The knots hold the Newton step's rows again: solve them.
+                        None => continue,
+                    }
+                }
                 ws.prepare_model(problem);
                 let d = ws.model_slope(problem, opts.merit, mu, mu_d, 0.0);
+                if predicted && (d >= 0.0 || d.is_nan()) {
+                    // Not a descent direction for the merit: back to the Newton step.
+                    ws.set_constraint_rows(problem, mu, false);
+                    predicted = false;
+                    continue;
+                }
                 if !d.is_finite() {
                     status = Status::NonFinite;
                     break 'outer;
@@ -491,6 +511,26 @@ impl ProxDdp {
         sol.solve_time = start.elapsed();
         Ok(&self.solution)
     }
+}
+
+/// The active-set prediction of the step (see [`ProxDdpOptions::active_set_iters`]):
+/// up to `iters` further semi-smooth Newton iterations on the subproblem whose Newton
+/// step is in `ws.step`, each an LQ solve with the constraint rows linearised at the
+/// previous iterate. Returns whether the knots and the step are those of the prediction,
+/// or `None` if an LQ solve failed: the knots then have the rows of the Newton step back,
+/// and the step must be solved again.
+fn predict_active_set(ws: &mut Workspace, problem: &Problem, iters: usize, mu: f64, preg: f64) -> Option<bool> {
+    for k in 0..=iters {
+        if !ws.predict_active_set(problem, mu) {
+            return Some(k > 0);
+        }
+        if k == iters || ws.riccati.backward(&ws.lq, preg).is_err() || ws.riccati.forward(&ws.lq, &mut ws.step).is_err()
+        {
+            break;
+        }
+    }
+    ws.set_constraint_rows(problem, mu, false);
+    None
 }
 
 /// The factor of the BCL tolerance updates: `min(mu, 0.1)`, as `min(mu_k, gamma_1)` in

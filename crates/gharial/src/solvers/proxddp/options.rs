@@ -128,6 +128,17 @@ pub struct ProxDdpOptions {
     /// started from; otherwise that point is restored and searched as usual, and the
     /// trigger of the subproblem doubles.
     pub watchdog_trials: usize,
+    /// Active-set prediction of the step: at most this many further semi-smooth Newton
+    /// iterations on each LQ subproblem after the Newton step, each one LQ solve with the
+    /// constraint rows linearised at the previous step's full-step constraint values
+    /// instead of at the current point, until the step solves the subproblem with the
+    /// projections onto the constraint sets (for polyhedral sets, the primal-dual
+    /// active-set method: until the active set stops changing). The Newton step sees a
+    /// bound only once it is active at the current point; the prediction sees the bounds
+    /// the full step reaches, so that the step stops at them instead of overshooting.
+    /// A predicted step that is not a descent direction for the merit function is
+    /// replaced by the Newton step. 0 disables it (default 0).
+    pub active_set_iters: usize,
     /// Wall-time budget; the best iterate so far is returned when it runs out.
     pub max_time: Option<Duration>,
     /// Threads for stage-wise evaluation (default 1).
@@ -165,6 +176,7 @@ impl Default for ProxDdpOptions {
             dphi_thresh: 1e-13,
             watchdog_trigger: 10,
             watchdog_trials: 3,
+            active_set_iters: 0,
             max_time: None,
             num_threads: 1,
             verbose: false,

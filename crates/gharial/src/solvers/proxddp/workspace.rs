@@ -8,10 +8,17 @@ use faer::{Accum, Mat};
 use super::options::{HessianApprox, Merit, ProxDdpOptions, Rollout};
 use crate::dynamics::Dynamics;
 use crate::error::Result;
-use crate::linalg::{Lu, matvec, norm_inf, slice, slice_mut};
+use crate::linalg::{Lu, matvec, matvec_t, norm_inf, slice, slice_mut};
 use crate::lq::{LqKnot, LqProblem, LqSolution, RiccatiOptions, RiccatiSolver};
 use crate::problem::{DynamicsData, Problem, ProblemData};
 use crate::solvers::InitialGuess;
+
+/// The active-set prediction stops when the step solves the piecewise-linear constraint
+/// rows of its subproblem to this fraction of the change `J δz` it makes in the
+/// constraint values: for polyhedral sets the residual is at round-off level once the
+/// active set is right, and otherwise at least the overshoot of a bound the step
+/// crosses; a smaller overshoot would not shorten the step measurably.
+const ACTIVE_SET_TOL: f64 = 1e-3;
 
 /// A primal-dual point `(xs, us, λs, νs)`.
 #[derive(Debug, Clone)]
@@ -79,6 +86,11 @@ pub(super) struct Workspace {
     /// Effective constraint multipliers of the Newton system's gradient,
     /// `ν⁺ - J_N (ν⁺ - ν)`.
     nus_g: Vec<Vec<f64>>,
+    /// Multiplier estimates `ν̂ = N(z) / mu` at the shifted constraint values `z` of the
+    /// constraint rows (`ν⁺` for the Newton step, see [`Workspace::predict_active_set`]).
+    nus_hat: Vec<Vec<f64>>,
+    /// Change of `nus_g` when the constraint rows are rebuilt.
+    dnus_g: Vec<Vec<f64>>,
     /// Per-knot scratch of constraint size.
     zbuf: Vec<Vec<f64>>,
     wbuf: Vec<Vec<f64>>,
@@ -163,6 +175,8 @@ impl Workspace {
             lams_p: cur.lams.clone(),
             nus_p: cur.nus.clone(),
             nus_g: cur.nus.clone(),
+            nus_hat: cur.nus.clone(),
+            dnus_g: cur.nus.clone(),
             zbuf: vecs(&nus_sizes),
             wbuf: vecs(&nus_sizes),
             gx: vecs(&ndxs),
@@ -332,27 +346,7 @@ impl Workspace {
     /// Fills the LQ knots with the Newton system (42)-(46), (65) at the current point.
     pub fn build_lq(&mut self, problem: &Problem, opts: &ProxDdpOptions, mu: f64, mu_d: f64) {
         let n = problem.horizon();
-        // Effective constraint multipliers of the gradient: ν⁺ - J_N (ν⁺ - ν). For sets
-        // whose normal-cone Jacobian is a projector (equality, orthant, box) this is
-        // J_N ν, the active multipliers of (46).
-        for t in 0..=n {
-            let cs = problem.constraints(t);
-            let mut off = 0;
-            for c in cs {
-                let nr = c.nr();
-                let mu_i = c.scale * mu;
-                let w = &mut self.wbuf[t][off..off + nr];
-                for i in 0..nr {
-                    w[i] = self.nus_p[t][off + i] - self.cur.nus[t][off + i];
-                }
-                c.set
-                    .apply_normal_cone_jacobian_vec(&self.zbuf[t][off..off + nr], mu_i, w);
-                for i in 0..nr {
-                    self.nus_g[t][off + i] = self.nus_p[t][off + i] - w[i];
-                }
-                off += nr;
-            }
-        }
+        self.effective_multipliers(problem, mu, false);
         self.data
             .lagrangian_gradient(problem, &self.cur.lams, &self.nus_g, &mut self.gx, &mut self.gu);
         if opts.hessian == HessianApprox::Exact {
@@ -406,7 +400,65 @@ impl Workspace {
             } else if !(keep_hessian && problem.terminal_cost().hessian_is_constant()) {
                 crate::linalg::copy(knot.Q.as_mut(), self.data.terminal_cost.lxx.as_ref());
             }
-            // Constraint rows: C = J_N h_x, D = J_N h_u, d = mu_i (ν⁺ - ν), mu_c = mu_i.
+        }
+        self.constraint_rows(problem, mu, false);
+        if opts.hessian == HessianApprox::Exact {
+            self.add_second_order(problem);
+        }
+        self.knot_constants = true;
+    }
+
+    /// The shifted constraint values `z` of the constraint rows, the estimates
+    /// `ν̂ = N(z) / mu` and the effective multipliers `ν_g = ν̂ - J_N (ν̂ - ν)` of the
+    /// Newton system's gradient, `J_N` the Jacobian of the normal-cone projection `N` at
+    /// `z`. For the Newton step (`predicted = false`) `z = h + mu ν_e` and `ν̂ = ν⁺` (39);
+    /// for sets whose `J_N` is a projector (equality, orthant, box) `ν_g = J_N ν`, the
+    /// active multipliers of (46). With `predicted`, `z = h + mu ν_e + J δz` is the
+    /// linearised value at the full step `δz`, whose `J δz` is in `lin_cons` (see
+    /// [`Workspace::predict_active_set`]).
+    fn effective_multipliers(&mut self, problem: &Problem, mu: f64, predicted: bool) {
+        for t in 0..=problem.horizon() {
+            let cs = problem.constraints(t);
+            let datas = self.data.constraint_data(t);
+            let mut off = 0;
+            for (c, d) in cs.iter().zip(datas) {
+                let nr = c.nr();
+                let mu_i = c.scale * mu;
+                let h = d.value();
+                let z = &mut self.zbuf[t][off..off + nr];
+                for i in 0..nr {
+                    z[i] = h[i] + mu_i * self.nus_e[t][off + i];
+                }
+                if predicted {
+                    for (zi, bi) in z.iter_mut().zip(&self.lin_cons[t][off..off + nr]) {
+                        *zi += bi;
+                    }
+                }
+                let nh = &mut self.nus_hat[t][off..off + nr];
+                c.set.normal_cone_project(z, mu_i, nh);
+                let w = &mut self.wbuf[t][off..off + nr];
+                for i in 0..nr {
+                    nh[i] /= mu_i;
+                    w[i] = nh[i] - self.cur.nus[t][off + i];
+                }
+                c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
+                for i in 0..nr {
+                    self.nus_g[t][off + i] = nh[i] - w[i];
+                }
+                off += nr;
+            }
+        }
+    }
+
+    /// Constraint rows of the knots at the `z` and `ν̂` of
+    /// [`effective_multipliers`](Self::effective_multipliers): `C = J_N h_x`,
+    /// `D = J_N h_u`, `mu_c = mu_i` and `d = mu_i (ν̂ - ν)`, less `J_N J δz` when
+    /// `predicted` (the rows then linearise `N` at the full step instead of at the
+    /// current point).
+    fn constraint_rows(&mut self, problem: &Problem, mu: f64, predicted: bool) {
+        let n = problem.horizon();
+        for t in 0..=n {
+            let knot = &mut self.lq.knots[t];
             let cs = problem.constraints(t);
             let datas = self.data.constraint_data(t);
             let mut off = 0;
@@ -427,16 +479,124 @@ impl Workspace {
                     c.set.apply_normal_cone_jacobian(z, mu_i, drows);
                 }
                 for i in 0..nr {
-                    knot.d[off + i] = mu_i * (self.nus_p[t][off + i] - self.cur.nus[t][off + i]);
+                    knot.d[off + i] = mu_i * (self.nus_hat[t][off + i] - self.cur.nus[t][off + i]);
                     knot.mu_c[off + i] = mu_i;
+                }
+                if predicted {
+                    let w = &mut self.wbuf[t][off..off + nr];
+                    w.copy_from_slice(&self.lin_cons[t][off..off + nr]);
+                    c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
+                    for i in 0..nr {
+                        knot.d[off + i] -= w[i];
+                    }
                 }
                 off += nr;
             }
         }
-        if opts.hessian == HessianApprox::Exact {
-            self.add_second_order(problem);
+    }
+
+    /// Linearised changes `J δz` of the path and terminal constraints along the step,
+    /// into `lin_cons`.
+    fn constraint_step(&mut self, problem: &Problem) {
+        let n = problem.horizon();
+        let st = &self.step;
+        for t in 0..=n {
+            let datas = self.data.constraint_data(t);
+            let mut off = 0;
+            for (k, cd) in datas.iter().enumerate() {
+                let nr = cd.value.nrows();
+                let b = &mut self.lin_cons[t][off..off + nr];
+                if t < n && self.data.stages[t].constraint_jx_is_zero(k) {
+                    b.fill(0.0);
+                } else {
+                    matvec(b, Accum::Replace, cd.jx.as_ref(), slice(&st.xs[t]), 1.0);
+                }
+                if t < n {
+                    matvec(b, Accum::Add, cd.ju.as_ref(), slice(&st.us[t]), 1.0);
+                }
+                off += nr;
+            }
         }
-        self.knot_constants = true;
+    }
+
+    /// One iteration of the active-set prediction of the step (see
+    /// [`ProxDdpOptions::active_set_iters`]). The LQ subproblem with the normal-cone
+    /// projections kept in its constraint rows, `N(h + mu ν_e + J δz) - mu (ν + δν) = 0`
+    /// with the stationarity and dynamics rows of (42), is a piecewise-linear system in
+    /// the step `δ`; the Newton step is one semi-smooth Newton iteration on it from
+    /// `δ = 0`. This checks whether the step in `self.step` solves the constraint rows at
+    /// its own `z = h + mu ν_e + J δz`; if not, it rebuilds the constraint rows (and the
+    /// gradient terms of the effective multipliers) with `N` linearised at that `z`, so
+    /// that the next LQ solve gives the next semi-smooth Newton iterate on the same
+    /// subproblem (same derivatives, same multiplier estimates). For polyhedral sets, where
+    /// `N` is piecewise affine, these are the iterations of the primal-dual active-set
+    /// method, which stop when the active set does.
+    ///
+    /// Returns whether the rows were rebuilt (`false`: the step already solves them, up
+    /// to [`ACTIVE_SET_TOL`] relative to the change `J δz` of the constraint values).
+    pub fn predict_active_set(&mut self, problem: &Problem, mu: f64) -> bool {
+        self.constraint_step(problem);
+        let mut res: f64 = 0.0;
+        let mut scale: f64 = 0.0;
+        for t in 0..=problem.horizon() {
+            let cs = problem.constraints(t);
+            let datas = self.data.constraint_data(t);
+            let dnu = slice(&self.step.nus[t]);
+            let mut off = 0;
+            for (c, d) in cs.iter().zip(datas) {
+                let nr = c.nr();
+                let mu_i = c.scale * mu;
+                let h = d.value();
+                let b = &self.lin_cons[t][off..off + nr];
+                let z = &mut self.zbuf[t][off..off + nr];
+                for i in 0..nr {
+                    z[i] = h[i] + mu_i * self.nus_e[t][off + i] + b[i];
+                }
+                let w = &mut self.wbuf[t][off..off + nr];
+                c.set.normal_cone_project(z, mu_i, w);
+                for i in 0..nr {
+                    let nu_next = mu_i * (self.cur.nus[t][off + i] + dnu[off + i]);
+                    res = res.max((w[i] - nu_next).abs());
+                    scale = scale.max(b[i].abs());
+                }
+                off += nr;
+            }
+        }
+        if res <= ACTIVE_SET_TOL * scale {
+            return false;
+        }
+        self.set_constraint_rows(problem, mu, true);
+        true
+    }
+
+    /// Rebuilds the constraint rows and the gradient terms of the effective multipliers,
+    /// at the current point (`predicted = false`: the rows of [`build_lq`](Self::build_lq))
+    /// or at the full step (see [`predict_active_set`](Self::predict_active_set)).
+    pub fn set_constraint_rows(&mut self, problem: &Problem, mu: f64, predicted: bool) {
+        for (a, b) in self.dnus_g.iter_mut().zip(&self.nus_g) {
+            a.copy_from_slice(b);
+        }
+        self.effective_multipliers(problem, mu, predicted);
+        // The gradient of the knots is the Lagrangian's at ν_g: q += h_xᵀ Δν_g,
+        // r += h_uᵀ Δν_g.
+        let n = problem.horizon();
+        for t in 0..=n {
+            for (a, b) in self.dnus_g[t].iter_mut().zip(&self.nus_g[t]) {
+                *a = b - *a;
+            }
+            let knot = &mut self.lq.knots[t];
+            let mut off = 0;
+            for cd in self.data.constraint_data(t) {
+                let nr = cd.value.nrows();
+                let dn = &self.dnus_g[t][off..off + nr];
+                matvec_t(slice_mut(&mut knot.q), Accum::Add, cd.jx.as_ref(), dn, 1.0);
+                if t < n {
+                    matvec_t(slice_mut(&mut knot.r), Accum::Add, cd.ju.as_ref(), dn, 1.0);
+                }
+                off += nr;
+            }
+        }
+        self.constraint_rows(problem, mu, predicted);
     }
 
     /// Adds the multiplier-weighted second derivatives (37d)-(37i) to the knots. Cross
@@ -529,23 +689,7 @@ impl Workspace {
                 matvec(a, Accum::Add, sd.dyn_jy.as_ref(), slice(&st.xs[t + 1]), 1.0);
             }
         }
-        for t in 0..=n {
-            let datas = self.data.constraint_data(t);
-            let mut off = 0;
-            for (k, cd) in datas.iter().enumerate() {
-                let nr = cd.value.nrows();
-                let b = &mut self.lin_cons[t][off..off + nr];
-                if t < n && self.data.stages[t].constraint_jx_is_zero(k) {
-                    b.fill(0.0);
-                } else {
-                    matvec(b, Accum::Replace, cd.jx.as_ref(), slice(&st.xs[t]), 1.0);
-                }
-                if t < n {
-                    matvec(b, Accum::Add, cd.ju.as_ref(), slice(&st.us[t]), 1.0);
-                }
-                off += nr;
-            }
-        }
+        self.constraint_step(problem);
     }
 
     /// Derivative at `α` of the local model of the merit function along the step (see
