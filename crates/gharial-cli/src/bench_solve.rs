@@ -215,10 +215,12 @@ pub fn peers(args: &PeersArgs) -> i32 {
             }
         };
         // The harness's ProxDDP settings for the LQR family: mu_init 1e-5, linear
-        // rollout; `ProxDDP` with the filter, `ProxDDP_ls` with the nonmonotone search.
-        for (solver, acceptance) in [
-            ("ProxDDP", StepAcceptance::Filter),
-            ("ProxDDP_ls", StepAcceptance::NonmonotoneLinesearch),
+        // rollout; `ProxDDP` with the filter, `ProxDDP_ls` with the nonmonotone search,
+        // `ProxDDP_as` with the filter and the active-set prediction of the step.
+        for (solver, acceptance, active_set_iters) in [
+            ("ProxDDP", StepAcceptance::Filter, 0),
+            ("ProxDDP_ls", StepAcceptance::NonmonotoneLinesearch, 0),
+            ("ProxDDP_as", StepAcceptance::Filter, 10),
         ] {
             let opts = ProxDdpOptions {
                 tol: args.tol,
@@ -226,6 +228,7 @@ pub fn peers(args: &PeersArgs) -> i32 {
                 mu_init: 1e-5,
                 rollout: Rollout::Linear,
                 step_acceptance: acceptance,
+                active_set_iters,
                 ..Default::default()
             };
             let t = match time_solves(&ex.problem, &ex.xs0, &ex.us0, &opts, args.repeats) {
@@ -252,7 +255,9 @@ pub fn peers(args: &PeersArgs) -> i32 {
                     "solver": solver, "side": "rust",
                     "N": ex.problem.horizon(), "nx": args.params.nx, "nu": args.params.nu,
                     "tol": args.tol, "max_iters": args.max_iters, "repeats": args.repeats,
-                    "settings": format!("mu_init=1e-5 rollout=linear step_acceptance={acceptance:?}"),
+                    "settings": format!(
+                        "mu_init=1e-5 rollout=linear step_acceptance={acceptance:?} active_set_iters={active_set_iters}"
+                    ),
                     "iters": s.iterations, "converged": s.status.converged(),
                     "prim_res": s.prim_err, "dual_res": s.dual_err,
                     "init_cost": t.init_cost, "final_cost": s.cost,

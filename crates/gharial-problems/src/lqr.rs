@@ -11,9 +11,11 @@
 //! nx = nu = 3, N = 20, x0 = (0.2, 0.3, -0.1). Variants: control bounds
 //! `|u|_∞ ≤ 0.15` (`-bounds`), terminal equality `x_N = (0.1, 0.1, 0.1)` (`-term`),
 //! both (`-bounds-term`, the paper's Fig. 3). Initial guess: `u = 0` and its rollout.
-//! Settings: `mu_init = 1e-6` (Fig. 3; with the bounds active the free full step of
-//! each subproblem crosses into the active set at once: 4 iterations); nonlinear rollout (the paper's
-//! choice for explicit dynamics; on a linear system both rollouts coincide), tol `1e-6`.
+//! Settings: `mu_init = 1e-6` (Fig. 3), nonlinear rollout (the paper's choice for
+//! explicit dynamics; on a linear system both rollouts coincide), tol `1e-6`, and with
+//! the bounds the active-set prediction of the step (`active_set_iters = 10`): the
+//! first step lands on the active set of the solution (`lqr-bounds` 1 iteration,
+//! `lqr-bounds-term` 2; without the prediction 4 and 4).
 //!
 //! # `clqr`
 //!
@@ -130,6 +132,7 @@ pub fn paper(variant: LqrVariant) -> Result<Example> {
             mu_init: 1e-6,
             rollout: Rollout::Nonlinear,
             max_iters: 100,
+            active_set_iters: if bounds { 10 } else { 0 },
             ..Default::default()
         },
         description,
