@@ -316,9 +316,7 @@ impl Workspace {
                 let mu_i = c.scale * mu;
                 let h = d.value();
                 let z = &mut self.zbuf[t][off..off + nr];
-                for i in 0..nr {
-                    z[i] = h[i] + mu_i * self.nus_e[t][off + i];
-                }
+                shifted_value(z, h, &self.nus_e[t][off..off + nr], mu_i);
                 let np = &mut self.nus_p[t][off..off + nr];
                 c.set.normal_cone_project(z, mu_i, np);
                 for i in 0..nr {
@@ -426,9 +424,7 @@ impl Workspace {
                 let mu_i = c.scale * mu;
                 let h = d.value();
                 let z = &mut self.zbuf[t][off..off + nr];
-                for i in 0..nr {
-                    z[i] = h[i] + mu_i * self.nus_e[t][off + i];
-                }
+                shifted_value(z, h, &self.nus_e[t][off..off + nr], mu_i);
                 if predicted {
                     for (zi, bi) in z.iter_mut().zip(&self.lin_cons[t][off..off + nr]) {
                         *zi += bi;
@@ -1163,6 +1159,12 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// The shifted constraint value `z = h + mu_i ν_e` of the multiplier estimates (39).
+fn shifted_value(z: &mut [f64], h: &[f64], nu_e: &[f64], mu_i: f64) {
+    for ((zi, hi), ni) in z.iter_mut().zip(h).zip(nu_e) {
+        *zi = hi + mu_i * ni;
+    }
+}
 #[cfg(test)]
 mod tests {
     use std::sync::Arc;
