@@ -545,8 +545,9 @@ impl Workspace {
                 let h = d.value();
                 let b = &self.lin_cons[t][off..off + nr];
                 let z = &mut self.zbuf[t][off..off + nr];
-                for i in 0..nr {
-                    z[i] = h[i] + mu_i * self.nus_e[t][off + i] + b[i];
+                shifted_value(z, h, &self.nus_e[t][off..off + nr], mu_i);
+                for (zi, bi) in z.iter_mut().zip(b) {
+                    *zi += bi;
                 }
                 let w = &mut self.wbuf[t][off..off + nr];
                 c.set.normal_cone_project(z, mu_i, w);
@@ -582,10 +583,12 @@ impl Workspace {
             }
             let knot = &mut self.lq.knots[t];
             let mut off = 0;
-            for cd in self.data.constraint_data(t) {
+            for (k, cd) in self.data.constraint_data(t).iter().enumerate() {
                 let nr = cd.value.nrows();
                 let dn = &self.dnus_g[t][off..off + nr];
-                matvec_t(slice_mut(&mut knot.q), Accum::Add, cd.jx.as_ref(), dn, 1.0);
+                if !(t < n && self.data.stages[t].constraint_jx_is_zero(k)) {
+                    matvec_t(slice_mut(&mut knot.q), Accum::Add, cd.jx.as_ref(), dn, 1.0);
+                }
                 if t < n {
                     matvec_t(slice_mut(&mut knot.r), Accum::Add, cd.ju.as_ref(), dn, 1.0);
                 }
@@ -1165,6 +1168,7 @@ fn shifted_value(z: &mut [f64], h: &[f64], nu_e: &[f64], mu_i: f64) {
         *zi = hi + mu_i * ni;
     }
 }
+
 #[cfg(test)]
 mod tests {
     use std::sync::Arc;
