@@ -77,7 +77,7 @@ impl StageConstraint {
         if !(self.scale.is_finite() && self.scale > 0.0) {
             return Err(Error::InvalidModel(format!(
                 "{w}: scale must be positive and finite, got {}",
-                self.scale
+                crate::error::Num(self.scale)
             )));
         }
         Ok(())
@@ -224,15 +224,7 @@ impl Problem {
     fn validate_init(&self) -> Result<()> {
         let s = self.stages[0].space();
         match &self.init {
-            InitialCondition::Fixed(x0) => {
-                check_dim("initial state x0", s.nx(), x0.len())?;
-                check_finite("initial state x0", x0)?;
-                if !s.is_valid(x0) {
-                    return Err(Error::InvalidModel(
-                        "initial state x0 is not a valid point of the state space".into(),
-                    ));
-                }
-            }
+            InitialCondition::Fixed(x0) => check_x0(s.as_ref(), x0)?,
             InitialCondition::Constraint(f) => {
                 check_dim("initial constraint: state size nx", s.nx(), f.nx())?;
                 check_dim("initial constraint: state tangent size ndx", s.ndx(), f.ndx())?;
@@ -264,13 +256,13 @@ impl Problem {
     /// Replaces the fixed initial state (receding-horizon use).
     ///
     /// # Errors
-    /// If the problem has a general initial constraint, or `x0` is invalid.
+    /// If the problem has a general initial constraint, or `x0` has the wrong size, is
+    /// not finite or not on the state manifold (as [`Problem::new`]); the problem is
+    /// then unchanged.
     pub fn set_x0(&mut self, x0: &[f64]) -> Result<()> {
         match &mut self.init {
             InitialCondition::Fixed(v) => {
-                let s = self.stages[0].space();
-                check_dim("initial state x0", s.nx(), x0.len())?;
-                check_finite("initial state x0", x0)?;
+                check_x0(self.stages[0].space().as_ref(), x0)?;
                 v.copy_from_slice(x0);
                 Ok(())
             }
@@ -375,6 +367,18 @@ impl Problem {
         }
         Ok(())
     }
+}
+
+/// Checks a fixed initial state: size, finiteness, and that it lies on the manifold.
+fn check_x0(space: &dyn Manifold, x0: &[f64]) -> Result<()> {
+    check_dim("initial state x0", space.nx(), x0.len())?;
+    check_finite("initial state x0", x0)?;
+    if !space.is_valid(x0) {
+        return Err(Error::InvalidModel(
+            "initial state x0 is not a valid point of the state space (e.g. a quaternion of norm other than 1)".into(),
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

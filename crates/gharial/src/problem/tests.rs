@@ -165,7 +165,10 @@ fn parallel_evaluation_is_bit_identical() {
     let (xs, us) = trajectory(n);
     let mut serial = ProblemData::new(&p, 1).unwrap();
     let mut par = ProblemData::new(&p, 2).unwrap();
-    assert_eq!(par.num_threads(), 2);
+    assert_eq!(par.num_threads(), crate::pool_threads(2));
+    // More threads than cores are not created.
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    assert_eq!(ProblemData::new(&p, 1000).unwrap().num_threads(), cores.min(1000));
     let (c1, c2) = (serial.evaluate(&p, &xs, &us), par.evaluate(&p, &xs, &us));
     assert_eq!(c1.to_bits(), c2.to_bits());
     serial.compute_derivatives(&p, &xs, &us);
@@ -504,4 +507,46 @@ fn constant_blocks_kept_across_points_equal_a_fresh_evaluation() {
     fresh.evaluate(&q, &xs, &us);
     fresh.compute_derivatives(&q, &xs, &us);
     assert_same_derivatives(&kept, &fresh, "other models");
+}
+
+/// y = x ⊕ u on SO(2).
+struct Turn {
+    space: Arc<dyn Manifold>,
+}
+
+impl ExplicitDynamics for Turn {
+    fn space(&self) -> &Arc<dyn Manifold> {
+        &self.space
+    }
+    fn nu(&self) -> usize {
+        1
+    }
+    fn forward(&self, x: &[f64], u: &[f64], d: &mut ExplicitDynamicsData) {
+        self.space.integrate(x, u, d.xnext_mut());
+    }
+    fn jacobians(&self, _x: &[f64], _u: &[f64], d: &mut ExplicitDynamicsData) {
+        d.jx[(0, 0)] = 1.0;
+        d.ju[(0, 0)] = 1.0;
+    }
+}
+
+#[test]
+fn set_x0_rejects_what_new_rejects_and_keeps_the_old_state() {
+    let space: Arc<dyn Manifold> = Arc::new(crate::spaces::SO2);
+    let dynamics = Dynamics::Explicit(Arc::new(Turn { space: space.clone() }));
+    let cost = Arc::new(crate::costs::QuadraticControlCost::diagonal(space.as_ref(), &[0.0], &[1.0]).unwrap());
+    let terminal = Arc::new(crate::costs::QuadraticStateCost::diagonal(space.clone(), &[1.0, 0.0], &[1.0], 0).unwrap());
+    let stage = StageModel::new(cost, dynamics).unwrap();
+    // Off the unit circle: refused by `new` and by `set_x0` alike.
+    let off = [3.0, 0.0];
+    let e = Problem::new(&off, vec![stage.clone()], terminal.clone()).err().unwrap();
+    assert!(e.to_string().contains("not a valid point"), "{e}");
+    let mut p = Problem::new(&[1.0, 0.0], vec![stage], terminal).unwrap();
+    let e = p.set_x0(&off).err().unwrap();
+    assert!(e.to_string().contains("not a valid point"), "{e}");
+    assert!(p.set_x0(&[0.0, f64::NAN]).is_err());
+    assert!(p.set_x0(&[1.0]).is_err());
+    assert_eq!(p.x0(), Some(&[1.0, 0.0][..]));
+    p.set_x0(&[0.0, 1.0]).unwrap();
+    assert_eq!(p.x0(), Some(&[0.0, 1.0][..]));
 }
