@@ -39,12 +39,25 @@ pub struct LinearDiscreteDynamics {
 }
 
 impl LinearDiscreteDynamics {
-    /// `y = A x + B u + c`; the state spaces are `R^{A.ncols()}` and `R^{A.nrows()}`.
+    /// `y = A x + B u + c` on `R^n`, with a square `A` (`n x n`).
+    ///
+    /// # Errors
+    /// If `A` is not square, `B` or `c` do not have `n` rows, or an entry is not finite.
+    pub fn new(a: MatRef<'_, f64>, b: MatRef<'_, f64>, c: &[f64]) -> Result<Self> {
+        Self::build(a, b, c, true)
+    }
+
+    /// `y = A x + B u + c` from `R^{A.ncols()}` to `R^{A.nrows()}`: a stage whose next
+    /// state has another dimension (e.g. a phase change).
     ///
     /// # Errors
     /// If `B` or `c` do not have `A.nrows()` rows, or an entry is not finite.
-    pub fn new(a: MatRef<'_, f64>, b: MatRef<'_, f64>, c: &[f64]) -> Result<Self> {
-        let (a, b, c) = checked_abc("LinearDiscreteDynamics", a, b, c, false)?;
+    pub fn between(a: MatRef<'_, f64>, b: MatRef<'_, f64>, c: &[f64]) -> Result<Self> {
+        Self::build(a, b, c, false)
+    }
+
+    fn build(a: MatRef<'_, f64>, b: MatRef<'_, f64>, c: &[f64], square: bool) -> Result<Self> {
+        let (a, b, c) = checked_abc("LinearDiscreteDynamics", a, b, c, square)?;
         Ok(Self {
             space: Arc::new(VectorSpace::new(a.ncols())),
             space_next: Arc::new(VectorSpace::new(a.nrows())),
@@ -154,7 +167,9 @@ mod tests {
             random_mat(&mut g, 3, 2, 1.0),
             random_vec(&mut g, 3, 1.0),
         );
-        let d = LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &c).unwrap();
+        let err = LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &c).unwrap_err();
+        assert!(err.to_string().contains("LinearDiscreteDynamics A columns"), "{err}");
+        let d = LinearDiscreteDynamics::between(a.as_ref(), b.as_ref(), &c).unwrap();
         assert_eq!((d.space().nx(), d.space_next().nx(), d.nu()), (4, 3, 2));
         let mut data = d.create_data();
         for _ in 0..3 {
@@ -174,7 +189,7 @@ mod tests {
         let ode = LinearOde::new(sq.as_ref(), b.as_ref(), &c).unwrap();
         let (x, u) = (random_vec(&mut g, 3, 1.0), random_vec(&mut g, 2, 1.0));
         check_ode(&ode, &x, &u, CheckOptions::default()).assert_ok();
-        let err = LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &c[..1]).unwrap_err();
+        let err = LinearDiscreteDynamics::between(a.as_ref(), b.as_ref(), &c[..1]).unwrap_err();
         assert!(err.to_string().contains("LinearDiscreteDynamics c"), "{err}");
     }
 }
