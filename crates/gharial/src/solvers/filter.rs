@@ -19,6 +19,10 @@
 
 use super::linesearch::{LinesearchOptions, LinesearchResult};
 
+/// The largest capacity of a [`Filter`]: a Pareto front of that many pairs is far more
+/// than any solve keeps (when full, the most infeasible pair is dropped).
+pub const MAX_FILTER_ENTRIES: usize = 1_000;
+
 /// A filter of `(φ, θ)` pairs with a fixed capacity (allocated once).
 #[derive(Debug, Clone)]
 pub struct Filter {
@@ -34,12 +38,13 @@ pub struct Filter {
 }
 
 impl Filter {
-    /// An empty filter holding at most `capacity` pairs, with margins `gamma_phi`,
-    /// `gamma_theta` (typically `1e-5`).
+    /// An empty filter holding at most `capacity` pairs ([`MAX_FILTER_ENTRIES`] at
+    /// most, 1 at least), with margins `gamma_phi`, `gamma_theta` (typically `1e-5`).
     pub fn new(capacity: usize, gamma_phi: f64, gamma_theta: f64) -> Self {
+        let capacity = capacity.clamp(1, MAX_FILTER_ENTRIES);
         Self {
-            entries: Vec::with_capacity(capacity.max(1)),
-            capacity: capacity.max(1),
+            entries: Vec::with_capacity(capacity),
+            capacity,
             gamma_phi,
             gamma_theta,
             theta_max: f64::INFINITY,

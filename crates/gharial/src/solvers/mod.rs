@@ -96,6 +96,22 @@ pub struct IterationRecord {
 }
 
 impl IterationRecord {
+    /// What the columns of the iteration table mean, one line per column.
+    pub const LEGEND: &'static str = "\
+iter        Newton steps taken before this row
+alpha       accepted step length (1: the full Newton step)
+inner_crit  criterion of the current subproblem (ProxDDP (19)); the outer loop updates
+            the multipliers or the penalty when it falls below its tolerance omega
+prim_err    primal residual: dynamics gaps and constraint violations (ProxDDP (53))
+dual_err    dual residual: gradient of the Lagrangian (ProxDDP (52))
+preg        primal regularisation added to the Newton system (0 when none was needed)
+cost        total cost at the start of the step
+dphi0       slope of the merit function along the step at alpha = 0 (negative: descent)
+merit       merit function after the step (ProxDDP (17), or (35) with the primal merit)
+dM          change of the merit function over the step
+al          augmented-Lagrangian (outer) iterations so far
+mu          augmented-Lagrangian penalty parameter";
+
     /// The header line of the iteration table whose rows are the [`fmt::Display`] of
     /// records.
     pub fn table_header() -> impl fmt::Display {
@@ -182,13 +198,18 @@ pub struct Solution {
     pub mu: f64,
     /// Wall time of the solve.
     pub solve_time: Duration,
-    /// One record per iteration (capacity reserved at setup).
+    /// One record per iteration, the first [`HISTORY_LIMIT`] at most (capacity
+    /// reserved at setup).
     pub history: Vec<IterationRecord>,
 }
 
+/// The most iteration records a [`Solution`] keeps: the history is allocated at setup,
+/// so an iteration limit of `usize::MAX` ("until converged") must not size it.
+pub const HISTORY_LIMIT: usize = 10_000;
+
 impl Solution {
     /// A zero solution shaped for `problem`, with `history_capacity` history rows
-    /// reserved.
+    /// reserved ([`HISTORY_LIMIT`] at most).
     pub fn new(problem: &Problem, history_capacity: usize) -> Self {
         let n = problem.horizon();
         let xs = (0..=n).map(|t| vec![0.0; problem.space(t).nx()]).collect();
@@ -208,7 +229,7 @@ impl Solution {
             nus,
             feedforward,
             feedback,
-            history: Vec::with_capacity(history_capacity),
+            history: Vec::with_capacity(history_capacity.min(HISTORY_LIMIT)),
             ..Default::default()
         }
     }

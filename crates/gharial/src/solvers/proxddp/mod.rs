@@ -102,9 +102,9 @@ impl ProxDdp {
     pub fn setup(&mut self, problem: &Problem) -> Result<()> {
         self.options.validate()?;
         self.ws = Some(Box::new(Workspace::new(problem, &self.options)?));
-        self.solution = Solution::new(problem, self.options.max_iters + 1);
+        self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
         self.signature = knot_signature(problem).collect();
-        self.filter = Filter::new(self.options.max_iters + 1, 1e-5, 1e-5);
+        self.filter = Filter::new(self.options.max_iters.saturating_add(1), 1e-5, 1e-5);
         Ok(())
     }
 
@@ -207,7 +207,7 @@ impl ProxDdp {
                 break;
             }
             ws.record_best(res.prim.max(res.dual));
-            if res.prim <= opts.tol && res.dual <= opts.tol {
+            if res.prim <= opts.tol && res.dual <= opts.tol && res.comp <= opts.tol {
                 status = Status::Converged;
                 break;
             }

@@ -194,7 +194,10 @@ impl ProxDdpOptions {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err(Error::option(name, format!("must be positive and finite, got {v}")))
+                Err(Error::option(
+                    name,
+                    format!("must be positive and finite, got {}", crate::error::Num(v)),
+                ))
             }
         };
         pos("tol", self.tol)?;
@@ -227,8 +230,8 @@ impl ProxDdpOptions {
         if self.max_al_iters == 0 {
             return Err(Error::option("max_al_iters", "must be at least 1"));
         }
-        if self.preg_increase.is_nan() || self.preg_increase <= 1.0 {
-            return Err(Error::option("preg_increase", "must be greater than 1"));
+        if !(self.preg_increase.is_finite() && self.preg_increase > 1.0) {
+            return Err(Error::option("preg_increase", "must be finite and greater than 1"));
         }
         if !(self.preg_decrease > 0.0 && self.preg_decrease < 1.0) {
             return Err(Error::option("preg_decrease", "must be in (0, 1)"));

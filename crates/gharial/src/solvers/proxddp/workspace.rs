@@ -65,6 +65,11 @@ pub(super) struct Residuals {
     pub dual: f64,
     /// Inner criterion (19).
     pub inner: f64,
+    /// Complementarity of the current multipliers, `|h - proj_C(h + ν)|` (the natural
+    /// residual of `ν ∈ N_C(h)`, as [`crate::problem::kkt_residuals`]): (53) measures
+    /// feasibility against the outer multipliers `ν_e` and (52) stationarity with `ν`,
+    /// so a point can meet both while `ν` pushes on an inactive constraint.
+    pub comp: f64,
 }
 
 pub(super) struct Workspace {
@@ -94,6 +99,8 @@ pub(super) struct Workspace {
     /// Per-knot scratch of constraint size.
     zbuf: Vec<Vec<f64>>,
     wbuf: Vec<Vec<f64>>,
+    /// Projections of the complementarity residual, per knot.
+    pbuf: Vec<Vec<f64>>,
     /// Lagrangian gradient per knot.
     gx: Vec<Vec<f64>>,
     gu: Vec<Vec<f64>>,
@@ -179,6 +186,7 @@ impl Workspace {
             dnus_g: cur.nus.clone(),
             zbuf: vecs(&nus_sizes),
             wbuf: vecs(&nus_sizes),
+            pbuf: vecs(&nus_sizes),
             gx: vecs(&ndxs),
             gu: (0..n).map(|t| vec![0.0; problem.nu(t)]).collect(),
             dxbuf: vecs(&ndxs),
@@ -338,7 +346,31 @@ impl Workspace {
             prim,
             dual,
             inner: inner.max(dual),
+            comp: self.complementarity(problem),
         }
+    }
+
+    /// `max |h - proj_C(h + ν)|` over all constraints at the current point.
+    fn complementarity(&mut self, problem: &Problem) -> f64 {
+        let mut comp: f64 = 0.0;
+        for t in 0..=problem.horizon() {
+            let datas = self.data.constraint_data(t);
+            let mut off = 0;
+            for (c, d) in problem.constraints(t).iter().zip(datas) {
+                let (h, nr) = (d.value(), c.nr());
+                let w = &mut self.wbuf[t][off..off + nr];
+                for i in 0..nr {
+                    w[i] = h[i] + self.cur.nus[t][off + i];
+                }
+                let p = &mut self.pbuf[t][off..off + nr];
+                c.set.project(w, 1.0, p);
+                for i in 0..nr {
+                    comp = comp.max((h[i] - p[i]).abs());
+                }
+                off += nr;
+            }
+        }
+        comp
     }
 
     /// Fills the LQ knots with the Newton system (42)-(46), (65) at the current point.
