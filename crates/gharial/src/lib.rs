@@ -28,3 +28,12 @@ pub mod solvers;
 pub mod spaces;
 
 pub use error::{Error, Result};
+
+/// The number of worker threads a pool asked for `requested` threads gets: at most the
+/// machine's available parallelism. More threads than cores only add scheduling and
+/// wake-up costs to the short stage-wise tasks (1000 threads on 2 cores made a solve
+/// 200 times slower), and stage-wise results do not depend on the thread count.
+pub fn pool_threads(requested: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    requested.clamp(1, cores.max(1))
+}

@@ -145,8 +145,10 @@ struct Boundary {
 }
 
 impl ParallelRiccatiSolver {
-    /// Allocates a solver for problems with the dimensions of `problem`, with a dedicated
-    /// pool of `num_threads` threads and as many legs (fewer for short horizons). Its
+    /// Allocates a solver for problems with the dimensions of `problem`, split into
+    /// `num_threads` legs (fewer for short horizons) run on a dedicated pool of at most
+    /// the available parallelism ([`crate::pool_threads`]). The legs, not the pool,
+    /// fix the arithmetic, so results do not depend on the machine. Its
     /// options are those of the serial solver except the rollout gains, which the legs do
     /// not give for the whole horizon (`refinement_steps` applies).
     pub fn new(problem: &LqProblem, num_threads: usize, refinement_steps: usize) -> Result<Self, LqError> {
@@ -158,7 +160,7 @@ impl ParallelRiccatiSolver {
         }
         problem.check_shapes()?;
         let pool = ThreadPoolBuilder::new()
-            .num_threads(num_threads)
+            .num_threads(crate::pool_threads(num_threads))
             .thread_name(|i| format!("gharial-lq-{i}"))
             .build()
             .map_err(|_| LqError::Option {

@@ -257,7 +257,8 @@ fn constraint_data(cs: &[StageConstraint]) -> Vec<StageFunctionData> {
 
 impl ProblemData {
     /// Allocates the data of `problem`; stages are evaluated on `num_threads` threads
-    /// (1: serial, in the calling thread).
+    /// (1: serial, in the calling thread), at most the available parallelism
+    /// ([`crate::pool_threads`]); results are the same for every thread count.
     ///
     /// # Errors
     /// If `num_threads` is 0 or the thread pool cannot be created.
@@ -265,10 +266,11 @@ impl ProblemData {
         if num_threads == 0 {
             return Err(Error::option("num_threads", "must be at least 1"));
         }
-        let pool = if num_threads > 1 {
+        let threads = crate::pool_threads(num_threads);
+        let pool = if threads > 1 {
             Some(
                 rayon::ThreadPoolBuilder::new()
-                    .num_threads(num_threads)
+                    .num_threads(threads)
                     .build()
                     .map_err(|e| Error::option("num_threads", e))?,
             )
