@@ -131,7 +131,7 @@ pub fn build(params: &PeersLqrParams, variant: PeersVariant) -> Result<Example> 
     if !(params.umax.is_finite() && params.umax > 0.0) {
         return Err(gharial::Error::InvalidModel(format!(
             "peers LQR: umax must be positive and finite, got {}",
-            params.umax
+            gharial::error::Num(params.umax)
         )));
     }
     let d = data(params);

@@ -93,3 +93,29 @@ pub fn check_finite(what: impl fmt::Display, values: &[f64]) -> Result<()> {
         Err(Error::non_finite(what))
     }
 }
+
+/// A number as messages and tables show it: plain decimals for ordinary magnitudes,
+/// scientific notation for very large or small ones (`f64::MAX` prints as
+/// `1.7976931348623157e308`, not as 309 digits), `inf` and `NaN` as such.
+///
+/// ```
+/// use gharial::error::Num;
+/// assert_eq!(Num(0.25).to_string(), "0.25");
+/// assert_eq!(Num(f64::MAX).to_string(), "1.7976931348623157e308");
+/// assert_eq!(Num(-f64::INFINITY).to_string(), "-inf");
+/// assert_eq!(Num(1e-9).to_string(), "1e-9");
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Num(pub f64);
+
+impl fmt::Display for Num {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let x = self.0;
+        let plain = x == 0.0 || (1e-4..1e15).contains(&x.abs());
+        if plain || !x.is_finite() {
+            write!(f, "{x}")
+        } else {
+            write!(f, "{x:e}")
+        }
+    }
+}

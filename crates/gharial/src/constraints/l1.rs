@@ -30,7 +30,7 @@ fn check_weight(w: f64) -> Result<()> {
     } else {
         Err(Error::option(
             "L1Penalty weight",
-            format!("must be finite and >= 0, got {w}"),
+            format!("must be finite and >= 0, got {}", crate::error::Num(w)),
         ))
     }
 }

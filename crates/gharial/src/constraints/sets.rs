@@ -116,7 +116,9 @@ fn check_bounds(lower: &[f64], upper: &[f64]) -> Result<()> {
         }
         if !(l <= u && l < f64::INFINITY && u > f64::NEG_INFINITY) {
             return Err(Error::InvalidModel(format!(
-                "BoxConstraint: entry {i} needs lower <= upper with lower < +inf and upper > -inf, got [{l}, {u}]"
+                "BoxConstraint: entry {i} needs lower <= upper with lower < +inf and upper > -inf, got [{}, {}]",
+                crate::error::Num(l),
+                crate::error::Num(u)
             )));
         }
     }

@@ -419,7 +419,7 @@ fn check_barrier_weight(w: f64) -> Result<()> {
     if !(w.is_finite() && w >= 0.0) {
         return Err(Error::option(
             "LogBarrierCost weight",
-            format!("must be finite and >= 0, got {w}"),
+            format!("must be finite and >= 0, got {}", crate::error::Num(w)),
         ));
     }
     Ok(())
@@ -435,7 +435,7 @@ impl LogBarrierCost {
         if !(delta.is_finite() && delta > 0.0) {
             return Err(Error::option(
                 "LogBarrierCost delta",
-                format!("must be finite and > 0, got {delta}"),
+                format!("must be finite and > 0, got {}", crate::error::Num(delta)),
             ));
         }
         Ok(Self {

@@ -38,7 +38,7 @@ fn check_weight(name: &str, w: f64) -> Result<()> {
     if !(w.is_finite() && w >= 0.0) {
         return Err(Error::option(
             format!("CostStack weight of `{name}`"),
-            format!("must be finite and >= 0, got {w}"),
+            format!("must be finite and >= 0, got {}", crate::error::Num(w)),
         ));
     }
     Ok(())

@@ -79,7 +79,7 @@ pub(crate) fn check_dt(what: &str, dt: f64) -> crate::Result<()> {
     } else {
         Err(crate::Error::option(
             format!("{what} dt"),
-            format!("must be finite and > 0, got {dt}"),
+            format!("must be finite and > 0, got {}", crate::error::Num(dt)),
         ))
     }
 }
