@@ -1,8 +1,9 @@
 //! `gharial bench solve` (every catalogue example) and `gharial bench peers` (the LQR
 //! family of the peer harness, as JSON lines in the harness's format).
 //!
-//! Each timed solve starts from the same guess with a solver set up once (setup is not
-//! timed, as in the harness); the median and minimum over the repeats are reported, with
+//! Each timed solve starts from the same guess with a freshly constructed and set-up
+//! solver (construction and setup are not timed, as in the harness); the median and
+//! minimum over the repeats are reported, with
 //! the time of one full-horizon model evaluation and derivative pass, to separate model
 //! cost from solver cost.
 
@@ -47,13 +48,16 @@ pub fn time_solves(
     opts: &ProxDdpOptions,
     repeats: usize,
 ) -> gharial::Result<Timing> {
-    let mut solver = ProxDdp::new(opts.clone());
-    solver.setup(problem)?;
     let mut times = Vec::with_capacity(repeats.max(1));
+    let mut solution = Solution::default();
     for _ in 0..repeats.max(1) {
+        // A freshly constructed and set-up solver per repeat (not timed), as the harness.
+        let mut solver = ProxDdp::new(opts.clone());
+        solver.setup(problem)?;
         let t = Instant::now();
         solver.solve(problem, InitialGuess::primal(xs, us))?;
         times.push(t.elapsed().as_secs_f64() * 1e3);
+        solution = solver.solution().clone();
     }
     let min_ms = times.iter().copied().fold(f64::INFINITY, f64::min);
     let median_ms = median(&mut times);
@@ -69,7 +73,7 @@ pub fn time_solves(
         de.push(t.elapsed().as_secs_f64() * 1e3);
     }
     Ok(Timing {
-        solution: solver.solution().clone(),
+        solution,
         median_ms,
         min_ms,
         eval_ms: median(&mut ev),
@@ -91,7 +95,7 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>, acti
         names.to_vec()
     };
     out!(
-        "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12} {:>10} {:>10} {:>10} {:>15} {:>9} {:>9} {:>9}",
+        "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12} {:>10} {:>10} {:>15} {:>15} {:>9} {:>9} {:>9}",
         "problem",
         "rollout",
         "status",
@@ -100,7 +104,7 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>, acti
         "ms (median)",
         "ms (min)",
         "ms/iter",
-        "eval/deriv",
+        "eval/deriv (ms)",
         "cost",
         "prim",
         "dual",
@@ -130,7 +134,7 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>, acti
                 }
                 let kkt = kkt_residuals(&ex.problem, &s.xs, &s.us, &s.lambdas, &s.nus).map_or(f64::NAN, |k| k.max());
                 out!(
-                    "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12.3} {:>10.3} {:>10.4} {:>4.3}/{:<5.3} {:>15.9e} {:>9.2e} {:>9.2e} {:>9.2e}",
+                    "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12.3} {:>10.3} {:>10.4} {:>7.3}/{:<7.3} {:>15.9e} {:>9.2e} {:>9.2e} {:>9.2e}",
                     name,
                     format!("{:?}", opts.rollout).to_lowercase(),
                     if s.status.converged() {

@@ -87,6 +87,7 @@ enum Command {
     /// List the built-in problems and solvers.
     List,
     /// Solve a built-in problem: iteration table, summary, optional JSON output.
+    #[command(after_help = solve_help())]
     Solve {
         /// Problem name (see `gharial list`).
         problem: String,
@@ -94,19 +95,19 @@ enum Command {
         #[arg(long, default_value = "proxddp")]
         solver: String,
         /// Tolerance on the primal and dual residuals.
-        #[arg(long)]
+        #[arg(long, value_parser = positive_real)]
         tol: Option<f64>,
         /// Initial augmented-Lagrangian penalty.
-        #[arg(long)]
+        #[arg(long, value_parser = positive_real)]
         mu_init: Option<f64>,
         /// Dynamics penalty relative to the penalty (appendix C of the ProxDDP paper).
-        #[arg(long)]
+        #[arg(long, value_parser = positive_real)]
         dyn_al_scale: Option<f64>,
         /// Active-set prediction iterations per step (0: the plain Newton step).
         #[arg(long)]
         active_set_iters: Option<usize>,
         /// Iteration limit.
-        #[arg(long)]
+        #[arg(long, value_parser = positive_int)]
         max_iters: Option<usize>,
         /// Forward pass.
         #[arg(long, value_enum)]
@@ -118,7 +119,7 @@ enum Command {
         #[arg(long, value_enum)]
         merit: Option<MeritArg>,
         /// Threads for stage-wise evaluation.
-        #[arg(long)]
+        #[arg(long, value_parser = positive_int)]
         threads: Option<usize>,
         /// Print the solver's live log (with outer updates) instead of the table afterwards.
         #[arg(long)]
@@ -141,7 +142,7 @@ enum BenchCommand {
         /// Problems (default: the whole catalogue).
         problems: Vec<String>,
         /// Timed solves per problem.
-        #[arg(long, default_value_t = 5)]
+        #[arg(long, default_value_t = 5, value_parser = positive_int)]
         repeats: usize,
         /// Forward pass (default: each problem's recommended one).
         #[arg(long, value_enum)]
@@ -157,40 +158,40 @@ enum BenchCommand {
         #[arg(long, value_delimiter = ',', default_values_t = vec!["lqr".to_string(), "lqr_box".to_string(), "lqr_box_term".to_string()])]
         problems: Vec<String>,
         /// Timed solves per problem and solver.
-        #[arg(long, default_value_t = 5)]
+        #[arg(long, default_value_t = 5, value_parser = positive_int)]
         repeats: usize,
         /// Tolerance.
-        #[arg(long, default_value_t = 1e-6)]
+        #[arg(long, default_value_t = 1e-6, value_parser = positive_real)]
         tol: f64,
         /// Iteration limit.
-        #[arg(long, default_value_t = 500)]
+        #[arg(long, default_value_t = 500, value_parser = positive_int)]
         max_iters: usize,
         /// Directory where the final trajectories are written.
         #[arg(long)]
         traj_dir: Option<String>,
         /// State size of the LQR family.
-        #[arg(long, default_value_t = 8)]
+        #[arg(long, default_value_t = 8, value_parser = positive_int)]
         lqr_nx: usize,
         /// Control size.
-        #[arg(long, default_value_t = 4)]
+        #[arg(long, default_value_t = 4, value_parser = positive_int)]
         lqr_nu: usize,
         /// Horizon.
-        #[arg(long = "lqr-N", default_value_t = 100)]
+        #[arg(long = "lqr-N", default_value_t = 100, value_parser = positive_int)]
         lqr_n: usize,
         /// Seed.
         #[arg(long, default_value_t = 42)]
         lqr_seed: u64,
         /// Control bound.
-        #[arg(long, default_value_t = 0.05)]
+        #[arg(long, default_value_t = 0.05, value_parser = positive_real)]
         lqr_umax: f64,
     },
     /// Proximal Riccati solver (serial and parallel) on the peers' random LQ problems.
     Riccati {
         /// Thread counts to time (1 = the serial solver), comma separated.
-        #[arg(long, value_delimiter = ',', default_values_t = vec![1, 2])]
+        #[arg(long, value_delimiter = ',', default_values_t = vec![1, 2], value_parser = positive_int)]
         threads: Vec<usize>,
         /// Horizons of the main series, comma separated.
-        #[arg(long, value_delimiter = ',', default_values_t = vec![16, 32, 64, 128, 256, 512, 1024])]
+        #[arg(long, value_delimiter = ',', default_values_t = vec![16, 32, 64, 128, 256, 512, 1024], value_parser = positive_int)]
         horizons: Vec<usize>,
         /// Dimensions `nx:nu:nc` of the main series.
         #[arg(long, default_value = "36:12:32")]
@@ -199,16 +200,16 @@ enum BenchCommand {
         #[arg(long, value_delimiter = ',', default_values_t = vec!["12:6:0:100".to_string(), "4:2:2:100".to_string()])]
         extra: Vec<String>,
         /// Constraint regularisation mu.
-        #[arg(long, default_value_t = 1e-8)]
+        #[arg(long, default_value_t = 1e-8, value_parser = nonnegative_real)]
         mu: f64,
         /// Seed of the problem generator.
         #[arg(long, default_value_t = 42)]
         seed: u64,
         /// Time budget per case and solver, in seconds.
-        #[arg(long, default_value_t = 1.0)]
+        #[arg(long, default_value_t = 1.0, value_parser = positive_real)]
         budget: f64,
         /// Passes over the case list (the budget is split between them).
-        #[arg(long, default_value_t = 4)]
+        #[arg(long, default_value_t = 4, value_parser = positive_int)]
         rounds: usize,
         /// Iterative refinement steps.
         #[arg(long, default_value_t = 0)]
@@ -216,10 +217,50 @@ enum BenchCommand {
     },
 }
 
+/// The part of `gharial solve --help` after the options: the table's columns and the
+/// exit codes.
+fn solve_help() -> String {
+    format!(
+        "Columns of the iteration table:\n{}\n\nThe settings line marks values that are not the library's defaults: \
+         [problem] for the problem's recommended settings, [option] for the command line.\n\n\
+         Exit code: 0 converged, 1 stopped for another reason (the status says which), 2 invalid input.",
+        gharial::solvers::IterationRecord::LEGEND
+    )
+}
+
+/// An integer of at least 1 (counts: threads, repeats, iterations, sizes).
+fn positive_int(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(v) if v >= 1 => Ok(v),
+        Ok(_) => Err("must be at least 1".into()),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A finite number greater than 0 (tolerances, penalties, budgets, bounds).
+fn positive_real(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) => Err(format!("must be a finite number greater than 0, got {v}")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A finite number of at least 0.
+fn nonnegative_real(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Ok(v) => Err(format!("must be a finite number of at least 0, got {v}")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// `nx:nu:nc` (n = 3) or `nx:nu:nc:N` (n = 4), with `nx >= 1` and `N >= 1`.
 fn parse_dims(s: &str, n: usize) -> Result<Vec<usize>, String> {
     let v: Result<Vec<usize>, _> = s.split(':').map(str::parse).collect();
     match v {
-        Ok(v) if v.len() == n => Ok(v),
+        Ok(v) if v.len() == n && v[0] >= 1 && (n < 4 || v[3] >= 1) => Ok(v),
+        Ok(v) if v.len() == n => Err(format!("`{s}`: nx and N must be at least 1")),
         _ => Err(format!("expected {n} integers separated by ':', got `{s}`")),
     }
 }

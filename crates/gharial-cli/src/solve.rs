@@ -3,6 +3,7 @@
 
 use std::io::Write;
 
+use gharial::error::Num;
 use gharial::solvers::proxddp::{Merit, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::solvers::{InitialGuess, IterationRecord, Solution};
 use gharial_problems::Example;
@@ -98,6 +99,15 @@ pub fn run(args: &SolveArgs) -> i32 {
             return 2;
         }
     };
+    // An unwritable output is invalid input: refuse it before the solve.
+    let mut output = match args.output.as_deref().map(|p| (p, std::fs::File::create(p))) {
+        None => None,
+        Some((path, Ok(file))) => Some((path, file)),
+        Some((path, Err(e))) => {
+            eprintln!("gharial solve: cannot write {path}: {e}");
+            return 2;
+        }
+    };
     let opts = options(&example, args);
     let p = &example.problem;
     out!(
@@ -108,22 +118,14 @@ pub fn run(args: &SolveArgs) -> i32 {
         p.space(0).ndx(),
         p.nu(0)
     );
-    out!(
-        "solver    ProxDDP (tol {:e}, mu_init {:e}, rollout {:?}, step acceptance {:?}, merit {:?}, threads {})",
-        opts.tol,
-        opts.mu_init,
-        opts.rollout,
-        opts.step_acceptance,
-        opts.merit,
-        opts.num_threads
-    );
+    out!("solver    ProxDDP ({})", settings_line(&example.proxddp, args, &opts));
     let mut solver = ProxDdp::new(opts.clone());
     if let Err(e) = solver.setup(p) {
         eprintln!("gharial solve: {e}");
         return 2;
     }
     let sol = match solver.solve(p, InitialGuess::primal(&example.xs0, &example.us0)) {
-        Ok(s) => s.clone(),
+        Ok(s) => s,
         Err(e) => {
             eprintln!("gharial solve: {e}");
             return 2;
@@ -132,11 +134,11 @@ pub fn run(args: &SolveArgs) -> i32 {
     if !opts.verbose {
         print_table(&sol.history);
     }
-    print_summary(&sol);
-    if let Some(path) = &args.output {
-        let doc = solution_json(&example, &opts, &sol);
+    print_summary(sol);
+    if let Some((path, file)) = output.as_mut() {
+        let doc = solution_json(&example, &opts, sol);
         let text = serde_json::to_string_pretty(&doc).expect("JSON of plain numbers");
-        match std::fs::File::create(path).and_then(|mut f| f.write_all(text.as_bytes())) {
+        match file.write_all(text.as_bytes()) {
             Ok(()) => out!("solution  written to {path}"),
             Err(e) => {
                 eprintln!("gharial solve: cannot write {path}: {e}");
@@ -144,10 +146,109 @@ pub fn run(args: &SolveArgs) -> i32 {
             }
         }
     }
-    if sol.status.converged() { 0 } else { 1 }
+    let code = if sol.status.converged() { 0 } else { 1 };
+    // Everything is written: exit without freeing the problem and the solver one
+    // allocation at a time (seconds for horizons of 10^5 stages).
+    std::io::stdout().flush().ok();
+    std::process::exit(code)
 }
 
-/// The iteration table (the columns of DESIGN.md).
+/// The solver settings, each marked with where it came from when it is not the
+/// library's default: `[problem]` (the problem's recommended settings) or `[option]`
+/// (the command line).
+fn settings_line(recommended: &ProxDdpOptions, args: &SolveArgs, o: &ProxDdpOptions) -> String {
+    let d = ProxDdpOptions::default();
+    let tag = |cli: bool, rec: String, def: String| -> String {
+        match (cli, rec != def) {
+            (true, _) => format!(" [option; default {def}]"),
+            (false, true) => format!(" [problem; default {def}]"),
+            (false, false) => String::new(),
+        }
+    };
+    let num = |x: f64| Num(x).to_string();
+    let items = [
+        (
+            "tol",
+            num(o.tol),
+            tag(args.tol.is_some(), num(recommended.tol), num(d.tol)),
+        ),
+        (
+            "mu_init",
+            num(o.mu_init),
+            tag(args.mu_init.is_some(), num(recommended.mu_init), num(d.mu_init)),
+        ),
+        (
+            "dyn_al_scale",
+            num(o.dyn_al_scale),
+            tag(
+                args.dyn_al_scale.is_some(),
+                num(recommended.dyn_al_scale),
+                num(d.dyn_al_scale),
+            ),
+        ),
+        (
+            "max_iters",
+            o.max_iters.to_string(),
+            tag(
+                args.max_iters.is_some(),
+                recommended.max_iters.to_string(),
+                d.max_iters.to_string(),
+            ),
+        ),
+        (
+            "rollout",
+            format!("{:?}", o.rollout),
+            tag(
+                args.rollout.is_some(),
+                format!("{:?}", recommended.rollout),
+                format!("{:?}", d.rollout),
+            ),
+        ),
+        (
+            "step acceptance",
+            format!("{:?}", o.step_acceptance),
+            tag(
+                args.step_acceptance.is_some(),
+                format!("{:?}", recommended.step_acceptance),
+                format!("{:?}", d.step_acceptance),
+            ),
+        ),
+        (
+            "merit",
+            format!("{:?}", o.merit),
+            tag(
+                args.merit.is_some(),
+                format!("{:?}", recommended.merit),
+                format!("{:?}", d.merit),
+            ),
+        ),
+        (
+            "active-set iters",
+            o.active_set_iters.to_string(),
+            tag(
+                args.active_set_iters.is_some(),
+                recommended.active_set_iters.to_string(),
+                d.active_set_iters.to_string(),
+            ),
+        ),
+        (
+            "threads",
+            o.num_threads.to_string(),
+            tag(
+                args.threads.is_some(),
+                recommended.num_threads.to_string(),
+                d.num_threads.to_string(),
+            ),
+        ),
+    ];
+    items
+        .iter()
+        .map(|(name, value, source)| format!("{name} {value}{source}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The iteration table (the columns of DESIGN.md; `gharial solve --help` explains them).
 pub fn print_table(history: &[IterationRecord]) {
     out!("{}", IterationRecord::table_header());
     for r in history {

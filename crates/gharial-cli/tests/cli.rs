@@ -94,7 +94,7 @@ fn bad_input_gives_a_message_and_a_failure_code() {
 
     let o = gharial(&["solve", "lqr", "--dyn-al-scale=0"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("dyn_al_scale"), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--dyn-al-scale"), "{}", stderr(&o));
 
     let o = gharial(&["solve", "lqr", "--solver", "nope"]);
     assert_eq!(o.status.code(), Some(2));
@@ -140,4 +140,67 @@ fn step_acceptance_merit_and_dynamics_scale_overrides_reach_the_solver() {
     let o = gharial(&["solve", "lqr", "--step-acceptance", "nope"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("filter"), "{}", stderr(&o));
+}
+
+/// Every invalid invocation exits with code 2, names the offending option or value in
+/// its message, and runs nothing.
+#[test]
+fn invalid_options_are_refused_before_any_work() {
+    let dir = std::env::temp_dir().join(format!("gharial-cli-missing-{}", std::process::id()));
+    let unwritable = dir.join("sub/solution.json");
+    let unwritable = unwritable.to_str().expect("UTF-8 temp path");
+    let cases: &[(&[&str], &str)] = &[
+        (&["bench", "riccati", "--threads", "0"], "--threads"),
+        (&["bench", "riccati", "--threads", "1,0"], "--threads"),
+        (&["bench", "riccati", "--budget", "nan"], "--budget"),
+        (&["bench", "riccati", "--budget", "inf"], "--budget"),
+        (&["bench", "riccati", "--horizons", "0"], "--horizons"),
+        (&["bench", "riccati", "--rounds", "0"], "--rounds"),
+        (&["bench", "riccati", "--dims", "0:1:1"], "nx and N"),
+        (&["bench", "riccati", "--extra", "4:2:2:0"], "nx and N"),
+        (&["bench", "solve", "--repeats", "0"], "--repeats"),
+        (&["bench", "peers", "--repeats", "0"], "--repeats"),
+        (&["bench", "peers", "--lqr-umax=-1"], "--lqr-umax"),
+        (&["solve", "lqr", "--threads", "0"], "--threads"),
+        (&["solve", "lqr", "--max-iters", "0"], "--max-iters"),
+        (&["solve", "lqr", "--mu-init", "nan"], "--mu-init"),
+        (&["solve", "lqr", "--tol", "inf"], "--tol"),
+        (&["solve", "lqr", "--output", unwritable], "cannot write"),
+    ];
+    for (args, needle) in cases {
+        let o = gharial(args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        assert!(
+            stdout(&o).is_empty() || !stdout(&o).contains("status"),
+            "{args:?} ran a solve"
+        );
+    }
+}
+
+#[test]
+fn huge_iteration_limits_are_accepted_without_reserving_memory_for_them() {
+    for limit in ["1000000000000", &usize::MAX.to_string()] {
+        let o = gharial(&["solve", "pendulum", "--max-iters", limit]);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        assert!(
+            stdout(&o).contains(&format!("max_iters {limit} [option; default 300]")),
+            "{}",
+            stdout(&o)
+        );
+    }
+}
+
+#[test]
+fn the_header_says_which_settings_the_problem_recommends() {
+    let o = gharial(&["solve", "pendulum", "--tol", "1e-7"]);
+    let text = stdout(&o);
+    assert!(text.contains("mu_init 1 [problem; default 0.01]"), "{text}");
+    assert!(text.contains("tol 1e-7 [option; default 1e-6]"), "{text}");
+    let help = stdout(&gharial(&["solve", "--help"]));
+    for column in ["inner_crit", "dphi0", "dM", "preg", "al "] {
+        assert!(help.contains(column), "`solve --help` does not explain {column}");
+    }
 }
