@@ -1,5 +1,5 @@
 //! Cost of the group operations and Jacobians of the spaces, and of the automatic
-//! derivatives (`cargo bench -p gharial --bench spaces`).
+//! derivatives (`cargo bench -p gharial --features bench --bench spaces`).
 
 use std::hint::black_box;
 use std::sync::Arc;
