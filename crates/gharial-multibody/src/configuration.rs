@@ -6,7 +6,7 @@
 //! `integrate(q0, difference(q0, q1)) = q1`. Jacobians are taken with respect to tangent
 //! (right) perturbations `q ⊕ δ`, as in Pinocchio's `dIntegrate` / `dDifference`.
 
-use crate::error::{Error, Result, check_vec};
+use crate::error::{Error, Result, check_result_mat, check_result_vec, check_vec};
 use crate::joint::{JointType, quat_from_slice};
 use crate::lie::{
     ad_inv_blocks, exp3, exp3_quat, exp6, jexp3, jexp6_blocks, jlog3, jlog6_blocks, log3_quat, log6_with_phi,
@@ -34,26 +34,22 @@ pub fn neutral(model: &Model) -> Vec<f64> {
     q
 }
 
-/// Normalizes the quaternions and unit complex numbers of `q` in place.
+/// Normalizes the quaternions and (cos, sin) pairs of `q` in place (the other entries
+/// are left as they are). Fails on a zero block, naming the joint.
 pub fn normalize(model: &Model, q: &mut [f64]) -> Result<()> {
     check_vec("q", q, model.nq)?;
-    for jm in &model.joints[1..] {
-        let qj = &mut q[jm.idx_q..jm.idx_q + jm.nq];
-        let r = match jm.kind {
-            JointType::RevoluteUnbounded(_) => 0..2,
-            JointType::FreeFlyer => 3..7,
-            JointType::Spherical => 0..4,
-            JointType::Planar => 2..4,
-            _ => continue,
-        };
-        let n = qj[r.clone()].iter().map(|x| x * x).sum::<f64>().sqrt();
-        if n == 0.0 {
+    for b in &model.unit_blocks {
+        let x = &mut q[b.start..b.start + b.len];
+        // Scaled norm: no overflow for huge entries.
+        let m = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if m == 0.0 {
             return Err(Error::Invalid(format!(
-                "q: joint {} has a zero quaternion or complex number",
-                jm.idx_q
+                "q: joint `{}` has a zero quaternion or (cos, sin) pair, which cannot be normalized",
+                model.names[b.joint]
             )));
         }
-        qj[r].iter_mut().for_each(|x| *x /= n);
+        let n = m * x.iter().map(|v| (v / m) * (v / m)).sum::<f64>().sqrt();
+        x.iter_mut().for_each(|v| *v /= n);
     }
     Ok(())
 }
@@ -158,7 +154,7 @@ fn planar_twist(v: &[f64]) -> Motion {
 
 /// `q ⊕ v`, written into `out` (length nq).
 pub fn integrate(model: &Model, q: &[f64], v: &[f64], out: &mut [f64]) -> Result<()> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_vec("v", v, model.nv)?;
     if out.len() != model.nq {
         return Err(Error::Dimension {
@@ -168,7 +164,7 @@ pub fn integrate(model: &Model, q: &[f64], v: &[f64], out: &mut [f64]) -> Result
         });
     }
     integrate_unchecked(model, q, v, out);
-    Ok(())
+    check_result_vec("integrate", out)
 }
 
 pub(crate) fn integrate_unchecked(model: &Model, q: &[f64], v: &[f64], out: &mut [f64]) {
@@ -233,8 +229,8 @@ pub(crate) fn integrate_unchecked(model: &Model, q: &[f64], v: &[f64], out: &mut
 
 /// `q1 ⊖ q0`, written into `out` (length nv).
 pub fn difference(model: &Model, q0: &[f64], q1: &[f64], out: &mut [f64]) -> Result<()> {
-    check_vec("q0", q0, model.nq)?;
-    check_vec("q1", q1, model.nq)?;
+    model.check_configuration("q0", q0)?;
+    model.check_configuration("q1", q1)?;
     if out.len() != model.nv {
         return Err(Error::Dimension {
             what: "difference output".into(),
@@ -243,7 +239,7 @@ pub fn difference(model: &Model, q0: &[f64], q1: &[f64], out: &mut [f64]) -> Res
         });
     }
     difference_unchecked(model, q0, q1, out);
-    Ok(())
+    check_result_vec("difference", out)
 }
 
 /// Relative placement `M0⁻¹ M1` of a free flyer and the log of its rotation.
@@ -353,7 +349,7 @@ fn check_square(what: &str, out: &MatMut<'_, f64>, n: usize) -> Result<()> {
 
 /// Jacobian of `integrate(q, v)` with respect to q (`Arg0`) or v (`Arg1`), nv × nv.
 pub fn dintegrate(model: &Model, q: &[f64], v: &[f64], arg: ArgumentPosition, mut out: MatMut<'_, f64>) -> Result<()> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_vec("v", v, model.nv)?;
     check_square("dintegrate", &out, model.nv)?;
     out.fill(0.0);
@@ -397,7 +393,7 @@ pub fn dintegrate(model: &Model, q: &[f64], v: &[f64], arg: ArgumentPosition, mu
             }
         }
     }
-    Ok(())
+    check_result_mat("dintegrate", out.as_ref())
 }
 
 /// Jacobian of `difference(q0, q1)` with respect to q0 (`Arg0`) or q1 (`Arg1`), nv × nv.
@@ -408,8 +404,8 @@ pub fn ddifference(
     arg: ArgumentPosition,
     mut out: MatMut<'_, f64>,
 ) -> Result<()> {
-    check_vec("q0", q0, model.nq)?;
-    check_vec("q1", q1, model.nq)?;
+    model.check_configuration("q0", q0)?;
+    model.check_configuration("q1", q1)?;
     check_square("ddifference", &out, model.nv)?;
     out.fill(0.0);
     let sign = match arg {
@@ -464,5 +460,5 @@ pub fn ddifference(
             }
         }
     }
-    Ok(())
+    check_result_mat("ddifference", out.as_ref())
 }

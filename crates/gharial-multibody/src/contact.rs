@@ -18,7 +18,7 @@
 use crate::data::{Data, check_data};
 use crate::derivatives::{rnea_derivatives_kernel, velocity_pass};
 use crate::dynamics::{factor_mass_matrix, mass_matrix_column, minv_from_factor};
-use crate::error::{Error, Result, check_vec};
+use crate::error::{Error, Result, check_result_vec, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
 use crate::lie::{jlog6_blocks, log6};
 use crate::linalg::{DofTree, add_combination, axpy, cholesky_factor, cholesky_solve, ltdl_solve_rows};
@@ -141,18 +141,22 @@ pub struct ContactData {
 }
 
 impl ContactData {
-    /// Allocates the workspace for these contacts.
+    /// Allocates the workspace for these contacts. Fails if a contact is not attached to
+    /// a moving joint of the model, or if the contacts have more rows than the model has
+    /// degrees of freedom (their Delassus matrix would be singular).
     pub fn new(model: &Model, contacts: &[ContactModel]) -> Result<Self> {
-        for c in contacts {
-            if c.joint == 0 || c.joint >= model.njoints() {
-                return Err(Error::Invalid(format!(
-                    "contact: joint {} is not a moving joint of the model",
-                    c.joint
-                )));
-            }
+        for (k, c) in contacts.iter().enumerate() {
+            check_contact(model, k, c)?;
         }
         let nc: usize = contacts.iter().map(|c| c.size()).sum();
         let nv = model.nv();
+        if nc > nv {
+            return Err(Error::Invalid(format!(
+                "contacts: {} contacts have {nc} constraint rows, more than the nv = {nv} degrees of freedom of model `{}` (the Delassus matrix would be singular)",
+                contacts.len(),
+                model.name
+            )));
+        }
         Ok(Self {
             nc,
             nv,
@@ -260,13 +264,26 @@ fn check_sizes(model: &Model, contacts: &[ContactModel], cdata: &ContactData) ->
             model.nv()
         )));
     }
-    for c in contacts {
-        if c.joint == 0 || c.joint >= model.njoints() {
-            return Err(Error::Invalid(format!(
-                "contact: joint {} is not a moving joint of the model",
-                c.joint
-            )));
-        }
+    for (k, c) in contacts.iter().enumerate() {
+        check_contact(model, k, c)?;
+    }
+    Ok(())
+}
+
+/// Checks that contact `k` is attached to a moving joint and has finite gains and
+/// placements.
+fn check_contact(model: &Model, k: usize, c: &ContactModel) -> Result<()> {
+    if c.joint == 0 || c.joint >= model.njoints() {
+        return Err(Error::Invalid(format!(
+            "contact {k}: joint {} is not a moving joint of the model",
+            c.joint
+        )));
+    }
+    if !(c.kp.is_finite() && c.kd.is_finite() && c.placement.is_finite() && c.reference.is_finite()) {
+        return Err(Error::Invalid(format!(
+            "contact {k}: the gains kp = {}, kd = {} and the placements must be finite",
+            c.kp, c.kd
+        )));
     }
     Ok(())
 }
@@ -327,7 +344,7 @@ pub fn constraint_dynamics(
     v: &[f64],
     tau: &[f64],
 ) -> Result<()> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("tau", tau, model.nv)?;
@@ -341,7 +358,7 @@ pub fn constraint_dynamics(
     for k in 0..nv {
         cdata.ddq[k] = tau[k] - data.nle[k];
     }
-    ltdl_solve_rows(&model.dof_tree(), 1, &data.l, &data.d, &mut cdata.ddq);
+    ltdl_solve_rows(&model.dof_tree(&data.subtree_end), 1, &data.l, &data.d, &mut cdata.ddq);
     // Contact Jacobian and drift.
     cdata.jc.fill(0.0);
     let g = model.gravity;
@@ -367,7 +384,13 @@ pub fn constraint_dynamics(
     }
     // Jc M⁻¹ (rows of M⁻¹ Jcᵀ), Delassus matrix and its Cholesky factor.
     cdata.jcminv.copy_from_slice(&cdata.jc);
-    ltdl_solve_rows(&model.dof_tree(), nc, &data.l, &data.d, &mut cdata.jcminv);
+    ltdl_solve_rows(
+        &model.dof_tree(&data.subtree_end),
+        nc,
+        &data.l,
+        &data.d,
+        &mut cdata.jcminv,
+    );
     cdata.delassus.fill(0.0);
     for k in 0..nv {
         let a = &cdata.jcminv[k * nc..(k + 1) * nc];
@@ -396,6 +419,8 @@ pub fn constraint_dynamics(
             .sum();
         cdata.ddq[k] += s;
     }
+    check_result_vec("constrained ddq", &cdata.ddq)?;
+    check_result_vec("contact forces lambda", &cdata.lambda)?;
     data.ddq.copy_from_slice(&cdata.ddq);
     Ok(())
 }
@@ -591,7 +616,7 @@ pub fn compute_constraint_dynamics_derivatives(
         off += c.size();
     }
     kkt_inverse_blocks(model, data, cdata);
-    let tree = model.dof_tree();
+    let tree = model.dof_tree(&data.subtree_end);
     let cd = &mut *cdata;
     for (b, r2, ddq_dx, dl_dx) in [
         (&cd.b_dq, &cd.r2_dq, &mut cd.ddq_dq, &mut cd.dl_dq),
@@ -602,6 +627,16 @@ pub fn compute_constraint_dynamics_derivatives(
     // τ: ∂ddq/∂τ = P, ∂λ/∂τ = −Qᵀ.
     for (x, y) in cdata.dl_dtau.iter_mut().zip(&cdata.qt_linv[..nc * nv]) {
         *x = -y;
+    }
+    for (what, x) in [
+        ("ddq_dq", &cdata.ddq_dq[..]),
+        ("ddq_dv", &cdata.ddq_dv),
+        ("ddq_dtau", &cdata.pq[..nv * nv]),
+        ("dlambda_dq", &cdata.dl_dq),
+        ("dlambda_dv", &cdata.dl_dv),
+        ("dlambda_dtau", &cdata.dl_dtau),
+    ] {
+        check_result_vec(what, x)?;
     }
     Ok(())
 }

@@ -12,12 +12,15 @@ use crate::spatial::{Force, Inertia, Mat3, Motion, Se3, Sym6, Vec3};
 use faer::MatRef;
 
 /// Workspace of every algorithm for one model; create it with [`Model::create_data`].
-/// After creation no algorithm allocates.
+/// After creation no algorithm allocates. When an algorithm returns an error, the
+/// quantities it writes are unspecified until the next successful call.
 #[derive(Clone, Debug)]
 pub struct Data {
     pub(crate) nv: usize,
     /// Hash of the tree of dofs of the model the data was created for.
     pub(crate) dof_tree_hash: u64,
+    /// Subtree ends of the dofs ([`Model::dof_subtree_ends`]).
+    pub(crate) subtree_end: Vec<usize>,
     // Per joint.
     pub(crate) li_mi: Vec<Se3>,
     pub(crate) o_mi: Vec<Se3>,
@@ -105,6 +108,7 @@ impl Data {
         Self {
             nv,
             dof_tree_hash: model.dof_tree_hash,
+            subtree_end: model.dof_subtree_ends(),
             li_mi: vec![Se3::identity(); n],
             o_mi: vec![Se3::identity(); n],
             ov: vec![Motion::zero(); n],
@@ -142,7 +146,7 @@ impl Data {
             ddq_dq: vec![0.0; nv * nv],
             ddq_dv: vec![0.0; nv * nv],
             terms: Vec::with_capacity(nv + 1),
-            l: vec![0.0; model.dof_tree().anc.len()],
+            l: vec![0.0; model.dof_anc_start[nv]],
             d: vec![0.0; nv],
             jcom: vec![0.0; 3 * nv],
             mass: 0.0,

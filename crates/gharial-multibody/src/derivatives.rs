@@ -19,8 +19,10 @@
 
 use crate::data::{Data, check_data};
 use crate::dynamics::{aba_unchecked, factor_mass_matrix, minv_from_factor};
-use crate::error::{Error, Result, check_vec};
-use crate::kinematics::{express_motion, frame_placement_of, jacobian_step, joint_motion, placement_step};
+use crate::error::{Error, Result, check_result, check_result_mat, check_result_vec, check_vec};
+use crate::kinematics::{
+    check_kinematics, express_motion, frame_placement_of, jacobian_step, joint_motion, placement_step,
+};
 use crate::linalg::minv_times_tree_sparse;
 use crate::model::{Model, NONE, ReferenceFrame};
 use crate::spatial::{Force, Inertia, Mat3, Motion, Se3, Vec3, skew};
@@ -68,7 +70,7 @@ pub fn compute_forward_kinematics_derivatives(
     v: &[f64],
     a: &[f64],
 ) -> Result<()> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("a", a, model.nv)?;
@@ -92,7 +94,15 @@ pub fn compute_forward_kinematics_derivatives(
             data.dadv[k] = dj + dvdq;
         }
     }
-    Ok(())
+    check_kinematics(data)?;
+    check_derivative_columns(data)
+}
+
+/// Checks the per-dof derivative columns `dVdq`, `dAdq`, `dAdv`.
+fn check_derivative_columns(data: &Data) -> Result<()> {
+    check_result("velocity derivative columns dVdq", &data.dvdq, Motion::is_finite)?;
+    check_result("acceleration derivative columns dAdq", &data.dadq, Motion::is_finite)?;
+    check_result("acceleration derivative columns dAdv", &data.dadv, Motion::is_finite)
 }
 
 fn check_6xnv(what: &str, m: &MatMut<'_, f64>, nv: usize) -> Result<()> {
@@ -158,7 +168,8 @@ pub fn frame_velocity_derivatives(
         put_col(&mut dv_dv, c, &express_motion(&o_mf, &jc, rf));
         c = model.dof_parent[c];
     }
-    Ok(())
+    check_result_mat("dv_dq", dv_dq.as_ref())?;
+    check_result_mat("dv_dv", dv_dv.as_ref())
 }
 
 /// Derivatives of the spatial velocity and acceleration of frame `frame` in `rf`, after
@@ -211,6 +222,14 @@ pub fn frame_acceleration_derivatives(
         put_col(&mut da_dv, c, &express_motion(&o_mf, &body_v, rf));
         put_col(&mut da_da, c, &express_motion(&o_mf, &jc, rf));
         c = model.dof_parent[c];
+    }
+    for (w, m) in [
+        ("dv_dq", &dv_dq),
+        ("da_dq", &da_dq),
+        ("da_dv", &da_dv),
+        ("da_da", &da_da),
+    ] {
+        check_result_mat(w, m.as_ref())?;
     }
     Ok(())
 }
@@ -326,13 +345,21 @@ pub(crate) fn rnea_derivatives_kernel(
 /// `dtau_da = M`, read with [`Data::dtau_dq`], [`Data::dtau_dv`], [`Data::mass_matrix`];
 /// also computes `tau` ([`Data::tau`]).
 pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<()> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("a", a, model.nv)?;
     velocity_pass(model, data, q, v);
     rnea_derivatives_into_data(model, data, v, a);
-    Ok(())
+    check_rnea_derivatives(data)
+}
+
+/// Checks `tau`, `dtau_dq`, `dtau_dv` and `M` of the last RNEA derivatives.
+fn check_rnea_derivatives(data: &Data) -> Result<()> {
+    check_result_vec("tau", &data.tau)?;
+    check_result_vec("dtau_dq", &data.dtau_dq)?;
+    check_result_vec("dtau_dv", &data.dtau_dv)?;
+    check_result_vec("mass matrix", &data.m)
 }
 
 /// [`rnea_derivatives_kernel`] into `data.dtau_dq`, `data.dtau_dv`, `data.m`.
@@ -356,7 +383,7 @@ fn rnea_derivatives_into_data(model: &Model, data: &mut Data, v: &[f64], a: &[f6
 /// with `M⁻¹` visit only the nonzeros of `∂τ/∂q`, `∂τ/∂v` (pairs of dofs on one path to
 /// the root).
 pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64]) -> Result<()> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("tau", tau, model.nv)?;
@@ -366,8 +393,12 @@ pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f
     data.ddq = ddq;
     factor_mass_matrix(model, data)?;
     minv_from_factor(model, data);
-    let tree = model.dof_tree();
+    let tree = model.dof_tree(&data.subtree_end);
     minv_times_tree_sparse(&tree, &data.minv, &data.dtau_dq, &mut data.ddq_dq, &mut data.terms);
     minv_times_tree_sparse(&tree, &data.minv, &data.dtau_dv, &mut data.ddq_dv, &mut data.terms);
-    Ok(())
+    check_result_vec("ddq", &data.ddq)?;
+    check_rnea_derivatives(data)?;
+    check_result_vec("inverse mass matrix", &data.minv)?;
+    check_result_vec("ddq_dq", &data.ddq_dq)?;
+    check_result_vec("ddq_dv", &data.ddq_dv)
 }

@@ -2,9 +2,9 @@
 //! M⁻¹, centre of mass — all in the world frame (Featherstone, RBDA ch. 5-7).
 
 use crate::data::{Data, check_data};
-use crate::error::{Error, Result, check_vec};
+use crate::error::{Error, Result, check_result, check_result_vec, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
-use crate::linalg::{ltdl_factor, ltdl_inverse, small_spd_inverse};
+use crate::linalg::{check_pivot, ltdl_factor, ltdl_inverse, small_spd_inverse};
 use crate::model::{Model, NONE};
 use crate::spatial::{Force, Motion, Sym6, Vec3};
 use faer::MatRef;
@@ -60,29 +60,38 @@ fn rnea_pass(model: &Model, data: &mut Data, q: &[f64], v: Option<&[f64]>, a: Op
 
 /// Inverse dynamics `tau = M(q) a + C(q, v) v + g(q)` (armature included).
 pub fn rnea<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<&'d [f64]> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("a", a, model.nv)?;
     rnea_pass(model, data, q, Some(v), Some(a));
+    check_rnea_result(data)?;
     Ok(&data.tau)
+}
+
+/// Checks the torques and joint forces of the last [`rnea_pass`].
+fn check_rnea_result(data: &Data) -> Result<()> {
+    check_result("joint forces", &data.f, Force::is_finite)?;
+    check_result_vec("tau", &data.tau)
 }
 
 /// Nonlinear effects `C(q, v) v + g(q)`.
 pub fn nonlinear_effects<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64]) -> Result<&'d [f64]> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     rnea_pass(model, data, q, Some(v), None);
+    check_rnea_result(data)?;
     data.nle.copy_from_slice(&data.tau);
     Ok(&data.nle)
 }
 
 /// Generalized gravity `g(q)`.
 pub fn generalized_gravity<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<&'d [f64]> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     rnea_pass(model, data, q, None, None);
+    check_rnea_result(data)?;
     data.g.copy_from_slice(&data.tau);
     Ok(&data.g)
 }
@@ -90,9 +99,10 @@ pub fn generalized_gravity<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> 
 /// Composite-rigid-body algorithm: the full symmetric joint-space inertia matrix
 /// (armature on the diagonal).
 pub fn crba<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<MatRef<'d, f64>> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     crba_unchecked(model, data, q);
+    check_result_vec("mass matrix", &data.m)?;
     Ok(data.mass_matrix())
 }
 
@@ -164,11 +174,7 @@ pub(crate) fn aba_unchecked(model: &Model, data: &mut Data, q: &[f64], v: &[f64]
         if nvj == 1 {
             let d = data.j[iv].dot(&data.u[iv]) + model.armature[iv];
             if !(d > 0.0 && d.is_finite()) {
-                return Err(Error::NotPositiveDefinite {
-                    what: format!("articulated inertia of joint {}", model.names[i]),
-                    index: iv,
-                    value: d,
-                });
+                check_pivot(&format!("articulated inertia of joint {}", model.names[i]), iv, d)?;
             }
             data.dinv[i][0][0] = 1.0 / d;
             data.udinv[iv] = data.u[iv] * (1.0 / d);
@@ -229,32 +235,40 @@ pub(crate) fn aba_unchecked(model: &Model, data: &mut Data, q: &[f64], v: &[f64]
 
 /// Forward dynamics `ddq = M⁻¹ (tau − C v − g)` by the articulated-body algorithm.
 pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f64]) -> Result<&'d [f64]> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("tau", tau, model.nv)?;
     aba_unchecked(model, data, q, v, tau)?;
+    check_result_vec("ddq", &data.ddq)?;
     Ok(&data.ddq)
 }
 
 /// Factorizes `data.m` into `data.l`, `data.d` (`M = Lᵀ D L`).
 pub(crate) fn factor_mass_matrix(model: &Model, data: &mut Data) -> Result<()> {
-    ltdl_factor(&model.dof_tree(), &data.m, &mut data.l, &mut data.d)
+    ltdl_factor(&model.dof_tree(&data.subtree_end), &data.m, &mut data.l, &mut data.d)
 }
 
 /// `M⁻¹` from the factorization in `data.l`, `data.d`.
 pub(crate) fn minv_from_factor(model: &Model, data: &mut Data) {
-    ltdl_inverse(&model.dof_tree(), &data.l, &data.d, &mut data.minv, &mut data.terms);
+    ltdl_inverse(
+        &model.dof_tree(&data.subtree_end),
+        &data.l,
+        &data.d,
+        &mut data.minv,
+        &mut data.terms,
+    );
 }
 
 /// Inverse of the joint-space inertia matrix (CRBA and a tree-sparse `Lᵀ D L`
 /// factorization).
 pub fn compute_minverse<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<MatRef<'d, f64>> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     crba_unchecked(model, data, q);
     factor_mass_matrix(model, data)?;
     minv_from_factor(model, data);
+    check_result_vec("inverse mass matrix", &data.minv)?;
     Ok(data.minv())
 }
 
@@ -284,12 +298,13 @@ pub fn center_of_mass<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64
     data.com = h / m;
     data.vcom = mv / m;
     data.acom = ma / m;
+    check_com(data)?;
     Ok(&data.com)
 }
 
 /// Jacobian of the centre of mass (3 × nv, world frame); also updates `com`.
 pub fn jacobian_center_of_mass<'d>(model: &Model, data: &'d mut Data, q: &[f64]) -> Result<MatRef<'d, f64>> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     for i in 1..model.njoints() {
         placement_step(model, data, i, q);
@@ -328,5 +343,16 @@ pub fn jacobian_center_of_mass<'d>(model: &Model, data: &'d mut Data, q: &[f64])
     }
     data.mass = total;
     data.com = h / total;
+    check_com(data)?;
+    check_result_vec("centre-of-mass Jacobian", &data.jcom)?;
     Ok(data.jacobian_com())
+}
+
+/// Checks the mass and the centre of mass with its velocity and acceleration.
+fn check_com(data: &Data) -> Result<()> {
+    let (c, v, a) = (&data.com, &data.vcom, &data.acom);
+    check_result_vec(
+        "centre of mass (mass, com, vcom, acom)",
+        &[data.mass, c.x, c.y, c.z, v.x, v.y, v.z, a.x, a.y, a.z],
+    )
 }

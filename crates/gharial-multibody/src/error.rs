@@ -64,6 +64,55 @@ pub enum Error {
     /// A model or algorithm precondition does not hold.
     #[error("{0}")]
     Invalid(String),
+    /// A configuration whose quaternion or (cos, sin) pair is not of unit norm within
+    /// [`Model::UNIT_NORM_TOLERANCE`](crate::Model::UNIT_NORM_TOLERANCE).
+    #[error(
+        "{what}: joint `{joint}`: its {block} has norm {norm}, not 1 within {tolerance:e} (normalize the configuration with `normalize`)"
+    )]
+    NotNormalized {
+        /// Argument name.
+        what: String,
+        /// Joint name.
+        joint: String,
+        /// `quaternion` or `(cos, sin) pair`.
+        block: String,
+        /// The norm found.
+        norm: f64,
+        /// The tolerance on |norm − 1|.
+        tolerance: f64,
+    },
+    /// An algorithm's result is not finite although its inputs are: they are so large
+    /// that the computation overflowed.
+    #[error(
+        "{what}: entry {index} of the result is not finite: the inputs are finite but so large that the computation overflowed"
+    )]
+    NonFiniteResult {
+        /// Result name.
+        what: String,
+        /// Index of the first non-finite entry.
+        index: usize,
+    },
+    /// A body inertia that is not physically valid (see
+    /// [`Model::INERTIA_TOLERANCE`](crate::Model::INERTIA_TOLERANCE)).
+    #[error("{what}: inertia is not physically valid: {message}")]
+    InvalidInertia {
+        /// The body (joint name or index).
+        what: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A model with more degrees of freedom than [`Model::MAX_NV`](crate::Model::MAX_NV).
+    #[error(
+        "joint `{joint}`: the model would have nv = {nv} degrees of freedom, more than Model::MAX_NV = {max} (the dense nv × nv matrices of its Data would not fit in reasonable memory)"
+    )]
+    ModelTooLarge {
+        /// Joint whose addition exceeds the limit.
+        joint: String,
+        /// The tangent size the model would have.
+        nv: usize,
+        /// The limit.
+        max: usize,
+    },
     /// A matrix that must be positive definite is not (e.g. the mass matrix of a model
     /// with a massless leaf body, or a rank-deficient contact Jacobian).
     #[error("{what} is not positive definite (pivot {index} = {value})")]
@@ -102,4 +151,36 @@ pub(crate) fn check_finite(what: &str, x: &[f64]) -> Result<()> {
         }),
         None => Ok(()),
     }
+}
+
+/// Checks that every item of an algorithm's result is finite; `index` in the error
+/// counts items (entries for `f64`, spatial vectors or placements otherwise).
+pub(crate) fn check_result<T>(what: &str, items: &[T], finite: impl Fn(&T) -> bool) -> Result<()> {
+    match items.iter().position(|x| !finite(x)) {
+        Some(index) => Err(Error::NonFiniteResult {
+            what: what.to_string(),
+            index,
+        }),
+        None => Ok(()),
+    }
+}
+
+/// [`check_result`] for a slice of numbers.
+pub(crate) fn check_result_vec(what: &str, x: &[f64]) -> Result<()> {
+    check_result(what, x, |v| v.is_finite())
+}
+
+/// [`check_result`] for a matrix view (index in column-major order).
+pub(crate) fn check_result_mat(what: &str, m: faer::MatRef<'_, f64>) -> Result<()> {
+    for j in 0..m.ncols() {
+        for i in 0..m.nrows() {
+            if !m[(i, j)].is_finite() {
+                return Err(Error::NonFiniteResult {
+                    what: what.to_string(),
+                    index: j * m.nrows() + i,
+                });
+            }
+        }
+    }
+    Ok(())
 }

@@ -21,8 +21,9 @@ pub enum Axis {
 }
 
 impl Axis {
-    /// Axis from a direction: aligned only when exactly +x, +y or +z; otherwise the
-    /// normalized direction.
+    /// Axis from a nonzero finite direction: aligned only when exactly +x, +y or +z;
+    /// otherwise the normalized direction (computed without overflow or underflow for
+    /// huge or tiny entries).
     pub fn from_vector(v: Vec3) -> Axis {
         if v == Vec3::x() {
             Axis::X
@@ -31,7 +32,8 @@ impl Axis {
         } else if v == Vec3::z() {
             Axis::Z
         } else {
-            Axis::Unaligned(v.normalize())
+            let u = v / v.amax();
+            Axis::Unaligned(u / u.norm())
         }
     }
 
@@ -110,6 +112,19 @@ impl JointType {
             JointType::Spherical => "JointModelSpherical",
             JointType::Planar => "JointModelPlanar",
             JointType::Translation => "JointModelTranslation",
+        }
+    }
+
+    /// The block of the joint's configuration that must have unit norm, as (offset in
+    /// the joint's q, length): the quaternion of a free flyer or spherical joint, the
+    /// (cos θ, sin θ) pair of an unbounded revolute or planar joint; `None` otherwise.
+    pub fn unit_block(&self) -> Option<(usize, usize)> {
+        match self {
+            JointType::RevoluteUnbounded(_) => Some((0, 2)),
+            JointType::FreeFlyer => Some((3, 4)),
+            JointType::Spherical => Some((0, 4)),
+            JointType::Planar => Some((2, 2)),
+            _ => None,
         }
     }
 

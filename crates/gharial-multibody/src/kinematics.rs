@@ -5,7 +5,7 @@
 //! with the Jacobian columns `J_k = oMi · S_k`.
 
 use crate::data::{Data, check_data};
-use crate::error::{Error, Result, check_vec};
+use crate::error::{Error, Result, check_result, check_result_mat, check_vec};
 use crate::model::{Model, NONE, ReferenceFrame};
 use crate::spatial::{Motion, Se3};
 use faer::MatMut;
@@ -58,10 +58,33 @@ pub(crate) fn joint_motion(model: &Model, data: &Data, i: usize, x: &[f64]) -> M
     m
 }
 
+/// Checks the placements `oMi` and the Jacobian columns left by a kinematic pass.
+pub(crate) fn check_placements_and_jacobian(data: &Data) -> Result<()> {
+    check_result("joint placements oMi", &data.o_mi, Se3::is_finite)?;
+    check_result("joint Jacobian columns", &data.j, Motion::is_finite)
+}
+
+/// [`check_placements_and_jacobian`] and the joint velocities and accelerations.
+pub(crate) fn check_kinematics(data: &Data) -> Result<()> {
+    check_placements_and_jacobian(data)?;
+    check_result("joint velocities", &data.ov, Motion::is_finite)?;
+    check_result("joint accelerations", &data.oa, Motion::is_finite)
+}
+
+/// `m` if it is finite, else an error naming `what`.
+fn finite_motion(what: &str, m: Motion) -> Result<Motion> {
+    check_result(what, &m.to_array(), |x| x.is_finite())?;
+    Ok(m)
+}
+
 /// Forward kinematics: placements `oMi`, velocities and accelerations (no gravity) of
 /// every joint, and the world Jacobian columns.
+///
+/// Every algorithm checks its inputs (lengths, finite entries, unit quaternions within
+/// [`Model::UNIT_NORM_TOLERANCE`]) and its results: an overflow gives
+/// [`Error::NonFiniteResult`], never NaN.
 pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], a: &[f64]) -> Result<()> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("a", a, model.nv)?;
@@ -75,17 +98,17 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
         data.ov[i] = ovp + vj;
         data.oa[i] = oap + aj + ovp.cross(&vj);
     }
-    Ok(())
+    check_kinematics(data)
 }
 
 /// Placements `oMi` only.
 pub fn forward_kinematics_placements(model: &Model, data: &mut Data, q: &[f64]) -> Result<()> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     for i in 1..model.njoints() {
         placement_step(model, data, i, q);
     }
-    Ok(())
+    check_result("joint placements oMi", &data.o_mi, Se3::is_finite)
 }
 
 /// Placements `oMf` of every frame from the current `oMi`.
@@ -94,18 +117,18 @@ pub fn update_frame_placements(model: &Model, data: &mut Data) -> Result<()> {
     for (f, frame) in model.frames.iter().enumerate() {
         data.o_mf[f] = data.o_mi[frame.parent_joint].compose(&frame.placement);
     }
-    Ok(())
+    check_result("frame placements oMf", &data.o_mf, Se3::is_finite)
 }
 
 /// Placements `oMi` and world Jacobian columns of every joint.
 pub fn compute_joint_jacobians(model: &Model, data: &mut Data, q: &[f64]) -> Result<()> {
-    check_vec("q", q, model.nq)?;
+    model.check_configuration("q", q)?;
     check_data(model, data)?;
     for i in 1..model.njoints() {
         placement_step(model, data, i, q);
         jacobian_step(model, data, i);
     }
-    Ok(())
+    check_placements_and_jacobian(data)
 }
 
 /// Placement of frame `frame` computed from the current `oMi`.
@@ -151,15 +174,21 @@ pub fn frame_jacobian(
     check_out("frame_jacobian", &out, 6, model.nv)?;
     out.fill(0.0);
     let o_mf = frame_placement_of(model, data, frame);
-    let mut k = model.last_dof(model.frames[frame].parent_joint);
+    support_columns(model, data, model.frames[frame].parent_joint, &o_mf, rf, &mut out);
+    check_result_mat("frame Jacobian", out.as_ref())
+}
+
+/// Writes the Jacobian columns of the support of `joint`, expressed in `rf` for a frame
+/// placed at `o`, into `out` (6 × nv, the other columns untouched).
+fn support_columns(model: &Model, data: &Data, joint: usize, o: &Se3, rf: ReferenceFrame, out: &mut MatMut<'_, f64>) {
+    let mut k = model.last_dof(joint);
     while k != NONE {
-        let col = express_motion(&o_mf, &data.j[k], rf).to_array();
+        let col = express_motion(o, &data.j[k], rf).to_array();
         for r in 0..6 {
             out[(r, k)] = col[r];
         }
         k = model.dof_parent[k];
     }
-    Ok(())
 }
 
 /// Jacobian (6 × nv) of joint `joint`'s frame in `rf`.
@@ -180,15 +209,8 @@ pub fn joint_jacobian(
     check_data(model, data)?;
     out.fill(0.0);
     let o = data.o_mi[joint];
-    let mut k = model.last_dof(joint);
-    while k != NONE {
-        let col = express_motion(&o, &data.j[k], rf).to_array();
-        for r in 0..6 {
-            out[(r, k)] = col[r];
-        }
-        k = model.dof_parent[k];
-    }
-    Ok(())
+    support_columns(model, data, joint, &o, rf, &mut out);
+    check_result_mat("joint Jacobian", out.as_ref())
 }
 
 fn check_joint(data: &Data, joint: usize) -> Result<()> {
@@ -205,13 +227,16 @@ fn check_joint(data: &Data, joint: usize) -> Result<()> {
 /// Spatial velocity of joint `joint` in `rf`, after `forward_kinematics`.
 pub fn joint_velocity(data: &Data, joint: usize, rf: ReferenceFrame) -> Result<Motion> {
     check_joint(data, joint)?;
-    Ok(express_motion(&data.o_mi[joint], &data.ov[joint], rf))
+    finite_motion("joint velocity", express_motion(&data.o_mi[joint], &data.ov[joint], rf))
 }
 
 /// Spatial acceleration (no gravity) of joint `joint` in `rf`, after `forward_kinematics`.
 pub fn joint_acceleration(data: &Data, joint: usize, rf: ReferenceFrame) -> Result<Motion> {
     check_joint(data, joint)?;
-    Ok(express_motion(&data.o_mi[joint], &data.oa[joint], rf))
+    finite_motion(
+        "joint acceleration",
+        express_motion(&data.o_mi[joint], &data.oa[joint], rf),
+    )
 }
 
 /// Spatial velocity of frame `frame` in `rf`, after `forward_kinematics`.
@@ -219,7 +244,10 @@ pub fn frame_velocity(model: &Model, data: &Data, frame: usize, rf: ReferenceFra
     model.check_frame(frame)?;
     check_data(model, data)?;
     let o_mf = frame_placement_of(model, data, frame);
-    Ok(express_motion(&o_mf, &data.ov[model.frames[frame].parent_joint], rf))
+    finite_motion(
+        "frame velocity",
+        express_motion(&o_mf, &data.ov[model.frames[frame].parent_joint], rf),
+    )
 }
 
 /// Spatial acceleration (no gravity) of frame `frame` in `rf`, after `forward_kinematics`.
@@ -227,7 +255,10 @@ pub fn frame_acceleration(model: &Model, data: &Data, frame: usize, rf: Referenc
     model.check_frame(frame)?;
     check_data(model, data)?;
     let o_mf = frame_placement_of(model, data, frame);
-    Ok(express_motion(&o_mf, &data.oa[model.frames[frame].parent_joint], rf))
+    finite_motion(
+        "frame acceleration",
+        express_motion(&o_mf, &data.oa[model.frames[frame].parent_joint], rf),
+    )
 }
 
 /// Classical acceleration of frame `frame` in `rf`: the spatial acceleration with
@@ -237,5 +268,5 @@ pub fn frame_classical_acceleration(model: &Model, data: &Data, frame: usize, rf
     let v = frame_velocity(model, data, frame, rf)?;
     let mut a = frame_acceleration(model, data, frame, rf)?;
     a.linear += v.angular.cross(&v.linear);
-    Ok(a)
+    finite_motion("frame classical acceleration", a)
 }

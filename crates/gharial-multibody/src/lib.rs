@@ -57,4 +57,8 @@ pub use kinematics::{
     update_frame_placements,
 };
 pub use lie::{exp3, exp6, jexp3, jexp6_blocks, jlog3, jlog6_blocks, log3, log6};
-pub use model::{ArgumentPosition, Frame, FrameType, Geometry, JointLimits, Model, ReferenceFrame, RootJoint, Visual};
+pub use model::{
+    ArgumentPosition, Frame, FrameType, Geometry, JointLimits, MimicJoint, Model, ReferenceFrame, RootJoint, Visual,
+};
+pub use srdf::SrdfOptions;
+pub use urdf::{MimicPolicy, UrdfOptions};

@@ -8,26 +8,49 @@
 //! columns": a right-hand side matrix `B` (n × m) is passed transposed, column-major.
 
 use crate::error::{Error, Result};
+use crate::model::NONE;
 
 /// The tree of degrees of freedom: parent of each dof (`NONE` at a root), for each dof
-/// `k` the end of a range `k..end` containing all its descendants, and the ancestors of
-/// every dof (nearest first) in one flat list.
+/// `k` the end of a range `k..end` containing all its descendants, and the offsets of
+/// the rows of a compressed `L` (one entry per ancestor). Ancestors are walked through
+/// `parent`, so the tree takes O(n) memory whatever its depth.
 #[derive(Clone, Copy)]
 pub(crate) struct DofTree<'a> {
     pub(crate) parent: &'a [usize],
     pub(crate) subtree_end: &'a [usize],
     pub(crate) anc_start: &'a [usize],
-    pub(crate) anc: &'a [usize],
 }
 
-impl DofTree<'_> {
+/// The ancestors of a dof, nearest first.
+#[derive(Clone)]
+pub(crate) struct Ancestors<'a> {
+    parent: &'a [usize],
+    k: usize,
+}
+
+impl Iterator for Ancestors<'_> {
+    type Item = usize;
+
+    #[inline]
+    fn next(&mut self) -> Option<usize> {
+        let p = self.parent[self.k];
+        if p == NONE {
+            None
+        } else {
+            self.k = p;
+            Some(p)
+        }
+    }
+}
+
+impl<'a> DofTree<'a> {
     /// Number of dofs.
     #[inline]
     pub(crate) fn n(&self) -> usize {
         self.parent.len()
     }
 
-    /// Range of the ancestors of dof `k` in `anc` (and of row k of a compressed `L`).
+    /// Range of row k of a compressed `L` (one entry per ancestor of dof `k`).
     #[inline]
     pub(crate) fn anc_range(&self, k: usize) -> core::ops::Range<usize> {
         self.anc_start[k]..self.anc_start[k + 1]
@@ -35,8 +58,8 @@ impl DofTree<'_> {
 
     /// Ancestors of dof `k`, nearest first.
     #[inline]
-    pub(crate) fn ancestors(&self, k: usize) -> &[usize] {
-        &self.anc[self.anc_range(k)]
+    pub(crate) fn ancestors(&self, k: usize) -> Ancestors<'a> {
+        Ancestors { parent: self.parent, k }
     }
 }
 
@@ -103,7 +126,7 @@ pub(crate) fn ltdl_inverse(tree: &DofTree<'_>, l: &[f64], d: &[f64], out: &mut [
         let end = tree.subtree_end[k];
         let (left, right) = out.split_at_mut(k * n);
         let yk = &right[k..end];
-        for (&i, &lki) in tree.ancestors(k).iter().zip(&l[tree.anc_range(k)]) {
+        for (i, &lki) in tree.ancestors(k).zip(&l[tree.anc_range(k)]) {
             axpy(-lki, yk, &mut left[i * n + k..i * n + end]);
         }
     }
@@ -115,12 +138,7 @@ pub(crate) fn ltdl_inverse(tree: &DofTree<'_>, l: &[f64], d: &[f64], out: &mut [
     }
     for k in 0..n {
         terms.clear();
-        terms.extend(
-            tree.ancestors(k)
-                .iter()
-                .zip(&l[tree.anc_range(k)])
-                .map(|(&i, &lki)| (i, -lki)),
-        );
+        terms.extend(tree.ancestors(k).zip(&l[tree.anc_range(k)]).map(|(i, &lki)| (i, -lki)));
         let (left, right) = out.split_at_mut(k * n);
         add_combination(&mut right[..n], left, n, terms);
     }
@@ -140,7 +158,7 @@ pub(crate) fn minv_times_tree_sparse(
     for c in 0..n {
         let col = &b[c * n..(c + 1) * n];
         terms.clear();
-        terms.extend(tree.ancestors(c).iter().map(|&r| (r, -col[r])));
+        terms.extend(tree.ancestors(c).map(|r| (r, -col[r])));
         terms.extend((c..tree.subtree_end[c]).map(|r| (r, -col[r])));
         let o = &mut out[c * n..(c + 1) * n];
         o.fill(0.0);
@@ -156,24 +174,18 @@ pub(crate) fn ltdl_factor(tree: &DofTree<'_>, m: &[f64], l: &mut [f64], d: &mut 
     let n = tree.n();
     for k in 0..n {
         d[k] = m[k * n + k];
-        for (x, &a) in l[tree.anc_range(k)].iter_mut().zip(tree.ancestors(k)) {
+        for (x, a) in l[tree.anc_range(k)].iter_mut().zip(tree.ancestors(k)) {
             *x = m[a * n + k];
         }
     }
     for k in (0..n).rev() {
         let dk = d[k];
-        if !(dk > 0.0 && dk.is_finite()) {
-            return Err(Error::NotPositiveDefinite {
-                what: "mass matrix".into(),
-                index: k,
-                value: dk,
-            });
-        }
+        check_pivot("mass matrix", k, dk)?;
         let inv = 1.0 / dk;
         let rk = tree.anc_range(k);
         let (left, right) = l.split_at_mut(rk.start);
         let row = &mut right[..rk.len()];
-        for (p, &i) in tree.ancestors(k).iter().enumerate() {
+        for (p, i) in tree.ancestors(k).enumerate() {
             let w = row[p];
             let a = w * inv;
             d[i] -= a * w;
@@ -193,7 +205,7 @@ pub(crate) fn ltdl_solve_rows(tree: &DofTree<'_>, m: usize, l: &[f64], d: &[f64]
     for k in (0..n).rev() {
         let (left, right) = xt.split_at_mut(k * m);
         let yk = &right[..m];
-        for (&i, &lki) in tree.ancestors(k).iter().zip(&l[tree.anc_range(k)]) {
+        for (i, &lki) in tree.ancestors(k).zip(&l[tree.anc_range(k)]) {
             axpy(-lki, yk, &mut left[i * m..(i + 1) * m]);
         }
     }
@@ -205,9 +217,29 @@ pub(crate) fn ltdl_solve_rows(tree: &DofTree<'_>, m: usize, l: &[f64], d: &[f64]
     for k in 0..n {
         let (left, right) = xt.split_at_mut(k * m);
         let xk = &mut right[..m];
-        for (&i, &lki) in tree.ancestors(k).iter().zip(&l[tree.anc_range(k)]) {
+        for (i, &lki) in tree.ancestors(k).zip(&l[tree.anc_range(k)]) {
             axpy(-lki, &left[i * m..(i + 1) * m], xk);
         }
+    }
+}
+
+/// Checks a pivot of a factorization of `what`: a non-finite pivot comes from an
+/// overflow ([`Error::NonFiniteResult`]), a pivot ≤ 0 from a matrix that is not positive
+/// definite ([`Error::NotPositiveDefinite`]).
+pub(crate) fn check_pivot(what: &str, index: usize, value: f64) -> Result<()> {
+    if !value.is_finite() {
+        Err(Error::NonFiniteResult {
+            what: format!("{what} (factorization pivot)"),
+            index,
+        })
+    } else if value <= 0.0 {
+        Err(Error::NotPositiveDefinite {
+            what: what.into(),
+            index,
+            value,
+        })
+    } else {
+        Ok(())
     }
 }
 
@@ -227,13 +259,7 @@ pub(crate) fn cholesky_factor(n: usize, a: &mut [f64], what: &str) -> Result<()>
         for k in 0..j {
             djj -= a[k * n + j] * a[k * n + j];
         }
-        if !(djj > 0.0 && djj.is_finite()) {
-            return Err(Error::NotPositiveDefinite {
-                what: what.into(),
-                index: j,
-                value: djj,
-            });
-        }
+        check_pivot(what, j, djj)?;
         let ljj = djj.sqrt();
         a[j * n + j] = ljj;
         for i in j + 1..n {
@@ -273,13 +299,7 @@ pub(crate) fn small_spd_inverse(n: usize, a: &mut [[f64; 6]; 6]) -> Result<()> {
         for k in 0..j {
             djj -= l[j][k] * l[j][k];
         }
-        if !(djj > 0.0 && djj.is_finite()) {
-            return Err(Error::NotPositiveDefinite {
-                what: "joint-space articulated inertia".into(),
-                index: j,
-                value: djj,
-            });
-        }
+        check_pivot("joint-space articulated inertia", j, djj)?;
         l[j][j] = djj.sqrt();
         for i in j + 1..n {
             let mut s = a[i][j];

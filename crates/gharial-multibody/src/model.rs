@@ -5,6 +5,7 @@ use crate::error::{Error, Result};
 use crate::joint::{JointModel, JointType};
 use crate::linalg::DofTree;
 use crate::spatial::{Inertia, Motion, Se3, Vec3};
+use std::collections::HashMap;
 
 /// Sentinel for "no parent degree of freedom".
 pub(crate) const NONE: usize = usize::MAX;
@@ -142,6 +143,30 @@ impl JointLimits {
     }
 }
 
+/// A joint whose URDF declares `<mimic joint="..." multiplier="..." offset="..."/>`:
+/// `q_joint = multiplier · q_mimicked + offset`. The model keeps it an independent joint
+/// (Pinocchio's default, `mimic=false`); the relation is recorded for the user.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MimicJoint {
+    /// The mimicking joint.
+    pub joint: usize,
+    /// The joint it mimics.
+    pub mimicked: usize,
+    /// Multiplier (URDF default 1).
+    pub multiplier: f64,
+    /// Offset (URDF default 0).
+    pub offset: f64,
+}
+
+/// Position in q of a block that must have unit norm: a quaternion (free flyer,
+/// spherical) or a (cos θ, sin θ) pair (unbounded revolute, planar).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct UnitBlock {
+    pub(crate) joint: usize,
+    pub(crate) start: usize,
+    pub(crate) len: usize,
+}
+
 /// Root joint used when loading a URDF.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RootJoint {
@@ -179,6 +204,11 @@ pub struct Model {
     pub name: String,
     pub(crate) joints: Vec<JointModel>,
     pub(crate) names: Vec<String>,
+    /// Joint id of every name.
+    pub(crate) name_index: HashMap<String, usize>,
+    /// The unit-norm blocks of q, joint by joint.
+    pub(crate) unit_blocks: Vec<UnitBlock>,
+    pub(crate) mimic: Vec<MimicJoint>,
     pub(crate) parents: Vec<usize>,
     pub(crate) placements: Vec<Se3>,
     pub(crate) inertias: Vec<Inertia>,
@@ -189,12 +219,8 @@ pub struct Model {
     pub(crate) dof_parent: Vec<usize>,
     /// Joint of each degree of freedom.
     pub(crate) dof_joint: Vec<usize>,
-    /// End (exclusive) of a range `k..end` of dofs containing every descendant of dof `k`
-    /// (exactly its subtree when joints were added depth first, as the URDF loader does).
-    pub(crate) dof_subtree_end: Vec<usize>,
-    /// Ancestors of every dof, nearest first, concatenated; those of dof k are
-    /// `dof_anc[dof_anc_start[k]..dof_anc_start[k + 1]]`.
-    pub(crate) dof_anc: Vec<usize>,
+    /// Offsets of the per-dof ancestor rows of a compressed `L` (row k has one entry per
+    /// ancestor of dof k): row k is `dof_anc_start[k]..dof_anc_start[k + 1]`.
     pub(crate) dof_anc_start: Vec<usize>,
     /// Hash of `dof_parent`, recorded by `Data` and `ContactData` to check that they are
     /// used with a model of the same tree.
@@ -238,6 +264,9 @@ impl Model {
                 nv: 0,
             }],
             names: vec!["universe".to_string()],
+            name_index: HashMap::from([("universe".to_string(), 0)]),
+            unit_blocks: Vec::new(),
+            mimic: Vec::new(),
             parents: vec![0],
             placements: vec![Se3::identity()],
             inertias: vec![Inertia::zero()],
@@ -252,8 +281,6 @@ impl Model {
             nv: 0,
             dof_parent: Vec::new(),
             dof_joint: Vec::new(),
-            dof_subtree_end: Vec::new(),
-            dof_anc: Vec::new(),
             dof_anc_start: vec![0],
             dof_tree_hash: 0,
             lower_position_limit: Vec::new(),
@@ -271,8 +298,38 @@ impl Model {
         }
     }
 
+    /// Largest tangent size `nv` of a model: [`Model::add_joint`] refuses a joint that
+    /// would exceed it. `Data` holds six dense nv × nv matrices (the mass matrix, its
+    /// inverse and four derivative matrices), a `ContactData` about five more: at
+    /// nv = 2048 one matrix takes 32 MiB and a `Data` about 200 MiB, which is as much as
+    /// one model's workspace should take. (Typical robots have nv < 100.)
+    pub const MAX_NV: usize = 2048;
+
+    /// Tolerance on `|‖·‖ − 1|` of the quaternions (free flyer, spherical) and
+    /// (cos θ, sin θ) pairs (unbounded revolute, planar) of a configuration. Every
+    /// algorithm taking q rejects a configuration outside it with
+    /// [`Error::NotNormalized`] (naming the joint); inside it the entries are used as
+    /// given, as Pinocchio does (a norm of 1 + ε scales rotations by about 1 + 2ε). Use
+    /// [`normalize`](crate::normalize) to project a configuration.
+    pub const UNIT_NORM_TOLERANCE: f64 = 1e-6;
+
+    /// Relative tolerance of the inertia check of [`Model::set_inertia`],
+    /// [`Model::append_body_to_joint`] and the URDF loader. An inertia is accepted when
+    /// its entries are finite, its mass is ≥ 0, a zero mass has a zero first moment, and
+    /// its rotational inertia about the centre of mass `I_c` is symmetric and positive
+    /// semidefinite up to `INERTIA_TOLERANCE · s` (asymmetry and smallest eigenvalue ≥
+    /// −tol·s), `s` being the largest absolute entry of the rotational inertia about the
+    /// reference origin or about the centre of mass. This is exactly the condition for
+    /// the 6×6 spatial inertia to be positive semidefinite. The all-zero inertia (a
+    /// massless dummy link) is valid. The triangle inequalities of the principal moments
+    /// are not enforced (many CAD-exported URDFs violate them slightly).
+    pub const INERTIA_TOLERANCE: f64 = 1e-6;
+
     /// Adds a joint below `parent` at `placement` (in the parent joint's frame) and
-    /// returns its id. Joints must be added parents first.
+    /// returns its id. Joints must be added parents first. Fails (leaving the model
+    /// unchanged) on an unknown parent, a used name, limits of the wrong sizes or when
+    /// the model would exceed [`Model::MAX_NV`]. Takes O(1) time (amortized) whatever the
+    /// depth of the tree.
     pub fn add_joint(
         &mut self,
         parent: usize,
@@ -290,10 +347,20 @@ impl Model {
         if kind == JointType::Universe {
             return Err(Error::Invalid(format!("joint {name}: the universe cannot be added")));
         }
-        if self.names.iter().any(|n| n == name) {
+        if self.name_index.contains_key(name) {
             return Err(Error::Invalid(format!("joint {name}: name already used")));
         }
+        if !placement.is_finite() {
+            return Err(Error::Invalid(format!("joint {name}: placement is not finite")));
+        }
         let (nq, nv) = (kind.nq(), kind.nv());
+        if self.nv + nv > Self::MAX_NV {
+            return Err(Error::ModelTooLarge {
+                joint: name.to_string(),
+                nv: self.nv + nv,
+                max: Self::MAX_NV,
+            });
+        }
         let sizes = [
             ("lower", limits.lower.len(), nq),
             ("upper", limits.upper.len(), nq),
@@ -329,27 +396,31 @@ impl Model {
         } else {
             self.joints[anc].idx_v + self.joints[anc].nv - 1
         };
-        let mut a = prev;
-        while a != NONE {
-            self.dof_subtree_end[a] = self.nv + nv;
-            a = self.dof_parent[a];
-        }
         for k in 0..nv {
             self.dof_parent.push(prev);
             self.dof_joint.push(id);
-            self.dof_subtree_end.push(self.nv + nv);
-            if prev != NONE {
-                self.dof_anc.push(prev);
-                self.dof_anc
-                    .extend_from_within(self.dof_anc_start[prev]..self.dof_anc_start[prev + 1]);
-            }
-            self.dof_anc_start.push(self.dof_anc.len());
+            // Depth of the new dof = number of its ancestors = depth(prev) + 1.
+            let depth = if prev == NONE {
+                0
+            } else {
+                self.dof_anc_start[prev + 1] - self.dof_anc_start[prev] + 1
+            };
+            let end = self.dof_anc_start[self.nv + k] + depth;
+            self.dof_anc_start.push(end);
             // FNV-1a step over the parent index (NONE included).
             self.dof_tree_hash = (self.dof_tree_hash ^ prev as u64).wrapping_mul(0x0100_0000_01b3);
             prev = self.nv + k;
         }
+        if let Some((start, len)) = kind.unit_block() {
+            self.unit_blocks.push(UnitBlock {
+                joint: id,
+                start: self.nq + start,
+                len,
+            });
+        }
         self.joints.push(jm);
         self.names.push(name.to_string());
+        self.name_index.insert(name.to_string(), id);
         self.parents.push(parent);
         self.placements.push(placement);
         self.inertias.push(Inertia::zero());
@@ -368,20 +439,46 @@ impl Model {
     }
 
     /// Adds the inertia `y` (given in a frame placed at `placement` in the joint frame) to
-    /// the body of `joint`.
+    /// the body of `joint`. Fails with [`Error::InvalidInertia`] if `y` is not physically
+    /// valid (see [`Model::INERTIA_TOLERANCE`]) or the result overflows.
     pub fn append_body_to_joint(&mut self, joint: usize, y: &Inertia, placement: &Se3) -> Result<()> {
-        if joint >= self.joints.len() {
-            return Err(Error::NotFound {
-                what: "joint".into(),
-                name: joint.to_string(),
-            });
-        }
-        self.inertias[joint] += y.transformed(placement);
+        self.check_joint_index(joint)?;
+        self.check_inertia(joint, y)?;
+        let mut sum = self.inertias[joint];
+        sum += y.transformed(placement);
+        self.check_inertia(joint, &sum)?;
+        self.inertias[joint] = sum;
         Ok(())
     }
 
-    /// Adds a frame and returns its id.
+    /// Error naming joint `joint` if `y` is not a physically valid inertia.
+    fn check_inertia(&self, joint: usize, y: &Inertia) -> Result<()> {
+        match inertia_defect(y) {
+            None => Ok(()),
+            Some(message) => Err(Error::InvalidInertia {
+                what: format!("body of joint `{}`", self.names[joint]),
+                message,
+            }),
+        }
+    }
+
+    fn check_joint_index(&self, joint: usize) -> Result<()> {
+        if joint < self.joints.len() {
+            Ok(())
+        } else {
+            Err(Error::NotFound {
+                what: "joint".into(),
+                name: joint.to_string(),
+            })
+        }
+    }
+
+    /// Adds a frame and returns its id. Fails on an unknown parent joint or frame or a
+    /// non-finite placement.
     pub fn add_frame(&mut self, frame: Frame) -> Result<usize> {
+        if !frame.placement.is_finite() {
+            return Err(Error::Invalid(format!("frame {}: placement is not finite", frame.name)));
+        }
         if frame.parent_joint >= self.joints.len() {
             return Err(Error::NotFound {
                 what: "parent joint of frame".into(),
@@ -443,18 +540,19 @@ impl Model {
         &self.inertias
     }
 
-    /// Replaces the inertia of a joint's body.
+    /// Replaces the inertia of a joint's body. Fails with [`Error::InvalidInertia`] if `y`
+    /// is not physically valid (see [`Model::INERTIA_TOLERANCE`]).
     pub fn set_inertia(&mut self, joint: usize, y: Inertia) -> Result<()> {
-        match self.inertias.get_mut(joint) {
-            Some(slot) => {
-                *slot = y;
-                Ok(())
-            }
-            None => Err(Error::NotFound {
-                what: "joint".into(),
-                name: joint.to_string(),
-            }),
-        }
+        self.check_joint_index(joint)?;
+        self.check_inertia(joint, &y)?;
+        self.inertias[joint] = y;
+        Ok(())
+    }
+
+    /// The joints declared as mimic joints in the URDF (kept independent, see
+    /// [`MimicJoint`]), in the order of the URDF's joint elements.
+    pub fn mimic_joints(&self) -> &[MimicJoint] {
+        &self.mimic
     }
 
     /// Frames (index 0 is the universe frame).
@@ -464,13 +562,10 @@ impl Model {
 
     /// Id of the joint with this name.
     pub fn joint_id(&self, name: &str) -> Result<usize> {
-        self.names
-            .iter()
-            .position(|n| n == name)
-            .ok_or_else(|| Error::NotFound {
-                what: "joint".into(),
-                name: name.into(),
-            })
+        self.name_index.get(name).copied().ok_or_else(|| Error::NotFound {
+            what: "joint".into(),
+            name: name.into(),
+        })
     }
 
     /// Id of the first frame with this name.
@@ -494,14 +589,54 @@ impl Model {
         Data::new(self)
     }
 
-    /// The tree of degrees of freedom, for the tree-sparse matrix kernels.
-    pub(crate) fn dof_tree(&self) -> DofTree<'_> {
+    /// The tree of degrees of freedom, for the tree-sparse matrix kernels, with the
+    /// subtree ends computed by [`Model::dof_subtree_ends`] (kept in `Data`).
+    pub(crate) fn dof_tree<'a>(&'a self, subtree_end: &'a [usize]) -> DofTree<'a> {
         DofTree {
             parent: &self.dof_parent,
-            subtree_end: &self.dof_subtree_end,
+            subtree_end,
             anc_start: &self.dof_anc_start,
-            anc: &self.dof_anc,
         }
+    }
+
+    /// For every dof `k`, the end (exclusive) of a range `k..end` of dofs containing
+    /// every descendant of `k` (exactly its subtree when joints were added depth first,
+    /// as the URDF loader does). O(nv): descendants have larger indices than their
+    /// ancestors, so one pass from the leaves propagates the ends up.
+    pub(crate) fn dof_subtree_ends(&self) -> Vec<usize> {
+        let mut end: Vec<usize> = (1..=self.nv).collect();
+        for k in (0..self.nv).rev() {
+            let p = self.dof_parent[k];
+            if p != NONE {
+                end[p] = end[p].max(end[k]);
+            }
+        }
+        end
+    }
+
+    /// Checks a configuration argument: length nq, finite entries, and unit-norm
+    /// quaternions and (cos, sin) pairs within [`Model::UNIT_NORM_TOLERANCE`].
+    pub(crate) fn check_configuration(&self, what: &str, q: &[f64]) -> Result<()> {
+        crate::error::check_vec(what, q, self.nq)?;
+        for b in &self.unit_blocks {
+            let norm = q[b.start..b.start + b.len].iter().map(|x| x * x).sum::<f64>().sqrt();
+            // The entries are finite, so the norm is not NaN (it may overflow to inf).
+            if (norm - 1.0).abs() > Self::UNIT_NORM_TOLERANCE {
+                return Err(Error::NotNormalized {
+                    what: what.to_string(),
+                    joint: self.names[b.joint].clone(),
+                    block: if b.len == 4 { "quaternion" } else { "(cos, sin) pair" }.to_string(),
+                    norm,
+                    tolerance: Self::UNIT_NORM_TOLERANCE,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Records a mimic relation (URDF loader).
+    pub(crate) fn add_mimic(&mut self, m: MimicJoint) {
+        self.mimic.push(m);
     }
 
     /// Checks a frame id.
@@ -515,4 +650,43 @@ impl Model {
             })
         }
     }
+}
+
+/// What makes `y` physically invalid, or `None` (see [`Model::INERTIA_TOLERANCE`]).
+pub(crate) fn inertia_defect(y: &Inertia) -> Option<String> {
+    if !y.is_finite() {
+        return Some(format!(
+            "non-finite entries (mass {}, first moment {:?}, rotational {:?})",
+            y.mass,
+            y.first_moment.as_slice(),
+            y.rotational.as_slice()
+        ));
+    }
+    if y.mass < 0.0 {
+        return Some(format!("negative mass {}", y.mass));
+    }
+    if y.mass == 0.0 && y.first_moment != Vec3::zeros() {
+        return Some(format!(
+            "zero mass with a nonzero first moment {:?}",
+            y.first_moment.as_slice()
+        ));
+    }
+    let ic = y.inertia_com();
+    if !ic.iter().all(|x| x.is_finite()) {
+        return Some("the rotational inertia about the centre of mass overflows".into());
+    }
+    let s = y.rotational.amax().max(ic.amax());
+    let tol = Model::INERTIA_TOLERANCE * s;
+    let asym = (ic - ic.transpose()).amax();
+    if asym > tol {
+        return Some(format!("rotational inertia not symmetric (asymmetry {asym:e})"));
+    }
+    let lmin = ic.symmetric_eigenvalues().min();
+    // Also refuses a NaN eigenvalue (an overflow inside the eigensolver).
+    if lmin.is_nan() || lmin < -tol {
+        return Some(format!(
+            "rotational inertia about the centre of mass not positive semidefinite (eigenvalue {lmin:e}, tolerance {tol:e})"
+        ));
+    }
+    None
 }

@@ -156,6 +156,17 @@ impl Force {
 
 macro_rules! vec6_ops {
     ($t:ty) => {
+        impl $t {
+            /// True when all six coordinates are finite.
+            #[inline]
+            pub fn is_finite(&self) -> bool {
+                self.linear
+                    .iter()
+                    .chain(self.angular.iter())
+                    .all(|x| x.is_finite())
+            }
+        }
+
         impl Add for $t {
             type Output = $t;
             #[inline]
@@ -244,6 +255,15 @@ impl Se3 {
     #[inline]
     pub fn new(rotation: Mat3, translation: Vec3) -> Self {
         Self { rotation, translation }
+    }
+
+    /// True when the rotation and translation entries are all finite.
+    #[inline]
+    pub fn is_finite(&self) -> bool {
+        self.rotation
+            .iter()
+            .chain(self.translation.iter())
+            .all(|x| x.is_finite())
     }
 
     /// Composition `self * m`.
@@ -373,6 +393,16 @@ impl Inertia {
             first_moment: com * mass,
             rotational: inertia_com + offset,
         }
+    }
+
+    /// True when the mass, first moment and rotational inertia are all finite.
+    pub fn is_finite(&self) -> bool {
+        self.mass.is_finite()
+            && self
+                .first_moment
+                .iter()
+                .chain(self.rotational.iter())
+                .all(|x| x.is_finite())
     }
 
     /// Centre of mass (zero for a massless body).

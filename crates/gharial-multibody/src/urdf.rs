@@ -5,14 +5,35 @@
 //! attached by a fixed joint is merged into its parent body (its inertia is added to the
 //! parent joint's body) and gets a `BODY` frame; the fixed joint gets a `FIXED_JOINT`
 //! frame. Links welded to the world are merged into the universe.
+//!
+//! Loading takes time and memory linear in the size of the file (hash maps for the
+//! names, an explicit stack for the depth-first traversal: no recursion on depth).
 
 use crate::error::{Error, Result};
 use crate::joint::{Axis, JointType};
-use crate::model::{Frame, FrameType, Geometry, JointLimits, Model, RootJoint, Visual};
+use crate::model::{Frame, FrameType, Geometry, JointLimits, MimicJoint, Model, RootJoint, Visual, inertia_defect};
 use crate::spatial::{Inertia, Mat3, Se3, Vec3};
 use nalgebra::Rotation3;
 use roxmltree::Node;
 use std::collections::HashMap;
+
+/// What the URDF loader does with `<mimic>` joints.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MimicPolicy {
+    /// A mimic joint is an independent joint (Pinocchio's default, `mimic=false`); the
+    /// relation is recorded in [`Model::mimic_joints`].
+    #[default]
+    Independent,
+    /// A URDF with a mimic joint is refused with an error naming the joint.
+    Refuse,
+}
+
+/// Options of the URDF loader ([`Model::from_urdf_str_with`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct UrdfOptions {
+    /// Treatment of `<mimic>` joints (default [`MimicPolicy::Independent`]).
+    pub mimic: MimicPolicy,
+}
 
 struct Ctx<'a> {
     file: &'a str,
@@ -92,6 +113,13 @@ struct LinkInfo<'a, 'i> {
     inertia: Inertia,
 }
 
+/// A `<mimic joint multiplier offset>` element, validated.
+struct MimicInfo<'a> {
+    joint: &'a str,
+    multiplier: f64,
+    offset: f64,
+}
+
 struct JointInfo<'a, 'i> {
     node: Node<'a, 'i>,
     name: &'a str,
@@ -99,26 +127,46 @@ struct JointInfo<'a, 'i> {
     parent: &'a str,
     child: &'a str,
     origin: Se3,
+    mimic: Option<MimicInfo<'a>>,
 }
 
 impl Model {
-    /// Loads a URDF file. `package://` mesh URIs are kept as written in [`Model::visuals`].
+    /// Loads a URDF file with the default [`UrdfOptions`]. `package://` mesh URIs are kept
+    /// as written in [`Model::visuals`].
     pub fn from_urdf_file(path: impl AsRef<std::path::Path>, root: RootJoint) -> Result<Model> {
+        Self::from_urdf_file_with(path, root, &UrdfOptions::default())
+    }
+
+    /// Loads a URDF file with `options`.
+    pub fn from_urdf_file_with(
+        path: impl AsRef<std::path::Path>,
+        root: RootJoint,
+        options: &UrdfOptions,
+    ) -> Result<Model> {
         let path = path.as_ref();
         let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
             path: path.display().to_string(),
             message: e.to_string(),
         })?;
-        parse_urdf(&text, &path.display().to_string(), root)
+        parse_urdf(&text, &path.display().to_string(), root, options)
     }
 
-    /// Loads a URDF from a string.
+    /// Loads a URDF from a string with the default [`UrdfOptions`].
     pub fn from_urdf_str(xml: &str, root: RootJoint) -> Result<Model> {
-        parse_urdf(xml, "URDF", root)
+        Self::from_urdf_str_with(xml, root, &UrdfOptions::default())
+    }
+
+    /// Loads a URDF from a string with `options`.
+    ///
+    /// Errors name the offending element: malformed numbers, missing links, cycles,
+    /// physically invalid inertias (see [`Model::INERTIA_TOLERANCE`]), invalid or refused
+    /// `<mimic>` elements; a model beyond [`Model::MAX_NV`] gives [`Error::ModelTooLarge`].
+    pub fn from_urdf_str_with(xml: &str, root: RootJoint, options: &UrdfOptions) -> Result<Model> {
+        parse_urdf(xml, "URDF", root, options)
     }
 }
 
-fn parse_urdf(text: &str, file: &str, root: RootJoint) -> Result<Model> {
+fn parse_urdf(text: &str, file: &str, root: RootJoint, options: &UrdfOptions) -> Result<Model> {
     let ctx = Ctx { file };
     let doc = roxmltree::Document::parse(text).map_err(|e| Error::Xml {
         file: file.into(),
@@ -133,6 +181,7 @@ fn parse_urdf(text: &str, file: &str, root: RootJoint) -> Result<Model> {
     let mut links: HashMap<&str, LinkInfo> = HashMap::new();
     let mut link_order: Vec<&str> = Vec::new();
     let mut joints: Vec<JointInfo> = Vec::new();
+    let mut joint_index: HashMap<&str, usize> = HashMap::new();
     for node in robot.children().filter(|n| n.is_element()) {
         match node.tag_name().name() {
             "link" => {
@@ -151,7 +200,8 @@ fn parse_urdf(text: &str, file: &str, root: RootJoint) -> Result<Model> {
                 let parent = ctx.attr(&parent, "link")?;
                 let childl = ctx.attr(&childn, "link")?;
                 let origin = ctx.origin(&node)?;
-                if joints.iter().any(|j| j.name == name) {
+                let mimic = parse_mimic(&ctx, &node)?;
+                if joint_index.insert(name, joints.len()).is_some() {
                     return Err(ctx.err(&node, "duplicate joint name"));
                 }
                 joints.push(JointInfo {
@@ -161,6 +211,7 @@ fn parse_urdf(text: &str, file: &str, root: RootJoint) -> Result<Model> {
                     parent,
                     child: childl,
                     origin,
+                    mimic,
                 });
             }
             _ => {}
@@ -250,7 +301,63 @@ fn parse_urdf(text: &str, file: &str, root: RootJoint) -> Result<Model> {
             "some links are not connected to the root link (cycle in the kinematic graph)",
         ));
     }
+    record_mimics(&ctx, &mut model, &joints, &joint_index, options)?;
     Ok(model)
+}
+
+/// Reads a joint's `<mimic joint multiplier offset/>` (URDF defaults 1 and 0).
+fn parse_mimic<'a>(ctx: &Ctx, joint: &Node<'a, 'a>) -> Result<Option<MimicInfo<'a>>> {
+    let Some(m) = child(joint, "mimic") else {
+        return Ok(None);
+    };
+    Ok(Some(MimicInfo {
+        joint: ctx.attr(&m, "joint")?,
+        multiplier: ctx.float_or(&m, "multiplier", 1.0)?,
+        offset: ctx.float_or(&m, "offset", 0.0)?,
+    }))
+}
+
+/// Checks every mimic joint (the mimicked joint exists, both are moving one-dof joints)
+/// and records it, or refuses it under [`MimicPolicy::Refuse`].
+fn record_mimics(
+    ctx: &Ctx,
+    model: &mut Model,
+    joints: &[JointInfo],
+    joint_index: &HashMap<&str, usize>,
+    options: &UrdfOptions,
+) -> Result<()> {
+    for j in joints {
+        let Some(m) = &j.mimic else { continue };
+        if options.mimic == MimicPolicy::Refuse {
+            return Err(ctx.err(
+                &j.node,
+                format!("mimic joint (mimics `{}`), refused by MimicPolicy::Refuse", m.joint),
+            ));
+        }
+        if m.joint == j.name {
+            return Err(ctx.err(&j.node, "a joint cannot mimic itself"));
+        }
+        if !joint_index.contains_key(m.joint) {
+            return Err(ctx.err(&j.node, format!("mimicked joint `{}` does not exist", m.joint)));
+        }
+        let one_dof = |name: &str| model.joint_id(name).ok().filter(|&id| model.joints[id].nv == 1);
+        let (Some(joint), Some(mimicked)) = (one_dof(j.name), one_dof(m.joint)) else {
+            return Err(ctx.err(
+                &j.node,
+                format!(
+                    "mimic joint and mimicked joint `{}` must both be revolute, continuous or prismatic",
+                    m.joint
+                ),
+            ));
+        };
+        model.add_mimic(MimicJoint {
+            joint,
+            mimicked,
+            multiplier: m.multiplier,
+            offset: m.offset,
+        });
+    }
+    Ok(())
 }
 
 /// State of a processed link: (link, joint it moves with, its body frame, its placement in that joint).
@@ -281,15 +388,20 @@ fn descend<'a>(
         let j = &joints[kids[next]];
         let placement = pplace.compose(&j.origin);
         let info = &links[j.child];
+        let on_joint = |e: Error| ctx.err(&j.node, e.to_string());
         let state = if j.kind == "fixed" {
-            let f = model.add_frame(Frame {
-                name: j.name.into(),
-                kind: FrameType::FixedJoint,
-                parent_joint: pj,
-                parent_frame: pf,
-                placement,
-            })?;
-            model.append_body_to_joint(pj, &info.inertia, &placement)?;
+            let f = model
+                .add_frame(Frame {
+                    name: j.name.into(),
+                    kind: FrameType::FixedJoint,
+                    parent_joint: pj,
+                    parent_frame: pf,
+                    placement,
+                })
+                .map_err(on_joint)?;
+            model
+                .append_body_to_joint(pj, &info.inertia, &placement)
+                .map_err(|e| ctx.err(&info.node, format!("merged through fixed joint `{}`: {e}", j.name)))?;
             let b = model.add_frame(Frame {
                 name: j.child.into(),
                 kind: FrameType::Body,
@@ -303,7 +415,10 @@ fn descend<'a>(
             let (kind, limits) = joint_type_and_limits(ctx, j)?;
             let id = model
                 .add_joint(pj, kind, placement, j.name, limits)
-                .map_err(|e| ctx.err(&j.node, e.to_string()))?;
+                .map_err(|e| match e {
+                    Error::ModelTooLarge { .. } => e,
+                    e => on_joint(e),
+                })?;
             let f = model.add_frame(Frame {
                 name: j.name.into(),
                 kind: FrameType::Joint,
@@ -334,15 +449,16 @@ fn parse_inertial(ctx: &Ctx, link: &Node) -> Result<Inertia> {
     let origin = ctx.origin(&inertial)?;
     let mass_node = child(&inertial, "mass").ok_or_else(|| ctx.err(&inertial, "missing <mass>"))?;
     let mass = ctx.float(&mass_node, "value")?;
-    if mass < 0.0 {
-        return Err(ctx.err(&mass_node, "negative mass"));
-    }
     let i = child(&inertial, "inertia").ok_or_else(|| ctx.err(&inertial, "missing <inertia>"))?;
     let (ixx, ixy, ixz) = (ctx.float(&i, "ixx")?, ctx.float(&i, "ixy")?, ctx.float(&i, "ixz")?);
     let (iyy, iyz, izz) = (ctx.float(&i, "iyy")?, ctx.float(&i, "iyz")?, ctx.float(&i, "izz")?);
     let ic = Mat3::new(ixx, ixy, ixz, ixy, iyy, iyz, ixz, iyz, izz);
     let r = origin.rotation;
-    Ok(Inertia::from_com(mass, origin.translation, r * ic * r.transpose()))
+    let y = Inertia::from_com(mass, origin.translation, r * ic * r.transpose());
+    match inertia_defect(&y) {
+        None => Ok(y),
+        Some(m) => Err(ctx.err(link, format!("inertia is not physically valid: {m}"))),
+    }
 }
 
 fn joint_type_and_limits(ctx: &Ctx, j: &JointInfo) -> Result<(JointType, JointLimits)> {
@@ -353,7 +469,8 @@ fn joint_type_and_limits(ctx: &Ctx, j: &JointInfo) -> Result<(JointType, JointLi
     };
     let kind = match j.kind {
         "revolute" | "continuous" | "prismatic" => {
-            if axis.norm() < 1e-12 {
+            let m = axis.amax();
+            if m == 0.0 || m * (axis / m).norm() < 1e-12 {
                 return Err(ctx.err(&j.node, "zero joint axis"));
             }
             let a = Axis::from_vector(axis);
