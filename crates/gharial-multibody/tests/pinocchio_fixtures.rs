@@ -7,6 +7,7 @@
 use faer::{Mat, MatRef};
 use gharial_multibody::*;
 use serde_json::Value;
+use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -178,22 +179,8 @@ fn check_fixture(root: &Path, file: &Path) -> std::result::Result<Checker, Strin
     let text = std::fs::read_to_string(file).map_err(|e| e.to_string())?;
     let fx: Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
     let robot = fx["robot"].as_str().ok_or("no robot name")?;
-    let source = &fx["source"];
-    let urdf = root.join(source["urdf"].as_str().ok_or("no source.urdf")?);
-    let rootj = match source["root_joint"].as_str() {
-        Some("fixed") => RootJoint::Fixed,
-        Some("JointModelFreeFlyer") => RootJoint::FreeFlyer,
-        other => return Err(format!("unknown root joint {other:?}")),
-    };
-    let mut model = Model::from_urdf_file(&urdf, rootj).map_err(|e| e.to_string())?;
+    let model = build_model(root, &fx["source"])?;
     let mut ck = Checker::new(robot);
-    if let Some(srdf) = source["srdf"].as_str() {
-        let before = model.armature.clone();
-        model.load_srdf_file(root.join(srdf)).map_err(|e| e.to_string())?;
-        if source["armature_from_srdf"].as_bool() != Some(true) {
-            model.armature = before;
-        }
-    }
     check_model(&mut ck, &model, &fx["model"]);
     let frames_used: Vec<String> = fx["frames_used"]
         .as_array()
@@ -212,6 +199,77 @@ fn check_fixture(root: &Path, file: &Path) -> std::result::Result<Checker, Strin
         check_sample(&mut ck, &model, s);
     }
     Ok(ck)
+}
+
+/// Builds the model as the fixture's `source` says (every field of the fixtures README):
+/// the URDF `urdf` (relative to the fixture root) whose SHA-256 must be `urdf_sha256`,
+/// the root joint `root_joint` with the matching `build_call`, the mimic treatment
+/// `mimic` (only `false`, Pinocchio's default, is reproduced), and the SRDF `srdf`
+/// (or null): its reference configurations always, its rotor parameters (armature)
+/// only when `armature_from_srdf` is true.
+fn build_model(root: &Path, source: &Value) -> std::result::Result<Model, String> {
+    let field = |key: &str| {
+        let v = &source[key];
+        if v.is_null() && !matches!(key, "srdf") {
+            Err(format!("source.{key} missing"))
+        } else {
+            Ok(v)
+        }
+    };
+    let urdf = root.join(field("urdf")?.as_str().ok_or("source.urdf is not a string")?);
+    let bytes = std::fs::read(&urdf).map_err(|e| format!("{}: {e}", urdf.display()))?;
+    let sha: String = Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect();
+    let want_sha = field("urdf_sha256")?
+        .as_str()
+        .ok_or("source.urdf_sha256 is not a string")?;
+    if sha != want_sha {
+        return Err(format!(
+            "{}: sha256 {sha} differs from the fixture's {want_sha} (the fixture was made from another file)",
+            urdf.display()
+        ));
+    }
+    let (rootj, call) = match field("root_joint")?.as_str() {
+        Some("fixed") => (RootJoint::Fixed, "pin.buildModelFromUrdf(urdf)"),
+        Some("JointModelFreeFlyer") => (
+            RootJoint::FreeFlyer,
+            "pin.buildModelFromUrdf(urdf, pin.JointModelFreeFlyer())",
+        ),
+        other => return Err(format!("unknown source.root_joint {other:?}")),
+    };
+    if field("build_call")?.as_str() != Some(call) {
+        return Err(format!(
+            "source.build_call {} is not the call `{call}` that this test reproduces",
+            source["build_call"]
+        ));
+    }
+    let options = match field("mimic")?.as_bool() {
+        Some(false) => UrdfOptions {
+            mimic: MimicPolicy::Independent,
+        },
+        other => {
+            return Err(format!(
+                "source.mimic = {other:?}: only false (independent mimic joints) is supported"
+            ));
+        }
+    };
+    let armature_from_srdf = field("armature_from_srdf")?
+        .as_bool()
+        .ok_or("source.armature_from_srdf is not a boolean")?;
+    let mut model = Model::from_urdf_file_with(&urdf, rootj, &options).map_err(|e| e.to_string())?;
+    match source["srdf"].as_str() {
+        Some(srdf) => {
+            let what = SrdfOptions {
+                reference_configurations: true,
+                rotor_parameters: armature_from_srdf,
+            };
+            model
+                .load_srdf_file_with(root.join(srdf), &what)
+                .map_err(|e| e.to_string())?;
+        }
+        None if armature_from_srdf => return Err("source.armature_from_srdf is true but source.srdf is null".into()),
+        None => {}
+    }
+    Ok(model)
 }
 
 fn check_model(ck: &mut Checker, model: &Model, m: &Value) {
@@ -828,4 +886,50 @@ fn check_contact_setup(
             &ctx,
         );
     }
+}
+
+/// `build_model` honours every field of `source`: the SHA-256 of the URDF, the build
+/// call, `mimic`, and rotor parameters read from the SRDF only with `armature_from_srdf`.
+#[test]
+fn fixture_sources_are_honoured() {
+    let root = std::env::temp_dir().join(format!("gharial-fixture-source-{}", std::process::id()));
+    std::fs::create_dir_all(root.join("robots")).unwrap();
+    let urdf = std::fs::read(roots()[0].join("robots/double_pendulum.urdf")).unwrap();
+    std::fs::write(root.join("robots/p.urdf"), &urdf).unwrap();
+    std::fs::write(
+        root.join("robots/p.srdf"),
+        r#"<robot name="p"><group_state name="up" group="all"><joint name="joint1" value="0.5"/></group_state>
+        <rotor_params><joint name="joint1" mass="0.01" gear_ratio="10"/><joint name="gone" mass="1" gear_ratio="1"/></rotor_params></robot>"#,
+    )
+    .unwrap();
+    let sha: String = Sha256::digest(&urdf).iter().map(|b| format!("{b:02x}")).collect();
+    let source = |armature: bool| {
+        serde_json::json!({
+            "urdf": "robots/p.urdf", "urdf_sha256": sha, "srdf": "robots/p.srdf", "root_joint": "fixed",
+            "build_call": "pin.buildModelFromUrdf(urdf)", "mimic": false, "armature_from_srdf": armature
+        })
+    };
+    let m = build_model(&root, &source(false)).unwrap();
+    assert_eq!(m.reference_configuration("up").unwrap()[0], 0.5);
+    assert_eq!(
+        (m.armature[0], m.rotor_inertia[0], m.rotor_gear_ratio[0]),
+        (0.0, 0.0, 1.0)
+    );
+    let m = build_model(&root, &source(true)).unwrap();
+    assert_eq!((m.rotor_inertia[0], m.rotor_gear_ratio[0]), (0.01, 10.0));
+    assert!((m.armature[0] - 1.0).abs() < 1e-15);
+    let broken = |key: &str, value: Value| {
+        let mut s = source(false);
+        s[key] = value;
+        build_model(&root, &s).unwrap_err()
+    };
+    assert!(broken("urdf_sha256", Value::from("00")).contains("sha256"));
+    assert!(broken("build_call", Value::from("pin.buildModelFromUrdf(urdf, mimic=True)")).contains("build_call"));
+    assert!(broken("root_joint", Value::from("JointModelFreeFlyer")).contains("build_call"));
+    assert!(broken("mimic", Value::from(true)).contains("mimic"));
+    assert!(broken("armature_from_srdf", Value::Null).contains("armature_from_srdf"));
+    let mut s = source(true);
+    s["srdf"] = Value::Null;
+    assert!(build_model(&root, &s).unwrap_err().contains("srdf"));
+    std::fs::remove_dir_all(&root).unwrap();
 }
