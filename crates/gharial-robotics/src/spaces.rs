@@ -43,7 +43,7 @@ const FINITE_LIMIT: f64 = 1e10;
 /// assert_eq!((space.nx(), space.ndx()), (8, 7));
 /// # Ok::<(), gharial_multibody::Error>(())
 /// ```
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct MultibodyConfiguration {
     model: Arc<Model>,
     product: CartesianProduct,
@@ -98,6 +98,18 @@ impl MultibodyConfiguration {
     /// The product of the joints' spaces that implements the group operations.
     pub fn product(&self) -> &CartesianProduct {
         &self.product
+    }
+}
+
+/// The model's name and the sizes: spaces appear in error messages, and the model's own
+/// `Debug` output is tens of kilobytes.
+impl std::fmt::Debug for MultibodyConfiguration {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MultibodyConfiguration")
+            .field("model", &self.model.name)
+            .field("nq", &self.nx())
+            .field("nv", &self.ndx())
+            .finish_non_exhaustive()
     }
 }
 
@@ -195,7 +207,7 @@ impl Manifold for MultibodyConfiguration {
 /// The phase space of a multibody model: `x = (q, v)`, `nx = nq + nv`, `ndx = 2 nv`,
 /// `(q, v) ⊕ (dq, dv) = (q ⊕ dq, v + dv)` (the tangent bundle of
 /// [`MultibodyConfiguration`], as ALIGATOR's `MultibodyPhaseSpace`).
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct MultibodyPhaseSpace {
     configuration: Arc<MultibodyConfiguration>,
     bundle: TangentBundle,
@@ -227,6 +239,16 @@ impl MultibodyPhaseSpace {
     /// Velocity size `nv`.
     pub fn nv(&self) -> usize {
         self.configuration.ndx()
+    }
+}
+
+impl std::fmt::Debug for MultibodyPhaseSpace {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MultibodyPhaseSpace")
+            .field("model", &self.model().name)
+            .field("nq", &self.nq())
+            .field("nv", &self.nv())
+            .finish_non_exhaustive()
     }
 }
 
