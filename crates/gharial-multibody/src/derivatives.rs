@@ -94,7 +94,7 @@ pub fn compute_forward_kinematics_derivatives(
             data.dadv[k] = dj + dvdq;
         }
     }
-    check_kinematics(data)?;
+    check_kinematics(model, data)?;
     check_derivative_columns(data)
 }
 

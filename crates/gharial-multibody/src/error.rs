@@ -1,5 +1,6 @@
 //! Error type of the crate.
 
+use crate::spatial::all_finite;
 use thiserror::Error;
 
 /// Errors of model construction, file parsing and algorithm inputs.
@@ -143,6 +144,9 @@ pub(crate) fn check_vec(what: &str, x: &[f64], expected: usize) -> Result<()> {
 
 /// Checks that all entries are finite.
 pub(crate) fn check_finite(what: &str, x: &[f64]) -> Result<()> {
+    if all_finite(x) {
+        return Ok(());
+    }
     match x.iter().position(|v| !v.is_finite()) {
         Some(index) => Err(Error::NotFinite {
             what: what.to_string(),
@@ -154,32 +158,41 @@ pub(crate) fn check_finite(what: &str, x: &[f64]) -> Result<()> {
 }
 
 /// Checks that every item of an algorithm's result is finite; `index` in the error
-/// counts items (entries for `f64`, spatial vectors or placements otherwise).
+/// counts items (entries for `f64`, spatial vectors or placements otherwise). The
+/// check itself is branch-free; the index is looked for only on failure.
 pub(crate) fn check_result<T>(what: &str, items: &[T], finite: impl Fn(&T) -> bool) -> Result<()> {
-    match items.iter().position(|x| !finite(x)) {
-        Some(index) => Err(Error::NonFiniteResult {
-            what: what.to_string(),
-            index,
-        }),
-        None => Ok(()),
+    if items.iter().fold(true, |ok, x| ok & finite(x)) {
+        return Ok(());
     }
+    Err(Error::NonFiniteResult {
+        what: what.to_string(),
+        index: items.iter().position(|x| !finite(x)).unwrap_or(0),
+    })
 }
 
 /// [`check_result`] for a slice of numbers.
 pub(crate) fn check_result_vec(what: &str, x: &[f64]) -> Result<()> {
+    if all_finite(x) {
+        return Ok(());
+    }
     check_result(what, x, |v| v.is_finite())
 }
 
 /// [`check_result`] for a matrix view (index in column-major order).
 pub(crate) fn check_result_mat(what: &str, m: faer::MatRef<'_, f64>) -> Result<()> {
+    let nrows = m.nrows();
     for j in 0..m.ncols() {
-        for i in 0..m.nrows() {
-            if !m[(i, j)].is_finite() {
-                return Err(Error::NonFiniteResult {
-                    what: what.to_string(),
-                    index: j * m.nrows() + i,
-                });
-            }
+        let col = m.col(j);
+        let ok = match col.try_as_col_major() {
+            Some(c) => all_finite(c.as_slice()),
+            None => (0..nrows).all(|i| col[i].is_finite()),
+        };
+        if !ok {
+            let i = (0..nrows).position(|i| !col[i].is_finite()).unwrap_or(0);
+            return Err(Error::NonFiniteResult {
+                what: what.to_string(),
+                index: j * nrows + i,
+            });
         }
     }
     Ok(())

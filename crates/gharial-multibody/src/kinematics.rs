@@ -58,17 +58,29 @@ pub(crate) fn joint_motion(model: &Model, data: &Data, i: usize, x: &[f64]) -> M
     m
 }
 
+/// Checks a quantity computed from the root to the leaves (`oMi`, `ov`, `oa`): a NaN or
+/// infinity at a joint reaches all its descendants (a non-finite entry of a parent's
+/// placement makes a whole row of the child's non-finite, and velocities and
+/// accelerations add the parent's), so it is enough to look at the leaves.
+fn check_at_leaves<T>(what: &str, model: &Model, items: &[T], finite: impl Fn(&T) -> bool) -> Result<()> {
+    if model.leaves.iter().fold(true, |ok, &i| ok & finite(&items[i])) {
+        Ok(())
+    } else {
+        check_result(what, items, finite)
+    }
+}
+
 /// Checks the placements `oMi` and the Jacobian columns left by a kinematic pass.
-pub(crate) fn check_placements_and_jacobian(data: &Data) -> Result<()> {
-    check_result("joint placements oMi", &data.o_mi, Se3::is_finite)?;
+pub(crate) fn check_placements_and_jacobian(model: &Model, data: &Data) -> Result<()> {
+    check_at_leaves("joint placements oMi", model, &data.o_mi, Se3::is_finite)?;
     check_result("joint Jacobian columns", &data.j, Motion::is_finite)
 }
 
 /// [`check_placements_and_jacobian`] and the joint velocities and accelerations.
-pub(crate) fn check_kinematics(data: &Data) -> Result<()> {
-    check_placements_and_jacobian(data)?;
-    check_result("joint velocities", &data.ov, Motion::is_finite)?;
-    check_result("joint accelerations", &data.oa, Motion::is_finite)
+pub(crate) fn check_kinematics(model: &Model, data: &Data) -> Result<()> {
+    check_placements_and_jacobian(model, data)?;
+    check_at_leaves("joint velocities", model, &data.ov, Motion::is_finite)?;
+    check_at_leaves("joint accelerations", model, &data.oa, Motion::is_finite)
 }
 
 /// `m` if it is finite, else an error naming `what`.
@@ -98,7 +110,7 @@ pub fn forward_kinematics(model: &Model, data: &mut Data, q: &[f64], v: &[f64], 
         data.ov[i] = ovp + vj;
         data.oa[i] = oap + aj + ovp.cross(&vj);
     }
-    check_kinematics(data)
+    check_kinematics(model, data)
 }
 
 /// Placements `oMi` only.
@@ -108,7 +120,7 @@ pub fn forward_kinematics_placements(model: &Model, data: &mut Data, q: &[f64]) 
     for i in 1..model.njoints() {
         placement_step(model, data, i, q);
     }
-    check_result("joint placements oMi", &data.o_mi, Se3::is_finite)
+    check_at_leaves("joint placements oMi", model, &data.o_mi, Se3::is_finite)
 }
 
 /// Placements `oMf` of every frame from the current `oMi`.
@@ -128,7 +140,7 @@ pub fn compute_joint_jacobians(model: &Model, data: &mut Data, q: &[f64]) -> Res
         placement_step(model, data, i, q);
         jacobian_step(model, data, i);
     }
-    check_placements_and_jacobian(data)
+    check_placements_and_jacobian(model, data)
 }
 
 /// Placement of frame `frame` computed from the current `oMi`.

@@ -209,6 +209,11 @@ pub struct Model {
     /// The unit-norm blocks of q, joint by joint.
     pub(crate) unit_blocks: Vec<UnitBlock>,
     pub(crate) mimic: Vec<MimicJoint>,
+    /// The joints without children, and the position of every joint in that list (or
+    /// `NONE`): a value computed root to leaves is finite everywhere if it is at the
+    /// leaves, since a NaN or infinity propagates to the children.
+    pub(crate) leaves: Vec<usize>,
+    leaf_slot: Vec<usize>,
     pub(crate) parents: Vec<usize>,
     pub(crate) placements: Vec<Se3>,
     pub(crate) inertias: Vec<Inertia>,
@@ -267,6 +272,8 @@ impl Model {
             name_index: HashMap::from([("universe".to_string(), 0)]),
             unit_blocks: Vec::new(),
             mimic: Vec::new(),
+            leaves: Vec::new(),
+            leaf_slot: vec![NONE],
             parents: vec![0],
             placements: vec![Se3::identity()],
             inertias: vec![Inertia::zero()],
@@ -421,6 +428,18 @@ impl Model {
         self.joints.push(jm);
         self.names.push(name.to_string());
         self.name_index.insert(name.to_string(), id);
+        // The new joint is a leaf and takes its parent's place in the list, if it had one.
+        match self.leaf_slot[parent] {
+            NONE => {
+                self.leaf_slot.push(self.leaves.len());
+                self.leaves.push(id);
+            }
+            slot => {
+                self.leaves[slot] = id;
+                self.leaf_slot[parent] = NONE;
+                self.leaf_slot.push(slot);
+            }
+        }
         self.parents.push(parent);
         self.placements.push(placement);
         self.inertias.push(Inertia::zero());

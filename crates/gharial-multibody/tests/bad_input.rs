@@ -523,3 +523,21 @@ fn random_broken_states_give_ok_finite_or_clear_errors() {
     }
     println!("{total} random states in total");
 }
+
+/// The branch-free finiteness test finds a NaN or infinity at any position of slices of
+/// every length around its chunk size.
+#[test]
+fn all_finite_finds_every_non_finite_entry() {
+    for n in 0..11 {
+        let x: Vec<f64> = (0..n).map(|k| k as f64 - 3.5).collect();
+        assert!(spatial::all_finite(&x));
+        for k in 0..n {
+            for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                let mut y = x.clone();
+                y[k] = bad;
+                assert!(!spatial::all_finite(&y), "n = {n}, entry {k} = {bad}");
+            }
+        }
+    }
+    assert!(spatial::all_finite(&[f64::MAX, -f64::MAX, f64::MIN_POSITIVE, -0.0, 5e-324]));
+}
