@@ -7,9 +7,12 @@
 //!   `x = (q, v)` as core manifolds.
 //! - [`dynamics`]: free and contact forward dynamics as core ODEs on the phase space.
 //! - [`inverse`]: gravity compensation and quasi-static torques for initial guesses.
+//! - [`residuals`]: frame, centre-of-mass, gravity, contact-force and friction-cone
+//!   residuals, and joint limits as ready-made constraints.
 
 pub mod dynamics;
 pub mod inverse;
+pub mod residuals;
 pub mod spaces;
 
 pub use dynamics::{

@@ -26,7 +26,7 @@ use rand::{Rng, RngCore};
 
 /// Limits beyond this magnitude are treated as infinite when drawing random
 /// configurations (as Pinocchio's benchmark samplers do with `f64::MAX` limits).
-const FINITE_LIMIT: f64 = 1e10;
+pub(crate) const FINITE_LIMIT: f64 = 1e10;
 
 /// The configuration space of a multibody model: `q` of size `nq`, tangent size `nv`.
 ///

@@ -1,0 +1,245 @@
+//! Frame velocity residuals: the spatial velocity of a frame, and the "fly-high"
+//! penalty of swing feet.
+//!
+//! The q-derivatives come from `compute_forward_kinematics_derivatives` and
+//! `frame_velocity_derivatives` of the multibody crate, exact in LOCAL and WORLD. In
+//! LOCAL_WORLD_ALIGNED the linear part is the velocity of the frame's origin
+//! `v_p = v_O + ω × p(q)`, and the multibody crate (as Pinocchio) differentiates it at a
+//! fixed point `p`; the residual adds the missing `ω × ∂p/∂q`, where `∂p/∂q` is the
+//! linear part of the LWA Jacobian (the v-derivative), so that its Jacobian is the
+//! derivative of its value.
+
+use std::sync::Arc;
+
+use faer::MatMut;
+use faer::reborrow::ReborrowMut;
+use gharial::functions::{StageFunctionData, UnaryFunction, Workspace};
+use gharial::linalg::slice_mut;
+use gharial::{Error, Result};
+use gharial_multibody::spatial::{Motion, Vec3};
+use gharial_multibody::{
+    Model, ReferenceFrame, compute_forward_kinematics_derivatives, forward_kinematics, frame_velocity,
+    frame_velocity_derivatives,
+};
+
+use super::{FrameRef, MultibodyWs, StateLayout, VectorTarget, ok_or_nan_mat, ws};
+use crate::MultibodyPhaseSpace;
+
+/// The velocity error `r = v_f(q, v) − v_ref` of a frame in LOCAL, WORLD or
+/// LOCAL_WORLD_ALIGNED coordinates (ALIGATOR's `FrameVelocityResidual`), `nr = 6`,
+/// `[linear, angular]`.
+///
+/// Jacobian `[∂v_f/∂q, J_f]` (`J_f` the frame Jacobian in the same coordinates).
+#[derive(Debug)]
+pub struct FrameVelocityResidual {
+    model: Arc<Model>,
+    layout: StateLayout,
+    frame: FrameRef,
+    reference_frame: ReferenceFrame,
+    target: VectorTarget,
+}
+
+impl FrameVelocityResidual {
+    /// The residual of frame `frame` in coordinates `reference_frame`, with target
+    /// `v_ref` (6, `[linear, angular]`, in the same coordinates).
+    ///
+    /// # Errors
+    /// If the frame is not in the model, or `v_ref` does not have 6 finite entries.
+    pub fn new(
+        space: &MultibodyPhaseSpace,
+        frame: &str,
+        reference_frame: ReferenceFrame,
+        v_ref: &[f64],
+    ) -> Result<Self> {
+        Self::build("FrameVelocityResidual", space, frame, reference_frame, v_ref)
+    }
+
+    /// [`FrameVelocityResidual::new`] with errors naming `owner`.
+    fn build(
+        owner: &str,
+        space: &MultibodyPhaseSpace,
+        frame: &str,
+        reference_frame: ReferenceFrame,
+        v_ref: &[f64],
+    ) -> Result<Self> {
+        let model = space.model().clone();
+        Ok(Self {
+            frame: FrameRef::resolve(&model, owner, frame)?,
+            target: VectorTarget::new("FrameVelocityResidual target v_ref", v_ref, 6)?,
+            layout: StateLayout::of(space),
+            reference_frame,
+            model,
+        })
+    }
+
+    /// Moves the target.
+    ///
+    /// # Errors
+    /// If `v_ref` does not have 6 finite entries; the target is then unchanged.
+    pub fn set_target(&self, v_ref: &[f64]) -> Result<()> {
+        self.target.set(v_ref)
+    }
+
+    /// The current target.
+    pub fn target(&self) -> Vec<f64> {
+        self.target.get()
+    }
+
+    /// The coordinates of the velocity.
+    pub fn reference_frame(&self) -> ReferenceFrame {
+        self.reference_frame
+    }
+
+    /// The frame velocity after a kinematic pass with velocities.
+    fn velocity(&self, w: &MultibodyWs) -> gharial_multibody::Result<Motion> {
+        frame_velocity(&self.model, &w.data, self.frame.id, self.reference_frame)
+    }
+
+    /// Writes `[∂v_f/∂q, ∂v_f/∂v]` into `jx` (6 × 2nv) after the derivative pass.
+    fn write_jacobian(&self, w: &MultibodyWs, jx: MatMut<'_, f64>) -> gharial_multibody::Result<()> {
+        let (mut dq, mut dv) = jx.split_at_col_mut(self.layout.nv);
+        frame_velocity_derivatives(
+            &self.model,
+            &w.data,
+            self.frame.id,
+            self.reference_frame,
+            dq.rb_mut(),
+            dv.rb_mut(),
+        )?;
+        if self.reference_frame == ReferenceFrame::LocalWorldAligned {
+            let omega = self.velocity(w)?.angular;
+            for &c in &self.frame.support {
+                let dp = Vec3::new(dv[(0, c)], dv[(1, c)], dv[(2, c)]);
+                let extra = omega.cross(&dp);
+                for i in 0..3 {
+                    dq[(i, c)] += extra[i];
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl UnaryFunction for FrameVelocityResidual {
+    unary_sizes!(6);
+
+    fn evaluate(&self, x: &[f64], data: &mut StageFunctionData) {
+        let w: &mut MultibodyWs = ws(&mut data.ws);
+        let out = slice_mut(&mut data.value);
+        let (q, v) = (self.layout.q(x), self.layout.v(x));
+        let res = forward_kinematics(&self.model, &mut w.data, q, v, &w.zeros).and_then(|()| self.velocity(w));
+        match res {
+            Ok(m) => {
+                for (i, (o, vi)) in out.iter_mut().zip(m.to_array()).enumerate() {
+                    *o = vi - self.target.at(i);
+                }
+            }
+            Err(_) => out.fill(f64::NAN),
+        }
+    }
+
+    fn jacobian(&self, x: &[f64], data: &mut StageFunctionData) {
+        let w: &mut MultibodyWs = ws(&mut data.ws);
+        let (q, v) = (self.layout.q(x), self.layout.v(x));
+        let res = compute_forward_kinematics_derivatives(&self.model, &mut w.data, q, v, &w.zeros)
+            .and_then(|()| self.write_jacobian(w, data.jx.as_mut()));
+        ok_or_nan_mat(res, data.jx.as_mut());
+    }
+}
+
+/// The "fly-high" penalty of a swing foot: `r = v_xy(f) · exp(−slope · z(f))`
+/// (ALIGATOR's `FlyHighResidual`, after sobec's), with `v_xy` the horizontal velocity of
+/// the frame's origin (the first two LOCAL_WORLD_ALIGNED linear coordinates) and `z`
+/// its height; `nr = 2`. Penalising it makes the foot move horizontally only high
+/// above the ground.
+///
+/// Jacobian: `e^{−s z} (∂v_xy/∂x − s v_xy ∂z/∂x)`.
+#[derive(Debug)]
+pub struct FlyHighResidual {
+    velocity: FrameVelocityResidual,
+    slope: f64,
+}
+
+/// Scratch of [`FlyHighResidual`]: the data of its frame-velocity residual.
+struct FlyHighWs {
+    inner: StageFunctionData,
+}
+
+impl FlyHighResidual {
+    /// The residual of frame `frame` with decay rate `slope` (1/m).
+    ///
+    /// # Errors
+    /// If the frame is not in the model or `slope` is not finite.
+    pub fn new(space: &MultibodyPhaseSpace, frame: &str, slope: f64) -> Result<Self> {
+        if !slope.is_finite() {
+            return Err(Error::non_finite("FlyHighResidual slope"));
+        }
+        let velocity = FrameVelocityResidual::build(
+            "FlyHighResidual",
+            space,
+            frame,
+            ReferenceFrame::LocalWorldAligned,
+            &[0.0; 6],
+        )?;
+        Ok(Self { velocity, slope })
+    }
+
+    /// The decay rate.
+    pub fn slope(&self) -> f64 {
+        self.slope
+    }
+
+    /// `(exp(−slope · z), v_LWA)` after a kinematic pass with velocities.
+    fn factor_and_velocity(&self, inner: &mut StageFunctionData) -> gharial_multibody::Result<(f64, Motion)> {
+        let w: &mut MultibodyWs = ws(&mut inner.ws);
+        let z = self.velocity.frame.placement(&w.data).translation.z;
+        Ok(((-self.slope * z).exp(), self.velocity.velocity(w)?))
+    }
+}
+
+impl UnaryFunction for FlyHighResidual {
+    fn nx(&self) -> usize {
+        self.velocity.nx()
+    }
+    fn ndx(&self) -> usize {
+        self.velocity.ndx()
+    }
+    fn nr(&self) -> usize {
+        2
+    }
+    fn create_workspace(&self) -> Workspace {
+        Box::new(FlyHighWs {
+            inner: StageFunctionData::new(self.velocity.ndx(), 0, 6, self.velocity.create_workspace()),
+        })
+    }
+
+    fn evaluate(&self, x: &[f64], data: &mut StageFunctionData) {
+        let w: &mut FlyHighWs = ws(&mut data.ws);
+        let out = slice_mut(&mut data.value);
+        self.velocity.evaluate(x, &mut w.inner);
+        match self.factor_and_velocity(&mut w.inner) {
+            Ok((e, v)) => {
+                out[0] = e * v.linear.x;
+                out[1] = e * v.linear.y;
+            }
+            Err(_) => out.fill(f64::NAN),
+        }
+    }
+
+    fn jacobian(&self, x: &[f64], data: &mut StageFunctionData) {
+        let w: &mut FlyHighWs = ws(&mut data.ws);
+        self.velocity.jacobian(x, &mut w.inner);
+        let Ok((e, v)) = self.factor_and_velocity(&mut w.inner) else {
+            data.jx.fill(f64::NAN);
+            return;
+        };
+        let (nv, j) = (self.velocity.layout.nv, &w.inner.jx);
+        for c in 0..nv {
+            let dz = j[(2, nv + c)];
+            for (i, vi) in [v.linear.x, v.linear.y].into_iter().enumerate() {
+                data.jx[(i, c)] = e * (j[(i, c)] - self.slope * vi * dz);
+                data.jx[(i, nv + c)] = e * j[(i, nv + c)];
+            }
+        }
+    }
+}
