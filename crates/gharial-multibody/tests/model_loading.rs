@@ -546,3 +546,30 @@ fn srdf_errors_name_the_element_and_leave_the_model_unchanged() {
     assert!((q[5] - h).abs() < 1e-15 && (q[6] - h).abs() < 1e-15, "{q:?}");
     assert_eq!(&q[7..], &neutral(&m)[7..]);
 }
+
+/// Joint axes with huge entries are normalized without overflow (1e300 squared used to
+/// make the norm infinite and the axis zero).
+#[test]
+fn huge_joint_axes_are_normalized() {
+    let m = Model::from_urdf_str(
+        &TWO_LINKS.replace(r#"xyz="0 1 0""#, r#"xyz="1e300 -1e300 0""#),
+        RootJoint::Fixed,
+    )
+    .unwrap();
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    match m.joints()[1].kind {
+        JointType::Revolute(Axis::Unaligned(a)) => {
+            assert!((a - spatial::Vec3::new(h, -h, 0.0)).norm() < 1e-15, "{a:?}")
+        }
+        other => panic!("{other:?}"),
+    }
+    let tiny = Model::from_urdf_str(
+        &TWO_LINKS.replace(r#"xyz="0 1 0""#, r#"xyz="0 3e-7 4e-7""#),
+        RootJoint::Fixed,
+    )
+    .unwrap();
+    assert_eq!(
+        tiny.joints()[1].kind.unaligned_axis(),
+        Some(spatial::Vec3::new(0.0, 0.6, 0.8))
+    );
+}
