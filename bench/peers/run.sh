@@ -11,7 +11,9 @@ ROOT="$(cd "$HERE/../.." && pwd)"
 PEERS_DIR="${PEERS_DIR:-$ROOT/../shared/peers}"
 WORK_DIR="${WORK_DIR:-$HOME/.cache/gharial-peers/harness}"
 mkdir -p "$WORK_DIR"
-cp -r "$PEERS_DIR"/. "$WORK_DIR"/
+# Keep the files' times (-p): the harness rebuilds its C++ program only when a source is
+# newer than the binary, and a fresh copy time would force a rebuild on every run.
+cp -R -p "$PEERS_DIR"/. "$WORK_DIR"/
 chmod -R u+w "$WORK_DIR"
 mkdir -p "$WORK_DIR/extra"
 cp "$HERE/gharial.sh" "$WORK_DIR/extra/gharial.sh"

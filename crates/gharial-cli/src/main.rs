@@ -103,8 +103,8 @@ enum Command {
         /// Dynamics penalty relative to the penalty (appendix C of the ProxDDP paper).
         #[arg(long, value_parser = positive_real)]
         dyn_al_scale: Option<f64>,
-        /// Active-set prediction iterations per step (0: the plain Newton step).
-        #[arg(long)]
+        /// Active-set prediction iterations per step (0: the plain Newton step; at most 100).
+        #[arg(long, value_parser = count(0, ACTIVE_SET_ITERS_MAX))]
         active_set_iters: Option<usize>,
         /// Iteration limit.
         #[arg(long, value_parser = positive_int)]
@@ -141,8 +141,8 @@ enum BenchCommand {
     Solve {
         /// Problems (default: the whole catalogue).
         problems: Vec<String>,
-        /// Timed solves per problem.
-        #[arg(long, default_value_t = 5, value_parser = positive_int)]
+        /// Timed solves per problem (at most 10,000).
+        #[arg(long, default_value_t = 5, value_parser = count(1, MAX_REPEATS))]
         repeats: usize,
         /// Forward pass (default: each problem's recommended one).
         #[arg(long, value_enum)]
@@ -157,8 +157,8 @@ enum BenchCommand {
         /// lqr_box_term are skipped).
         #[arg(long, value_delimiter = ',', default_values_t = vec!["lqr".to_string(), "lqr_box".to_string(), "lqr_box_term".to_string()])]
         problems: Vec<String>,
-        /// Timed solves per problem and solver.
-        #[arg(long, default_value_t = 5, value_parser = positive_int)]
+        /// Timed solves per problem and solver (at most 10,000).
+        #[arg(long, default_value_t = 5, value_parser = count(1, MAX_REPEATS))]
         repeats: usize,
         /// Tolerance.
         #[arg(long, default_value_t = 1e-6, value_parser = positive_real)]
@@ -170,13 +170,13 @@ enum BenchCommand {
         #[arg(long)]
         traj_dir: Option<String>,
         /// State size of the LQR family.
-        #[arg(long, default_value_t = 8, value_parser = positive_int)]
+        #[arg(long, default_value_t = 8, value_parser = count(1, MAX_DIM))]
         lqr_nx: usize,
         /// Control size.
-        #[arg(long, default_value_t = 4, value_parser = positive_int)]
+        #[arg(long, default_value_t = 4, value_parser = count(1, MAX_DIM))]
         lqr_nu: usize,
         /// Horizon.
-        #[arg(long = "lqr-N", default_value_t = 100, value_parser = positive_int)]
+        #[arg(long = "lqr-N", default_value_t = 100, value_parser = count(1, MAX_HORIZON))]
         lqr_n: usize,
         /// Seed.
         #[arg(long, default_value_t = 42)]
@@ -187,11 +187,12 @@ enum BenchCommand {
     },
     /// Proximal Riccati solver (serial and parallel) on the peers' random LQ problems.
     Riccati {
-        /// Thread counts to time (1 = the serial solver), comma separated.
-        #[arg(long, value_delimiter = ',', default_values_t = vec![1, 2], value_parser = positive_int)]
+        /// Thread counts (legs of the parallel solver) to time (1 = the serial solver),
+        /// comma separated.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![1, 2], value_parser = count(1, MAX_LEGS))]
         threads: Vec<usize>,
         /// Horizons of the main series, comma separated.
-        #[arg(long, value_delimiter = ',', default_values_t = vec![16, 32, 64, 128, 256, 512, 1024], value_parser = positive_int)]
+        #[arg(long, value_delimiter = ',', default_values_t = vec![16, 32, 64, 128, 256, 512, 1024], value_parser = count(1, MAX_HORIZON))]
         horizons: Vec<usize>,
         /// Dimensions `nx:nu:nc` of the main series.
         #[arg(long, default_value = "36:12:32")]
@@ -205,14 +206,14 @@ enum BenchCommand {
         /// Seed of the problem generator.
         #[arg(long, default_value_t = 42)]
         seed: u64,
-        /// Time budget per case and solver, in seconds.
-        #[arg(long, default_value_t = 1.0, value_parser = positive_real)]
+        /// Time budget per case and solver, in seconds (at most 3600).
+        #[arg(long, default_value_t = 1.0, value_parser = budget)]
         budget: f64,
-        /// Passes over the case list (the budget is split between them).
-        #[arg(long, default_value_t = 4, value_parser = positive_int)]
+        /// Passes over the case list (the budget is split between them; at most 1000).
+        #[arg(long, default_value_t = 4, value_parser = count(1, MAX_ROUNDS))]
         rounds: usize,
-        /// Iterative refinement steps.
-        #[arg(long, default_value_t = 0)]
+        /// Iterative refinement steps (at most 10).
+        #[arg(long, default_value_t = 0, value_parser = count(0, MAX_REFINE))]
         refine: usize,
     },
 }
@@ -226,6 +227,54 @@ fn solve_help() -> String {
          Exit code: 0 converged, 1 stopped for another reason (the status says which), 2 invalid input.",
         gharial::solvers::IterationRecord::LEGEND
     )
+}
+
+/// Upper limits of the command line's counts: beyond them a benchmark would run for
+/// days or allocate more memory than a machine has, which is a mistake to report, not
+/// a job to start.
+const MAX_REPEATS: usize = 10_000;
+const MAX_ROUNDS: usize = 1_000;
+const MAX_REFINE: usize = 10;
+const MAX_LEGS: usize = 1_024;
+const MAX_DIM: usize = 1_000;
+const MAX_HORIZON: usize = 1_000_000;
+use gharial::solvers::proxddp::ACTIVE_SET_ITERS_MAX;
+
+/// The memory a benchmark may plan to use.
+const MEMORY_BUDGET: f64 = 16.0 * (1u64 << 30) as f64;
+
+/// Refuses a case whose estimated memory exceeds [`MEMORY_BUDGET`]; `bytes_per_entry`
+/// is the bytes per knot and per entry of an `n x n` block with `n = nx + nu + nc`.
+fn check_memory(what: &str, n: usize, horizon: usize, bytes_per_entry: f64) -> Result<(), String> {
+    let bytes = bytes_per_entry * (n * n) as f64 * horizon as f64;
+    if bytes <= MEMORY_BUDGET {
+        Ok(())
+    } else {
+        Err(format!(
+            "{what}: about {:.0} GiB needed, more than the {:.0} GiB a benchmark may use",
+            bytes / (1u64 << 30) as f64,
+            MEMORY_BUDGET / (1u64 << 30) as f64
+        ))
+    }
+}
+
+/// An integer in `lo..=hi`.
+fn count(lo: usize, hi: usize) -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
+    move |s: &str| match s.parse::<usize>() {
+        Ok(v) if (lo..=hi).contains(&v) => Ok(v),
+        Ok(_) => Err(format!("must be between {lo} and {hi}")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// A time budget in seconds: finite, positive, at most an hour.
+fn budget(s: &str) -> Result<f64, String> {
+    let v = positive_real(s)?;
+    if v <= 3600.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be at most 3600 s, got {v}"))
+    }
 }
 
 /// An integer of at least 1 (counts: threads, repeats, iterations, sizes).
@@ -259,6 +308,10 @@ fn nonnegative_real(s: &str) -> Result<f64, String> {
 fn parse_dims(s: &str, n: usize) -> Result<Vec<usize>, String> {
     let v: Result<Vec<usize>, _> = s.split(':').map(str::parse).collect();
     match v {
+        Ok(v) if v.len() == n && v.iter().take(3).any(|&d| d > MAX_DIM) => {
+            Err(format!("`{s}`: nx, nu and nc must be at most {MAX_DIM}"))
+        }
+        Ok(v) if v.len() == n && n == 4 && v[3] > MAX_HORIZON => Err(format!("`{s}`: N must be at most {MAX_HORIZON}")),
         Ok(v) if v.len() == n && v[0] >= 1 && (n < 4 || v[3] >= 1) => Ok(v),
         Ok(v) if v.len() == n => Err(format!("`{s}`: nx and N must be at least 1")),
         _ => Err(format!("expected {n} integers separated by ':', got `{s}`")),
@@ -330,6 +383,11 @@ fn main() {
                     lqr_umax,
                 },
         } => {
+            // Measured: ProxDDP holds about 40 doubles per entry of (nx + nu)² per stage.
+            if let Err(e) = check_memory("the LQR family", lqr_nx + lqr_nu, lqr_n + 1, 40.0 * 8.0) {
+                eprintln!("gharial bench peers: {e}");
+                std::process::exit(2);
+            }
             let args = bench_solve::PeersArgs {
                 problems,
                 repeats,
@@ -366,6 +424,16 @@ fn main() {
                     .filter(|e| !e.is_empty())
                     .map(|e| parse_dims(e, 4).map(|v| (v[0], v[1], v[2], v[3])))
                     .collect::<Result<Vec<_>, _>>()?;
+                Ok((d, extra))
+            });
+            let parsed = parsed.and_then(|(d, extra)| {
+                let cases = horizons
+                    .iter()
+                    .map(|&n| (d[0], d[1], d[2], n))
+                    .chain(extra.iter().copied());
+                for (nx, nu, nc, n) in cases {
+                    check_memory(&format!("case {nx}:{nu}:{nc}:{n}"), nx + nu + nc, n + 1, 16.0 * 8.0)?;
+                }
                 Ok((d, extra))
             });
             let (d, extra) = match parsed {

@@ -166,6 +166,15 @@ fn invalid_options_are_refused_before_any_work() {
         (&["solve", "lqr", "--mu-init", "nan"], "--mu-init"),
         (&["solve", "lqr", "--tol", "inf"], "--tol"),
         (&["solve", "lqr", "--output", unwritable], "cannot write"),
+        (&["solve", "lqr", "--active-set-iters", "101"], "--active-set-iters"),
+        (&["bench", "riccati", "--rounds", "18446744073709551615"], "--rounds"),
+        (&["bench", "riccati", "--refine", "1000000"], "--refine"),
+        (&["bench", "riccati", "--horizons", "1000000000"], "--horizons"),
+        (&["bench", "riccati", "--horizons", "1000000"], "GiB"),
+        (&["bench", "riccati", "--dims", "100000:1:1"], "at most"),
+        (&["bench", "riccati", "--budget", "1e9"], "--budget"),
+        (&["bench", "solve", "--repeats", "18446744073709551615"], "--repeats"),
+        (&["bench", "peers", "--lqr-N", "1000000", "--lqr-nx", "100"], "GiB"),
     ];
     for (args, needle) in cases {
         let o = gharial(args);

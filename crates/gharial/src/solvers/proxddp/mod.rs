@@ -18,7 +18,7 @@
 mod options;
 mod workspace;
 
-pub use options::{HessianApprox, Merit, ProxDdpOptions, Rollout, StepAcceptance};
+pub use options::{ACTIVE_SET_ITERS_MAX, HessianApprox, Merit, ProxDdpOptions, Rollout, StepAcceptance};
 
 use std::time::Instant;
 

@@ -137,7 +137,8 @@ pub struct ProxDdpOptions {
     /// bound only once it is active at the current point; the prediction sees the bounds
     /// the full step reaches, so that the step stops at them instead of overshooting.
     /// A predicted step that is not a descent direction for the merit function is
-    /// replaced by the Newton step. 0 disables it (default 0).
+    /// replaced by the Newton step. 0 disables it (default 0; at most
+    /// [`ACTIVE_SET_ITERS_MAX`]).
     pub active_set_iters: usize,
     /// Wall-time budget; the best iterate so far is returned when it runs out.
     pub max_time: Option<Duration>,
@@ -146,6 +147,11 @@ pub struct ProxDdpOptions {
     /// Print the iteration table to standard error (default false).
     pub verbose: bool,
 }
+
+/// The largest [`ProxDdpOptions::active_set_iters`]: each iteration is an LQ solve, and
+/// for cones (whose active set need not settle in finitely many steps) the count is the
+/// only bound.
+pub const ACTIVE_SET_ITERS_MAX: usize = 100;
 
 impl Default for ProxDdpOptions {
     fn default() -> Self {
@@ -241,6 +247,12 @@ impl ProxDdpOptions {
         }
         if !(0.0..=1.0).contains(&self.nonmonotone_eta) {
             return Err(Error::option("nonmonotone_eta", "must be in [0, 1]"));
+        }
+        if self.active_set_iters > ACTIVE_SET_ITERS_MAX {
+            return Err(Error::option(
+                "active_set_iters",
+                format!("must be at most {ACTIVE_SET_ITERS_MAX}"),
+            ));
         }
         if self.num_threads == 0 {
             return Err(Error::option("num_threads", "must be at least 1"));

@@ -1,0 +1,117 @@
+//! Random command lines: every invocation ends with exit code 0 (converged), 1 (another
+//! status) or 2 (invalid input, with a message and nothing run), never with a panic.
+
+use std::process::Command;
+
+use proptest::prelude::*;
+
+/// Invocations per run (each starts the binary once).
+const CASES: u32 = 150;
+
+fn value() -> impl Strategy<Value = String> {
+    prop_oneof![
+        Just("0".to_string()),
+        Just("-1".to_string()),
+        Just("nan".to_string()),
+        Just("inf".to_string()),
+        Just("-inf".to_string()),
+        Just("1e-300".to_string()),
+        Just("1e300".to_string()),
+        Just("abc".to_string()),
+        Just(String::new()),
+        Just(usize::MAX.to_string()),
+        Just("18446744073709551616".to_string()),
+        (1usize..20).prop_map(|v| v.to_string()),
+        (1e-9..10.0f64).prop_map(|v| format!("{v:e}")),
+    ]
+}
+
+fn solve_args() -> impl Strategy<Value = Vec<String>> {
+    let problem = prop_oneof![
+        Just("lqr"),
+        Just("lqr-bounds-term"),
+        Just("clqr"),
+        Just("se2-car"),
+        Just("peers-lqr-box"),
+        Just("no-such-problem"),
+    ];
+    let option = prop_oneof![
+        Just("--tol"),
+        Just("--mu-init"),
+        Just("--dyn-al-scale"),
+        Just("--max-iters"),
+        Just("--threads"),
+        Just("--active-set-iters"),
+        Just("--rollout"),
+        Just("--step-acceptance"),
+        Just("--merit"),
+        Just("--solver"),
+    ];
+    (problem, proptest::collection::vec((option, value()), 0..4)).prop_map(|(p, opts)| {
+        let mut args = vec!["solve".to_string(), p.to_string()];
+        for (o, v) in opts {
+            args.push(format!("{o}={v}"));
+        }
+        args
+    })
+}
+
+fn riccati_args() -> impl Strategy<Value = Vec<String>> {
+    let option = prop_oneof![
+        Just("--threads"),
+        Just("--horizons"),
+        Just("--dims"),
+        Just("--extra"),
+        Just("--mu"),
+        Just("--rounds"),
+        Just("--refine"),
+    ];
+    let dims = prop_oneof![
+        Just("2:1:1".to_string()),
+        Just("0:1:1".to_string()),
+        Just("2:1".to_string()),
+        value()
+    ];
+    (proptest::collection::vec((option, value()), 0..3), dims).prop_map(|(opts, d)| {
+        // Small cases and a tiny budget keep every run short.
+        let mut args: Vec<String> = ["bench", "riccati", "--budget=0.001", "--horizons=2", "--extra="]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        args.push(format!("--dims={d}"));
+        for (o, v) in opts {
+            let v = if o == "--horizons" && v.parse::<usize>().is_ok_and(|n| n > 64) {
+                "8".to_string()
+            } else {
+                v
+            };
+            let v = if o == "--dims" || o == "--extra" {
+                format!("{v}:1:1")
+            } else {
+                v
+            };
+            args.push(format!("{o}={v}"));
+        }
+        args
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: CASES, failure_persistence: None, ..ProptestConfig::default() })]
+
+    #[test]
+    fn random_command_lines_end_with_a_documented_exit_code(args in prop_oneof![solve_args(), riccati_args()]) {
+        let o = Command::new(env!("CARGO_BIN_EXE_gharial")).args(&args).output().expect("the binary runs");
+        let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+        prop_assert!(!err.contains("panicked"), "{args:?}: {err}");
+        match o.status.code() {
+            Some(0) => prop_assert!(args[0] != "solve" || out.contains("status    converged"), "{args:?}: {out}"),
+            Some(1) => prop_assert!(out.contains("status "), "{args:?}: {out}"),
+            Some(2) => {
+                prop_assert!(!err.trim().is_empty(), "{args:?}: exit 2 without a message");
+                prop_assert!(!out.contains("status "), "{args:?}: exit 2 after a solve");
+            }
+            other => prop_assert!(false, "{args:?}: exit code {other:?}: {err}"),
+        }
+    }
+}
