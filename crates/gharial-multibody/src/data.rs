@@ -78,8 +78,16 @@ pub struct Data {
 }
 
 /// Checks that `data` was created for a model of the same shape as `model` (the same
-/// tree of degrees of freedom: the dof-pair matrices rely on it, see [`Data::m`]).
+/// tree of degrees of freedom: the dof-pair matrices rely on it, see [`Data::m`]), and
+/// that the model's public armature vector has its length.
 pub(crate) fn check_data(model: &Model, data: &Data) -> Result<()> {
+    if model.armature.len() != model.nv() {
+        return Err(Error::Dimension {
+            what: format!("model `{}`: armature", model.name),
+            expected: model.nv(),
+            got: model.armature.len(),
+        });
+    }
     if data.li_mi.len() != model.njoints()
         || data.nv != model.nv()
         || data.o_mf.len() != model.nframes()

@@ -62,6 +62,12 @@ fn joint_children<'a, 'i>(node: &Node<'a, 'i>) -> impl Iterator<Item = Node<'a, 
         .filter(|n| n.is_element() && n.tag_name().name() == "joint")
 }
 
+/// Largest number of entries (group states × nq) that one SRDF may add as reference
+/// configurations: each `<group_state>` element of a few bytes costs nq numbers, so
+/// that a large file of empty group states on a large model could otherwise ask for
+/// gigabytes. 2²⁶ entries are 512 MiB.
+const MAX_REFERENCE_ENTRIES: usize = 1 << 26;
+
 /// Rotor parameters of one joint: (joint id, rotor inertia, gear ratio).
 type Rotor = (usize, f64, f64);
 
@@ -106,7 +112,7 @@ impl Model {
     /// attribute, a non-finite number, a wrong number of values for a joint of the
     /// model (Pinocchio only prints a warning and leaves it neutral), a zero quaternion,
     /// rotor parameters for a joint with more than one degree of freedom, a negative
-    /// rotor inertia.
+    /// rotor inertia, more group states than 2²⁶ / nq.
     pub fn load_srdf_str_with(&mut self, xml: &str, options: &SrdfOptions) -> Result<()> {
         self.load_srdf(xml, "SRDF", options)
     }
@@ -123,6 +129,17 @@ impl Model {
         let elements = || robot.children().filter(|n| n.is_element());
         let mut configs = Vec::new();
         if options.reference_configurations {
+            let count = elements().filter(|n| n.tag_name().name() == "group_state").count();
+            if count.saturating_mul(self.nq) > MAX_REFERENCE_ENTRIES {
+                return Err(err(
+                    file,
+                    &robot,
+                    format!(
+                        "{count} group states of nq = {} numbers each exceed the limit of {MAX_REFERENCE_ENTRIES} numbers",
+                        self.nq
+                    ),
+                ));
+            }
             for node in elements().filter(|n| n.tag_name().name() == "group_state") {
                 configs.push(self.group_state(file, &node)?);
             }

@@ -573,3 +573,33 @@ fn huge_joint_axes_are_normalized() {
         Some(spatial::Vec3::new(0.0, 0.6, 0.8))
     );
 }
+
+/// The model's public vectors that the algorithms read are checked, not indexed blindly.
+#[test]
+fn a_model_armature_of_the_wrong_length_is_an_error() {
+    let mut m = Model::from_urdf_str(TWO_LINKS, RootJoint::Fixed).unwrap();
+    let mut d = m.create_data();
+    m.armature.clear();
+    let r = rnea(&m, &mut d, &[0.1], &[0.0], &[0.0]);
+    assert!(
+        matches!(r, Err(Error::Dimension { ref what, expected: 1, got: 0 }) if what.contains("armature")),
+        "{r:?}"
+    );
+}
+
+/// Many group states on a large model: a clear error, not gigabytes.
+#[test]
+fn too_many_group_states_are_refused() {
+    let mut m = Model::from_urdf_str(&chain_urdf(2000, "revolute"), RootJoint::Fixed).unwrap();
+    let states: String = (0..40_000).map(|k| format!("<group_state name=\"s{k}\"/>")).collect();
+    let r = m.load_srdf_str(&format!("<robot name=\"chain\">{states}</robot>"));
+    assert!(
+        matches!(r, Err(Error::Element { ref message, .. }) if message.contains("40000 group states")),
+        "{r:?}"
+    );
+    assert!(m.reference_configurations.is_empty());
+    let states: String = (0..100).map(|k| format!("<group_state name=\"s{k}\"/>")).collect();
+    m.load_srdf_str(&format!("<robot name=\"chain\">{states}</robot>"))
+        .unwrap();
+    assert_eq!(m.reference_configurations.len(), 100);
+}
