@@ -539,5 +539,11 @@ fn all_finite_finds_every_non_finite_entry() {
             }
         }
     }
-    assert!(spatial::all_finite(&[f64::MAX, -f64::MAX, f64::MIN_POSITIVE, -0.0, 5e-324]));
+    assert!(spatial::all_finite(&[
+        f64::MAX,
+        -f64::MAX,
+        f64::MIN_POSITIVE,
+        -0.0,
+        5e-324
+    ]));
 }
