@@ -108,6 +108,9 @@ pub struct ContactData {
     /// Hash of the tree of dofs of the model the data was created for.
     dof_tree_hash: u64,
     ncontacts: usize,
+    /// Whether the last `constraint_dynamics` call succeeded (its state is the one the
+    /// derivatives are taken at).
+    solved: bool,
     q: Vec<f64>,
     v: Vec<f64>,
     /// Jc (nc × nv, column-major).
@@ -162,6 +165,7 @@ impl ContactData {
             nv,
             dof_tree_hash: model.dof_tree_hash,
             ncontacts: contacts.len(),
+            solved: false,
             q: vec![0.0; model.nq()],
             v: vec![0.0; nv],
             jc: vec![0.0; nc * nv],
@@ -350,6 +354,7 @@ pub fn constraint_dynamics(
     check_vec("tau", tau, model.nv)?;
     check_sizes(model, contacts, cdata)?;
     let (nv, nc) = (model.nv, cdata.nc);
+    cdata.solved = false;
     cdata.q.copy_from_slice(q);
     cdata.v.copy_from_slice(v);
     mass_matrix_and_nle(model, data, q, v);
@@ -422,6 +427,7 @@ pub fn constraint_dynamics(
     check_result_vec("constrained ddq", &cdata.ddq)?;
     check_result_vec("contact forces lambda", &cdata.lambda)?;
     data.ddq.copy_from_slice(&cdata.ddq);
+    cdata.solved = true;
     Ok(())
 }
 
@@ -484,7 +490,8 @@ fn contact3d_world(c: &ContactModel, ov: &Motion, oa: &Motion, p: &Vec3) -> Vec3
 
 /// Derivatives of the constrained dynamics at the point of the last
 /// [`constraint_dynamics`] call (same `data` and `cdata`): `ddq_dq`, `ddq_dv`,
-/// `ddq_dtau`, `dlambda_dq`, `dlambda_dv`, `dlambda_dtau`.
+/// `ddq_dtau`, `dlambda_dq`, `dlambda_dv`, `dlambda_dtau`. Fails if that call failed or
+/// there was none.
 pub fn compute_constraint_dynamics_derivatives(
     model: &Model,
     data: &mut Data,
@@ -493,6 +500,12 @@ pub fn compute_constraint_dynamics_derivatives(
 ) -> Result<()> {
     check_sizes(model, contacts, cdata)?;
     check_data(model, data)?;
+    if !cdata.solved {
+        return Err(Error::Invalid(
+            "compute_constraint_dynamics_derivatives: the last constraint_dynamics call with this contact data failed, or there was none"
+                .into(),
+        ));
+    }
     let (nv, nc) = (model.nv, cdata.nc);
     let q = std::mem::take(&mut cdata.q);
     let v = std::mem::take(&mut cdata.v);

@@ -126,9 +126,20 @@ fn huge_velocities_give_overflow_errors() {
         "constraint_dynamics",
         constraint_dynamics(&model, &mut data, &contacts, &mut cdata, &q, &v, &z),
     );
+    // The derivatives are not taken at a failed solution.
+    let r = compute_constraint_dynamics_derivatives(&model, &mut data, &contacts, &mut cdata);
+    assert!(matches!(r, Err(Error::Invalid(ref m)) if m.contains("failed")), "{r:?}");
+    // A huge velocity gain does not enter the solution at v = 0, but its derivative
+    // with respect to v overflows.
+    let stiff: Vec<ContactModel> = contacts
+        .iter()
+        .map(|c| ContactModel { kd: 1e308, ..c.clone() })
+        .collect();
+    let mut cdata = ContactData::new(&model, &stiff).unwrap();
+    constraint_dynamics(&model, &mut data, &stiff, &mut cdata, &q, &z, &z).unwrap();
     is_overflow(
         "compute_constraint_dynamics_derivatives",
-        compute_constraint_dynamics_derivatives(&model, &mut data, &contacts, &mut cdata),
+        compute_constraint_dynamics_derivatives(&model, &mut data, &stiff, &mut cdata),
     );
     let mut out = vec![0.0; nq];
     let big_q: Vec<f64> = q
