@@ -167,7 +167,8 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>, acti
 
 /// Settings of `gharial bench peers`, matching the harness's environment.
 pub struct PeersArgs {
-    /// Harness problem names (`lqr`, `lqr_box`, `lqr_box_term`; others are skipped).
+    /// Harness problem names (`lqr`, `lqr_box`, `lqr_box_term`, `ur5`, `ur5_box`,
+    /// `pendulum`, `pendulum_box`, `pendulum_box_term`; others get an error line).
     pub problems: Vec<String>,
     /// Timed solves per problem and solver.
     pub repeats: usize,
@@ -201,76 +202,105 @@ fn write_traj(path: &str, sol: &Solution) -> std::io::Result<()> {
     Ok(())
 }
 
+/// The example of a harness problem name: the LQR family with the given parameters,
+/// the robot problems of the catalogue.
+fn harness_problem(name: &str, params: &PeersLqrParams) -> Option<gharial::Result<gharial_problems::Example>> {
+    let lqr = |v| Some(gharial_problems::peers::build(params, v));
+    match name {
+        "lqr" => lqr(PeersVariant::Lqr),
+        "lqr_box" => lqr(PeersVariant::Box),
+        "lqr_box_term" => lqr(PeersVariant::BoxTerminal),
+        "ur5" => Some(gharial_problems::build("ur5")),
+        "ur5_box" => Some(gharial_problems::build("ur5-box")),
+        "pendulum" => Some(gharial_problems::build("double-pendulum")),
+        "pendulum_box" => Some(gharial_problems::build("double-pendulum-box")),
+        "pendulum_box_term" => Some(gharial_problems::build("double-pendulum-box-term")),
+        _ => None,
+    }
+}
+
+/// The solver variants reported: `ProxDDP` with the filter (the harness's ProxDDP),
+/// `ProxDDP_ls` with the nonmonotone line search, `ProxDDP_as` with the filter and the
+/// active-set prediction of the step.
+const VARIANTS: [(&str, StepAcceptance, usize); 3] = [
+    ("ProxDDP", StepAcceptance::Filter, 0),
+    ("ProxDDP_ls", StepAcceptance::NonmonotoneLinesearch, 0),
+    ("ProxDDP_as", StepAcceptance::Filter, 10),
+];
+
 /// `gharial bench peers`: one JSON line per (problem, solver), trajectories written for
-/// the harness's independent check.
+/// the harness's independent check; a problem gharial cannot run gets a line with an
+/// `error`. Each problem uses its catalogue settings (the harness's: `mu_init` and
+/// rollout per family) with the harness's tolerance and iteration limit.
 pub fn peers(args: &PeersArgs) -> i32 {
     for name in &args.problems {
-        let variant = match name.as_str() {
-            "lqr" => PeersVariant::Lqr,
-            "lqr_box" => PeersVariant::Box,
-            "lqr_box_term" => PeersVariant::BoxTerminal,
-            _ => continue,
-        };
-        let ex = match gharial_problems::peers::build(&args.params, variant) {
-            Ok(e) => e,
-            Err(e) => {
-                eprintln!("gharial bench peers {name}: {e}");
-                return 2;
+        let ex = match harness_problem(name, &args.params) {
+            Some(Ok(e)) => e,
+            other => {
+                let error = match other {
+                    Some(Err(e)) => e.to_string(),
+                    _ => format!("gharial has no problem `{name}`"),
+                };
+                for (solver, _, _) in VARIANTS {
+                    out!(
+                        "{}",
+                        json!({"problem": name, "lib": "gharial", "solver": solver, "side": "rust", "error": error})
+                    );
+                }
+                continue;
             }
         };
-        // The harness's ProxDDP settings for the LQR family: mu_init 1e-5, linear
-        // rollout; `ProxDDP` with the filter, `ProxDDP_ls` with the nonmonotone search,
-        // `ProxDDP_as` with the filter and the active-set prediction of the step.
-        for (solver, acceptance, active_set_iters) in [
-            ("ProxDDP", StepAcceptance::Filter, 0),
-            ("ProxDDP_ls", StepAcceptance::NonmonotoneLinesearch, 0),
-            ("ProxDDP_as", StepAcceptance::Filter, 10),
-        ] {
+        for (solver, acceptance, active_set_iters) in VARIANTS {
             let opts = ProxDdpOptions {
                 tol: args.tol,
                 max_iters: args.max_iters,
-                mu_init: 1e-5,
-                rollout: Rollout::Linear,
                 step_acceptance: acceptance,
                 active_set_iters,
-                ..Default::default()
+                ..ex.proxddp.clone()
             };
-            let t = match time_solves(&ex.problem, &ex.xs0, &ex.us0, &opts, args.repeats) {
-                Ok(t) => t,
-                Err(e) => {
-                    out!(
-                        "{}",
-                        json!({"problem": name, "lib": "gharial", "solver": solver, "side": "rust", "error": e.to_string()})
-                    );
-                    continue;
-                }
-            };
-            let s = &t.solution;
-            if let Some(dir) = &args.traj_dir {
-                let path = format!("{dir}/{name}__gharial_{solver}.txt");
-                if let Err(e) = write_traj(&path, s) {
-                    eprintln!("gharial bench peers: cannot write {path}: {e}");
-                }
-            }
-            out!(
-                "{}",
-                json!({
-                    "problem": name, "lib": "gharial", "lib_version": env!("CARGO_PKG_VERSION"),
-                    "solver": solver, "side": "rust",
-                    "N": ex.problem.horizon(), "nx": args.params.nx, "nu": args.params.nu,
-                    "tol": args.tol, "max_iters": args.max_iters, "repeats": args.repeats,
-                    "settings": format!(
-                        "mu_init=1e-5 rollout=linear step_acceptance={acceptance:?} active_set_iters={active_set_iters}"
-                    ),
-                    "iters": s.iterations, "converged": s.status.converged(),
-                    "prim_res": s.prim_err, "dual_res": s.dual_err,
-                    "init_cost": t.init_cost, "final_cost": s.cost,
-                    "time_ms": t.median_ms, "time_ms_min": t.min_ms,
-                    "time_per_iter_ms": t.median_ms / s.iterations.max(1) as f64,
-                    "model_eval_ms": t.eval_ms, "model_deriv_ms": t.deriv_ms,
-                })
-            );
+            peers_line(args, name, solver, &ex, &opts);
         }
     }
     0
+}
+
+/// Times one solver variant on one harness problem and prints its JSON line.
+fn peers_line(args: &PeersArgs, name: &str, solver: &str, ex: &gharial_problems::Example, opts: &ProxDdpOptions) {
+    let t = match time_solves(&ex.problem, &ex.xs0, &ex.us0, opts, args.repeats) {
+        Ok(t) => t,
+        Err(e) => {
+            out!(
+                "{}",
+                json!({"problem": name, "lib": "gharial", "solver": solver, "side": "rust", "error": e.to_string()})
+            );
+            return;
+        }
+    };
+    let s = &t.solution;
+    if let Some(dir) = &args.traj_dir {
+        let path = format!("{dir}/{name}__gharial_{solver}.txt");
+        if let Err(e) = write_traj(&path, s) {
+            eprintln!("gharial bench peers: cannot write {path}: {e}");
+        }
+    }
+    let settings = format!(
+        "mu_init={:e} rollout={:?} step_acceptance={:?} active_set_iters={}",
+        opts.mu_init, opts.rollout, opts.step_acceptance, opts.active_set_iters
+    );
+    out!(
+        "{}",
+        json!({
+            "problem": name, "lib": "gharial", "lib_version": env!("CARGO_PKG_VERSION"),
+            "solver": solver, "side": "rust",
+            "N": ex.problem.horizon(), "nx": ex.problem.space(0).nx(), "nu": ex.problem.nu(0),
+            "tol": args.tol, "max_iters": args.max_iters, "repeats": args.repeats,
+            "settings": settings,
+            "iters": s.iterations, "converged": s.status.converged(),
+            "prim_res": s.prim_err, "dual_res": s.dual_err,
+            "init_cost": t.init_cost, "final_cost": s.cost,
+            "time_ms": t.median_ms, "time_ms_min": t.min_ms,
+            "time_per_iter_ms": t.median_ms / s.iterations.max(1) as f64,
+            "model_eval_ms": t.eval_ms, "model_deriv_ms": t.deriv_ms,
+        })
+    );
 }

@@ -151,11 +151,11 @@ enum BenchCommand {
         #[arg(long)]
         active_set_iters: Option<usize>,
     },
-    /// The LQR family of the peer harness, as JSON lines in its format.
+    /// The problems of the peer harness, as JSON lines in its format.
     Peers {
-        /// Harness problem names, comma separated (problems other than lqr, lqr_box and
-        /// lqr_box_term are skipped).
-        #[arg(long, value_delimiter = ',', default_values_t = vec!["lqr".to_string(), "lqr_box".to_string(), "lqr_box_term".to_string()])]
+        /// Harness problem names, comma separated (a name gharial does not have gets a
+        /// line with an `error`).
+        #[arg(long, value_delimiter = ',', default_values_t = HARNESS_PROBLEMS.iter().map(|s| s.to_string()).collect::<Vec<_>>())]
         problems: Vec<String>,
         /// Timed solves per problem and solver (at most 10,000).
         #[arg(long, default_value_t = 5, value_parser = count(1, MAX_REPEATS))]
@@ -228,6 +228,18 @@ fn solve_help() -> String {
         gharial::solvers::IterationRecord::LEGEND
     )
 }
+
+/// The peer harness's default problems.
+const HARNESS_PROBLEMS: [&str; 8] = [
+    "lqr",
+    "lqr_box",
+    "lqr_box_term",
+    "ur5",
+    "ur5_box",
+    "pendulum",
+    "pendulum_box",
+    "pendulum_box_term",
+];
 
 /// Upper limits of the command line's counts: beyond them a benchmark would run for
 /// days or allocate more memory than a machine has, which is a mistake to report, not

@@ -1,8 +1,8 @@
 //! # gharial-problems
 //!
 //! A catalogue of named, parameterised trajectory optimization problems for gharial:
-//! the examples of the ProxDDP paper (Jallet et al., 2023, section V) and the LQR family
-//! of the peer benchmark harness. Each problem comes with its initial guess, its time
+//! the examples of the ProxDDP paper (Jallet et al., 2023, section V) and the LQR and
+//! robot families of the peer benchmark harness. Each problem comes with its initial guess, its time
 //! step and the ProxDDP settings recommended for it (those of the paper where it gives
 //! them).
 //!
@@ -27,6 +27,8 @@
 //! | `se2-car` | [`se2_car`] | SE(2) | 40 | 50 ms |
 //! | `quadrotor`, `quadrotor-slalom` | [`quadrotor`] | SE(3) × R⁶ | 60 | 33 ms |
 //! | `peers-lqr`, `peers-lqr-box`, `peers-lqr-box-term` | [`peers`] | R⁸ | 100 | — |
+//! | `ur5`, `ur5-box` | [`peer_robots`] | UR5 phase space (R¹²) | 100 | 10 ms |
+//! | `double-pendulum`, `double-pendulum-box`, `double-pendulum-box-term` | [`peer_robots`] | R⁴ | 100 | 10 ms |
 //!
 //! Every module documents its model, its numbers and the results measured with
 //! ProxDDP.
@@ -34,6 +36,7 @@
 pub mod acrobot;
 pub mod cartpole;
 pub mod lqr;
+pub mod peer_robots;
 pub mod peers;
 pub mod pendulum;
 pub mod quadrotor;
@@ -143,6 +146,26 @@ static CATALOGUE: &[ProblemInfo] = &[
         name: "peers-lqr-box-term",
         summary: "peer-harness LQR with control bounds and x_N = 0",
     },
+    ProblemInfo {
+        name: "ur5",
+        summary: "peer-harness UR5 reaching (ABA, semi-implicit Euler, dt = 10 ms, N = 100), end effector to (0.3, 0.5, 0.5)",
+    },
+    ProblemInfo {
+        name: "ur5-box",
+        summary: "peer-harness UR5 reaching with torque limits (60, 60, 25, 10, 10, 10) N m",
+    },
+    ProblemInfo {
+        name: "double-pendulum",
+        summary: "peer-harness double-pendulum swing-up (ABA, semi-implicit Euler, dt = 10 ms, N = 100)",
+    },
+    ProblemInfo {
+        name: "double-pendulum-box",
+        summary: "peer-harness double-pendulum swing-up with torque limits |u| <= 0.6",
+    },
+    ProblemInfo {
+        name: "double-pendulum-box-term",
+        summary: "peer-harness double-pendulum swing-up with torque limits and x_N = 0",
+    },
 ];
 
 /// Every problem [`build`] knows, in catalogue order.
@@ -172,6 +195,11 @@ pub fn build(name: &str) -> Result<Example> {
         "peers-lqr" => peers::build(&peers::PeersLqrParams::default(), peers::PeersVariant::Lqr),
         "peers-lqr-box" => peers::build(&peers::PeersLqrParams::default(), peers::PeersVariant::Box),
         "peers-lqr-box-term" => peers::build(&peers::PeersLqrParams::default(), peers::PeersVariant::BoxTerminal),
+        "ur5" => peer_robots::ur5(peer_robots::Ur5Variant::Reach),
+        "ur5-box" => peer_robots::ur5(peer_robots::Ur5Variant::Box),
+        "double-pendulum" => peer_robots::double_pendulum(peer_robots::PendulumVariant::SwingUp),
+        "double-pendulum-box" => peer_robots::double_pendulum(peer_robots::PendulumVariant::Box),
+        "double-pendulum-box-term" => peer_robots::double_pendulum(peer_robots::PendulumVariant::BoxTerminal),
         _ => Err(Error::InvalidModel(format!(
             "unknown problem `{name}`; valid names: {}",
             CATALOGUE.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")
