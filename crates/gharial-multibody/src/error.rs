@@ -116,7 +116,7 @@ pub enum Error {
     },
     /// A matrix that must be positive definite is not (e.g. the mass matrix of a model
     /// with a massless leaf body, or a rank-deficient contact Jacobian).
-    #[error("{what} is not positive definite (pivot {index} = {value})")]
+    #[error("{what} is not positive definite (pivot {index} = {value:e})")]
     NotPositiveDefinite {
         /// Matrix name.
         what: String,

@@ -682,7 +682,7 @@ pub(crate) fn inertia_defect(y: &Inertia) -> Option<String> {
         ));
     }
     if y.mass < 0.0 {
-        return Some(format!("negative mass {}", y.mass));
+        return Some(format!("negative mass {:e}", y.mass));
     }
     if y.mass == 0.0 && y.first_moment != Vec3::zeros() {
         return Some(format!(

@@ -210,7 +210,7 @@ impl Model {
         }
         let (mass, ratio) = (number(file, j, "mass")?, number(file, j, "gear_ratio")?);
         if mass < 0.0 {
-            return Err(err(file, j, format!("negative rotor inertia `mass` = {mass}")));
+            return Err(err(file, j, format!("negative rotor inertia `mass` = {mass:e}")));
         }
         if !(mass * ratio * ratio).is_finite() {
             return Err(err(file, j, "the armature mass · gear_ratio² overflows"));

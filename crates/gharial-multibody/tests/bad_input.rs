@@ -558,3 +558,19 @@ fn all_finite_finds_every_non_finite_entry() {
         5e-324
     ]));
 }
+
+#[test]
+fn huge_numbers_in_messages_are_printed_compactly() {
+    let mut model = load("ur5_robot.urdf", RootJoint::Fixed);
+    let y = gharial_multibody::spatial::Inertia::from_com(
+        -1e300,
+        gharial_multibody::spatial::Vec3::zeros(),
+        gharial_multibody::spatial::Mat3::identity(),
+    );
+    let e = model
+        .set_inertia(1, y)
+        .err()
+        .expect("a negative mass is refused")
+        .to_string();
+    assert!(e.contains("-1e300") && e.len() < 200, "{e}");
+}
