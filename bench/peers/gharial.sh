@@ -7,7 +7,7 @@ set -euo pipefail
 ROOT="${GHARIAL_ROOT:?set GHARIAL_ROOT to the gharial repository}"
 cargo build --release -q -p gharial-cli --manifest-path "$ROOT/Cargo.toml" >&2
 exec "$ROOT/target/release/gharial" bench peers \
-  --problems "${PROBLEMS:-lqr,lqr_box,lqr_box_term}" \
+  --problems "${PROBLEMS:-lqr,lqr_box,lqr_box_term,ur5,ur5_box,pendulum,pendulum_box,pendulum_box_term}" \
   --repeats "${REPEATS:-5}" --tol "${TOL:-1e-6}" --max-iters "${MAX_ITERS:-500}" \
   --traj-dir "${TRAJ_DIR:?}" \
   --lqr-nx "${LQR_NX:-8}" --lqr-nu "${LQR_NU:-4}" --lqr-N "${LQR_N:-100}" \
