@@ -10,6 +10,7 @@ use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::spatial::{Force, Inertia, Mat3, Motion, Se3, Sym6, Vec3};
 use faer::MatRef;
+use std::sync::atomic::{AtomicU8, Ordering};
 
 /// Workspace of every algorithm for one model; create it with [`Model::create_data`].
 /// After creation no algorithm allocates. When an algorithm returns an error, the
@@ -75,11 +76,77 @@ pub struct Data {
     pub(crate) com: Vec3,
     pub(crate) vcom: Vec3,
     pub(crate) acom: Vec3,
+    /// What the last algorithm run on this data left in it, for the `_reusing_` variants.
+    pub(crate) last: LastRun,
+}
+
+/// What the last algorithm run on a [`Data`] left in it: nothing usable (every
+/// algorithm clears the record on entry, in `check_data`), the joint placements at `q`
+/// (`forward_kinematics_placements`), or the ABA at `(q, v, tau)`; with its inputs.
+#[derive(Debug)]
+pub(crate) struct LastRun {
+    kind: AtomicU8,
+    inputs: Vec<f64>,
+}
+
+/// Kinds of [`LastRun`].
+pub(crate) const LEFT_NOTHING: u8 = 0;
+pub(crate) const LEFT_PLACEMENTS: u8 = 1;
+pub(crate) const LEFT_ABA: u8 = 2;
+
+impl LastRun {
+    fn new(len: usize) -> Self {
+        Self {
+            kind: AtomicU8::new(LEFT_NOTHING),
+            inputs: vec![0.0; len],
+        }
+    }
+
+    /// Marks the data as overwritten (through `&Data`: atomic, so `Data` stays `Sync`).
+    pub(crate) fn clear(&self) {
+        self.kind.store(LEFT_NOTHING, Ordering::Relaxed);
+    }
+
+    /// Records that `kind` ran successfully on the concatenated `inputs`.
+    pub(crate) fn record(&mut self, kind: u8, inputs: &[&[f64]]) {
+        let mut k = 0;
+        for part in inputs {
+            self.inputs[k..k + part.len()].copy_from_slice(part);
+            k += part.len();
+        }
+        self.kind.store(kind, Ordering::Relaxed);
+    }
+
+    /// Whether the last run was one of `kinds` on these inputs (bit for bit).
+    pub(crate) fn was(&self, kinds: &[u8], inputs: &[&[f64]]) -> bool {
+        if !kinds.contains(&self.kind.load(Ordering::Relaxed)) {
+            return false;
+        }
+        let mut k = 0;
+        for part in inputs {
+            let rec = &self.inputs[k..k + part.len()];
+            if !rec.iter().zip(part.iter()).all(|(a, b)| a.to_bits() == b.to_bits()) {
+                return false;
+            }
+            k += part.len();
+        }
+        true
+    }
+}
+
+impl Clone for LastRun {
+    fn clone(&self) -> Self {
+        Self {
+            kind: AtomicU8::new(self.kind.load(Ordering::Relaxed)),
+            inputs: self.inputs.clone(),
+        }
+    }
 }
 
 /// Checks that `data` was created for a model of the same shape as `model` (the same
 /// tree of degrees of freedom: the dof-pair matrices rely on it, see [`Data::m`]), and
-/// that the model's public armature vector has its length.
+/// that the model's public armature vector has its length. Every algorithm starts with
+/// it, so it also marks the results of the last `aba` as overwritten.
 pub(crate) fn check_data(model: &Model, data: &Data) -> Result<()> {
     if model.armature.len() != model.nv() {
         return Err(Error::Dimension {
@@ -104,6 +171,7 @@ pub(crate) fn check_data(model: &Model, data: &Data) -> Result<()> {
             model.nframes()
         )));
     }
+    data.last.clear();
     Ok(())
 }
 
@@ -157,6 +225,7 @@ impl Data {
             l: vec![0.0; model.dof_anc_start[nv]],
             d: vec![0.0; nv],
             jcom: vec![0.0; 3 * nv],
+            last: LastRun::new(model.nq() + 2 * nv),
             mass: 0.0,
             com: Vec3::zeros(),
             vcom: Vec3::zeros(),

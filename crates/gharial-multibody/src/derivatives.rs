@@ -17,7 +17,7 @@
 //! `∂τ_r/∂q_c = J_r·(Ycrb_i dAdq_c + D_i dVdq_c + J_c ×* F_i)`; the same with
 //! `(dAdv_c, J_c)` for v and `(J_c, 0)` for a (the CRBA).
 
-use crate::data::{Data, check_data};
+use crate::data::{Data, LEFT_ABA, check_data};
 use crate::dynamics::{aba_unchecked, factor_mass_matrix, minv_from_factor};
 use crate::error::{Error, Result, check_result, check_result_mat, check_result_vec, check_vec};
 use crate::kinematics::{
@@ -383,11 +383,36 @@ fn rnea_derivatives_into_data(model: &Model, data: &mut Data, v: &[f64], a: &[f6
 /// with `M⁻¹` visit only the nonzeros of `∂τ/∂q`, `∂τ/∂v` (pairs of dofs on one path to
 /// the root).
 pub fn compute_aba_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64]) -> Result<()> {
+    aba_derivatives(model, data, q, v, tau, false)
+}
+
+/// As [`compute_aba_derivatives`], reusing the kinematics and `ddq` of the last
+/// algorithm run on `data` when it was [`crate::aba`] at the same `(q, v, tau)` (compared
+/// bit for bit; otherwise the ABA runs again): a model that evaluates the dynamics and
+/// then differentiates them at the same point saves one ABA (about a quarter of the
+/// derivatives on the UR5).
+///
+/// The model must not have changed since that `aba` (as when it is shared in an `Arc`):
+/// its inertias, armature and gravity went into the reused results.
+pub fn compute_aba_derivatives_reusing_aba(
+    model: &Model,
+    data: &mut Data,
+    q: &[f64],
+    v: &[f64],
+    tau: &[f64],
+) -> Result<()> {
+    let reuse = data.last.was(&[LEFT_ABA], &[q, v, tau]);
+    aba_derivatives(model, data, q, v, tau, reuse)
+}
+
+fn aba_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], reuse: bool) -> Result<()> {
     model.check_configuration("q", q)?;
     check_data(model, data)?;
     check_vec("v", v, model.nv)?;
     check_vec("tau", tau, model.nv)?;
-    aba_unchecked(model, data, q, v, tau)?;
+    if !reuse {
+        aba_unchecked(model, data, q, v, tau)?;
+    }
     let ddq = std::mem::take(&mut data.ddq);
     rnea_derivatives_into_data(model, data, v, &ddq);
     data.ddq = ddq;

@@ -1,7 +1,7 @@
 //! Inverse and forward dynamics: RNEA, nonlinear effects, generalized gravity, CRBA, ABA,
 //! M⁻¹, centre of mass — all in the world frame (Featherstone, RBDA ch. 5-7).
 
-use crate::data::{Data, check_data};
+use crate::data::{Data, LEFT_ABA, check_data};
 use crate::error::{Error, Result, check_result, check_result_vec, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
 use crate::linalg::{check_pivot, ltdl_factor, ltdl_inverse, small_spd_inverse};
@@ -241,6 +241,7 @@ pub fn aba<'d>(model: &Model, data: &'d mut Data, q: &[f64], v: &[f64], tau: &[f
     check_vec("tau", tau, model.nv)?;
     aba_unchecked(model, data, q, v, tau)?;
     check_result_vec("ddq", &data.ddq)?;
+    data.last.record(LEFT_ABA, &[q, v, tau]);
     Ok(&data.ddq)
 }
 

@@ -4,7 +4,7 @@
 //! `ov_i = ov_λ + J_i v_i` and acceleration `oa_i = oa_λ + J_i a_i + ov_λ × J_i v_i`,
 //! with the Jacobian columns `J_k = oMi · S_k`.
 
-use crate::data::{Data, check_data};
+use crate::data::{Data, LEFT_ABA, LEFT_PLACEMENTS, check_data};
 use crate::error::{Error, Result, check_result, check_result_mat, check_vec};
 use crate::model::{Model, NONE, ReferenceFrame};
 use crate::spatial::{Motion, Se3};
@@ -120,7 +120,9 @@ pub fn forward_kinematics_placements(model: &Model, data: &mut Data, q: &[f64]) 
     for i in 1..model.njoints() {
         placement_step(model, data, i, q);
     }
-    check_at_leaves("joint placements oMi", model, &data.o_mi, Se3::is_finite)
+    check_at_leaves("joint placements oMi", model, &data.o_mi, Se3::is_finite)?;
+    data.last.record(LEFT_PLACEMENTS, &[q]);
+    Ok(())
 }
 
 /// Placements `oMf` of every frame from the current `oMi`.
@@ -134,10 +136,27 @@ pub fn update_frame_placements(model: &Model, data: &mut Data) -> Result<()> {
 
 /// Placements `oMi` and world Jacobian columns of every joint.
 pub fn compute_joint_jacobians(model: &Model, data: &mut Data, q: &[f64]) -> Result<()> {
+    joint_jacobians(model, data, q, false)
+}
+
+/// As [`compute_joint_jacobians`], reusing the placements `oMi` that the last algorithm
+/// run on `data` left when it computed them at the same `q` (compared bit for bit):
+/// [`forward_kinematics_placements`] or [`crate::aba`]. A residual that evaluates the
+/// placements and then differentiates at the same point computes them once.
+///
+/// The model must not have changed since (as when it is shared in an `Arc`).
+pub fn compute_joint_jacobians_reusing_placements(model: &Model, data: &mut Data, q: &[f64]) -> Result<()> {
+    let reuse = data.last.was(&[LEFT_PLACEMENTS, LEFT_ABA], &[q]);
+    joint_jacobians(model, data, q, reuse)
+}
+
+fn joint_jacobians(model: &Model, data: &mut Data, q: &[f64], reuse: bool) -> Result<()> {
     model.check_configuration("q", q)?;
     check_data(model, data)?;
     for i in 1..model.njoints() {
-        placement_step(model, data, i, q);
+        if !reuse {
+            placement_step(model, data, i, q);
+        }
         jacobian_step(model, data, i);
     }
     check_placements_and_jacobian(model, data)

@@ -43,8 +43,8 @@ pub use contact::{
 };
 pub use data::Data;
 pub use derivatives::{
-    compute_aba_derivatives, compute_forward_kinematics_derivatives, compute_rnea_derivatives,
-    frame_acceleration_derivatives, frame_velocity_derivatives,
+    compute_aba_derivatives, compute_aba_derivatives_reusing_aba, compute_forward_kinematics_derivatives,
+    compute_rnea_derivatives, frame_acceleration_derivatives, frame_velocity_derivatives,
 };
 pub use dynamics::{
     aba, center_of_mass, compute_minverse, crba, generalized_gravity, jacobian_center_of_mass, nonlinear_effects, rnea,
@@ -52,9 +52,9 @@ pub use dynamics::{
 pub use error::{Error, Result};
 pub use joint::{Axis, JointModel, JointType};
 pub use kinematics::{
-    compute_joint_jacobians, forward_kinematics, forward_kinematics_placements, frame_acceleration,
-    frame_classical_acceleration, frame_jacobian, frame_velocity, joint_acceleration, joint_jacobian, joint_velocity,
-    update_frame_placements,
+    compute_joint_jacobians, compute_joint_jacobians_reusing_placements, forward_kinematics,
+    forward_kinematics_placements, frame_acceleration, frame_classical_acceleration, frame_jacobian, frame_velocity,
+    joint_acceleration, joint_jacobian, joint_velocity, update_frame_placements,
 };
 pub use lie::{exp3, exp6, jexp3, jexp6_blocks, jlog3, jlog6_blocks, log3, log6};
 pub use model::{

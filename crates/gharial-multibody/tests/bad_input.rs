@@ -569,8 +569,7 @@ fn huge_numbers_in_messages_are_printed_compactly() {
     );
     let e = model
         .set_inertia(1, y)
-        .err()
-        .expect("a negative mass is refused")
+        .expect_err("a negative mass is refused")
         .to_string();
     assert!(e.contains("-1e300") && e.len() < 200, "{e}");
 }
