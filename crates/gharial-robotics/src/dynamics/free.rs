@@ -8,7 +8,7 @@ use gharial::functions::Workspace;
 use gharial::linalg::slice_mut;
 use gharial::spaces::Manifold;
 use gharial::{Error, Result};
-use gharial_multibody::{Data, aba, compute_aba_derivatives};
+use gharial_multibody::{Data, aba, compute_aba_derivatives_reusing_aba};
 
 use super::{Actuation, PhaseOde, nan_jacobians, nan_xdot, workspace};
 use crate::MultibodyPhaseSpace;
@@ -96,12 +96,13 @@ impl MultibodyFreeFwdDynamics {
         aba(self.core.model(), &mut ws.data, q, v, &ws.tau).map_err(|e| crate::multibody_error(NAME, e))
     }
 
-    /// The ABA derivatives at `(x, u)`, left in `ws.data`.
+    /// The ABA derivatives at `(x, u)`, left in `ws.data`; the ABA of an `evaluate` at
+    /// the same point is reused (the model, behind an `Arc`, cannot have changed).
     fn derivatives(&self, x: &[f64], u: &[f64], ws: &mut FreeWs) -> Result<()> {
         self.core.check_inputs(x, u)?;
         self.core.actuation.torque(u, &mut ws.tau);
         let (q, v) = x.split_at(self.core.nq());
-        compute_aba_derivatives(self.core.model(), &mut ws.data, q, v, &ws.tau)
+        compute_aba_derivatives_reusing_aba(self.core.model(), &mut ws.data, q, v, &ws.tau)
             .map_err(|e| crate::multibody_error(NAME, e))
     }
 

@@ -18,7 +18,8 @@ use gharial::linalg::slice_mut;
 use gharial::{Error, Result};
 use gharial_multibody::spatial::{Mat3, Motion, Se3, Vec3};
 use gharial_multibody::{
-    Data, Model, compute_joint_jacobians, forward_kinematics_placements, jlog3, jlog6_blocks, log3, log6,
+    Data, Model, compute_joint_jacobians_reusing_placements, forward_kinematics_placements, jlog3, jlog6_blocks, log3,
+    log6,
 };
 
 use super::{
@@ -31,9 +32,11 @@ fn placements(model: &Model, data: &mut Data, q: &[f64], out: &mut [f64]) -> boo
     ok_or_nan(forward_kinematics_placements(model, data, q), out)
 }
 
-/// Placements and Jacobian columns of the configuration `q`; NaN in `jx` on failure.
+/// Placements and Jacobian columns of the configuration `q` (the placements of an
+/// `evaluate` at the same point reused: the model is shared, immutable); NaN in `jx` on
+/// failure.
 fn joint_jacobians(model: &Model, data: &mut Data, q: &[f64], jx: MatMut<'_, f64>) -> bool {
-    ok_or_nan_mat(compute_joint_jacobians(model, data, q), jx)
+    ok_or_nan_mat(compute_joint_jacobians_reusing_placements(model, data, q), jx)
 }
 
 /// `Jlog6 m` with `Jlog6 = [[Jl, C], [0, Jl]]` given by its blocks.
