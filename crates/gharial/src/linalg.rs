@@ -300,6 +300,28 @@ pub fn matvec_t(y: &mut [f64], accum: Accum, a: MatRef<'_, f64>, x: &[f64], alph
     }
 }
 
+/// Lower triangle (diagonal included) of `dst = aᵀ b` for `a`, `b` with contiguous
+/// columns and the same number of rows (the residual size of a Gram product
+/// `Jᵀ (W J)`): each entry is the dot product of two columns. For short columns the
+/// general kernels' per-entry set-up dominates; this visits each pair once. Falls back
+/// to [`matmul_lower`] for other layouts.
+pub fn matmul_tn_lower(mut dst: MatMut<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>) {
+    debug_assert_eq!((dst.nrows(), dst.ncols()), (a.ncols(), b.ncols()));
+    debug_assert_eq!(a.nrows(), b.nrows());
+    if a.row_stride() != 1 || b.row_stride() != 1 {
+        return matmul_lower(dst, Accum::Replace, a.transpose(), b, 1.0);
+    }
+    fn cols<'a>(m: MatRef<'a, f64>, j: usize) -> &'a [f64] {
+        m.col(j).try_as_col_major().expect("unit row stride").as_slice()
+    }
+    for j in 0..dst.ncols() {
+        let bj = cols(b, j);
+        for i in j..dst.nrows() {
+            dst[(i, j)] = dot(cols(a, i), bj);
+        }
+    }
+}
+
 /// `aᵀb` with four partial sums (vectorisable).
 #[inline]
 pub fn dot(a: &[f64], b: &[f64]) -> f64 {

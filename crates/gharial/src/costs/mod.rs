@@ -109,4 +109,17 @@ pub trait Cost: Send + Sync {
     fn gradient(&self, x: &[f64], u: &[f64], data: &mut CostData) {
         self.derivatives(x, u, data);
     }
+
+    /// The derivatives, knowing whether `data` already holds, from an earlier call on it,
+    /// the blocks this cost declares constant (`reuse`): [`Cost::gradient`] for a
+    /// constant Hessian then, [`Cost::derivatives`] otherwise. Compositions (a
+    /// [`CostStack`]) pass `reuse` on to their components, whose Hessians may be
+    /// constant when the composition's is not.
+    fn derivatives_reusing(&self, x: &[f64], u: &[f64], data: &mut CostData, reuse: bool) {
+        if reuse && self.hessian_is_constant() {
+            self.gradient(x, u, data);
+        } else {
+            self.derivatives(x, u, data);
+        }
+    }
 }

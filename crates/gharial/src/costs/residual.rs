@@ -22,10 +22,11 @@ use super::{Cost, CostData};
 use crate::error::{check_dim, check_finite};
 use crate::functions::util::{add_scaled, checked_sym, downcast};
 use crate::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary, Workspace};
-use crate::linalg::{matmul, matvec_t, slice_mut};
+use crate::linalg::{matmul, matmul_tn_lower, matvec_t, norm_max, slice_mut, symmetrize_from_lower};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
+use faer::reborrow::ReborrowMut;
 
 /// The weight `W` of a quadratic residual cost: diagonal or a full symmetric matrix.
 #[derive(Debug, Clone)]
@@ -122,19 +123,37 @@ fn split(data: &mut CostData) -> (Blocks<'_>, &mut ResidualWs) {
 }
 
 /// Writes `∇ℓ = Jᵀ g` and `Jᵀ H J` (with `H J` already in `ws.hjx`, `ws.hju`) into
-/// `out`, then adds `vhp(g)` if `exact`.
+/// `out`, then adds `vhp(g)` if `exact`. The symmetric blocks are computed by their
+/// lower triangles, and the products of a zero Jacobian block (a residual of the state
+/// only, or of the control only) are skipped.
 fn assemble(f: &dyn StageFunction, x: &[f64], u: &[f64], exact: bool, ws: &mut ResidualWs, out: Blocks<'_>) {
     let (jx, ju) = (ws.fd.jx.as_ref(), ws.fd.ju.as_ref());
+    let (x_zero, u_zero) = (norm_max(jx) == 0.0, norm_max(ju) == 0.0);
     matvec_t(slice_mut(out.lx), Accum::Replace, jx, &ws.g, 1.0);
     matvec_t(slice_mut(out.lu), Accum::Replace, ju, &ws.g, 1.0);
-    matmul(out.lxx.as_mut(), Accum::Replace, jx.transpose(), ws.hjx.as_ref(), 1.0);
-    matmul(out.lxu.as_mut(), Accum::Replace, jx.transpose(), ws.hju.as_ref(), 1.0);
-    matmul(out.luu.as_mut(), Accum::Replace, ju.transpose(), ws.hju.as_ref(), 1.0);
+    symmetric_product(out.lxx.as_mut(), jx, ws.hjx.as_ref(), x_zero);
+    if x_zero || u_zero {
+        out.lxu.fill(0.0);
+    } else {
+        matmul(out.lxu.as_mut(), Accum::Replace, jx.transpose(), ws.hju.as_ref(), 1.0);
+    }
+    symmetric_product(out.luu.as_mut(), ju, ws.hju.as_ref(), u_zero);
     if exact && f.has_vhp() {
         f.vhp(x, u, &ws.g, &mut ws.fd);
         add_scaled(out.lxx.as_mut(), 1.0, ws.fd.vhp_xx.as_ref());
         add_scaled(out.lxu.as_mut(), 1.0, ws.fd.vhp_xu.as_ref());
         add_scaled(out.luu.as_mut(), 1.0, ws.fd.vhp_uu.as_ref());
+    }
+}
+
+/// `dst = jᵀ (h j)` for a symmetric `h` (its lower triangle, mirrored), or zero when
+/// `j` is.
+fn symmetric_product(mut dst: MatMut<'_, f64>, j: MatRef<'_, f64>, hj: MatRef<'_, f64>, j_zero: bool) {
+    if j_zero {
+        dst.fill(0.0);
+    } else {
+        matmul_tn_lower(dst.rb_mut(), j, hj);
+        symmetrize_from_lower(dst);
     }
 }
 

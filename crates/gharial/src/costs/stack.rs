@@ -157,6 +157,11 @@ impl Cost for CostStack {
         data.value = value;
     }
     fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
+        self.derivatives_reusing(x, u, data, false);
+    }
+    /// Components with a constant Hessian compute only their gradient once their data
+    /// hold it (`reuse`); the stack still sums every Hessian, its weights may change.
+    fn derivatives_reusing(&self, x: &[f64], u: &[f64], data: &mut CostData, reuse: bool) {
         let datas: &mut Vec<CostData> = downcast(&mut data.ws);
         data.lx.fill(0.0);
         data.lu.fill(0.0);
@@ -168,7 +173,7 @@ impl Cost for CostStack {
             if w == 0.0 {
                 continue;
             }
-            c.derivatives(x, u, d);
+            c.derivatives_reusing(x, u, d, reuse);
             add_scaled(data.lx.as_mat_mut(), w, d.lx.as_mat());
             add_scaled(data.lu.as_mat_mut(), w, d.lu.as_mat());
             add_scaled(data.lxx.as_mut(), w, d.lxx.as_ref());

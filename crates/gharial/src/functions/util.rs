@@ -1,5 +1,6 @@
 //! Small helpers shared by the models of the modelling layer.
 
+use faer::reborrow::ReborrowMut;
 use faer::{MatMut, MatRef};
 
 use super::Workspace;
@@ -16,9 +17,23 @@ pub(crate) fn downcast<T: 'static>(ws: &mut Workspace) -> &mut T {
 /// `dst += alpha * src` for matrices of the same shape.
 pub(crate) fn add_scaled(mut dst: MatMut<'_, f64>, alpha: f64, src: MatRef<'_, f64>) {
     debug_assert_eq!((dst.nrows(), dst.ncols()), (src.nrows(), src.ncols()));
+    let contiguous = dst.row_stride() == 1 && src.row_stride() == 1;
     for j in 0..dst.ncols() {
-        for i in 0..dst.nrows() {
-            dst[(i, j)] += alpha * src[(i, j)];
+        if contiguous {
+            let mut dj = dst.rb_mut().col_mut(j);
+            let d = dj
+                .rb_mut()
+                .try_as_col_major_mut()
+                .expect("unit row stride")
+                .as_slice_mut();
+            let s = src.col(j).try_as_col_major().expect("unit row stride").as_slice();
+            for (di, si) in d.iter_mut().zip(s) {
+                *di += alpha * si;
+            }
+        } else {
+            for i in 0..dst.nrows() {
+                dst[(i, j)] += alpha * src[(i, j)];
+            }
         }
     }
 }

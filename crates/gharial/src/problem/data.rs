@@ -128,11 +128,7 @@ impl StageData {
     /// With `reuse`, the blocks that the models declare constant hold the values of an
     /// earlier call and only the varying ones are computed.
     fn derivatives(&mut self, stage: &StageModel, x: &[f64], u: &[f64], y: &[f64], reuse: bool) {
-        if reuse && stage.cost.hessian_is_constant() {
-            stage.cost.gradient(x, u, &mut self.cost);
-        } else {
-            stage.cost.derivatives(x, u, &mut self.cost);
-        }
+        stage.cost.derivatives_reusing(x, u, &mut self.cost, reuse);
         for ((c, cd), zero) in stage
             .constraints()
             .iter()
@@ -361,11 +357,7 @@ impl ProblemData {
         self.for_each_stage(|t, sd| sd.derivatives(&stages[t], &xs[t], &us[t], &xs[t + 1], reuse));
         let n = stages.len();
         let terminal_cost = problem.terminal_cost();
-        if reuse && terminal_cost.hessian_is_constant() {
-            terminal_cost.gradient(&xs[n], &[], &mut self.terminal_cost);
-        } else {
-            terminal_cost.derivatives(&xs[n], &[], &mut self.terminal_cost);
-        }
+        terminal_cost.derivatives_reusing(&xs[n], &[], &mut self.terminal_cost, reuse);
         for (c, cd) in problem
             .terminal_constraints()
             .iter()
