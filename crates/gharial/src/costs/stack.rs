@@ -251,6 +251,19 @@ mod tests {
         assert!(err.to_string().contains("duplicate"), "{err}");
         let err = CostStack::new(space.as_ref(), 0).with("state", xs, 1.0).unwrap_err();
         assert!(err.to_string().contains("component `state`: nu"), "{err}");
+        // Reusing the constant blocks of the components gives the derivatives of a fresh
+        // evaluation, at any later point and weights.
+        stack.set_weight("state", 1.5).unwrap();
+        let mut fresh = stack.create_data();
+        for _ in 0..3 {
+            let (x, u) = (random_vec(&mut g, 3, 1.0), random_vec(&mut g, 2, 1.0));
+            stack.evaluate(&x, &u, &mut d);
+            stack.derivatives_reusing(&x, &u, &mut d, true);
+            stack.evaluate(&x, &u, &mut fresh);
+            stack.derivatives(&x, &u, &mut fresh);
+            assert_eq!((d.lx(), d.lu()), (fresh.lx(), fresh.lu()));
+            assert!(d.lxx == fresh.lxx && d.lxu == fresh.lxu && d.luu == fresh.luu);
+        }
         // An empty stack is the zero cost.
         let empty = CostStack::new(space.as_ref(), 0);
         assert!(empty.is_empty());
