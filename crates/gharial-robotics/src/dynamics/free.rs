@@ -99,7 +99,7 @@ impl MultibodyFreeFwdDynamics {
     /// The ABA derivatives at `(x, u)`, left in `ws.data`; the ABA of an `evaluate` at
     /// the same point is reused (the model, behind an `Arc`, cannot have changed).
     fn derivatives(&self, x: &[f64], u: &[f64], ws: &mut FreeWs) -> Result<()> {
-        self.core.check_inputs(x, u)?;
+        self.core.check_sizes(x, u)?;
         self.core.actuation.torque(u, &mut ws.tau);
         let (q, v) = x.split_at(self.core.nq());
         compute_aba_derivatives_reusing_aba(self.core.model(), &mut ws.data, q, v, &ws.tau)

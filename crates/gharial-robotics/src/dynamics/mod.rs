@@ -109,6 +109,19 @@ impl PhaseOde {
         Ok(())
     }
 
+    /// Checks the sizes of `x` and `u` only: for the Jacobians, at the point of an
+    /// `evaluate` that checked it whole (the multibody algorithms still refuse
+    /// non-finite entries and quaternions off the unit sphere).
+    fn check_sizes(&self, x: &[f64], u: &[f64]) -> Result<()> {
+        let (name, nq, nv) = (self.name, self.nq(), self.nv());
+        check_dim(
+            format_args!("{name}: state x (nq + nv = {nq} + {nv})"),
+            nq + nv,
+            x.len(),
+        )?;
+        check_dim(format_args!("{name}: control u (nu)"), self.actuation.nu(), u.len())
+    }
+
     /// `ẋ = (v, a)`.
     fn write_xdot(&self, x: &[f64], a: &[f64], xdot: &mut [f64]) {
         let (nq, nv) = (self.nq(), self.nv());
