@@ -292,150 +292,81 @@ fn warm_start_from_a_converged_solution_takes_at_most_two_iterations() {
     assert!(second.iterations <= 2, "{} iterations", second.iterations);
 }
 
-/// Optimal cost of the box- (and terminal-equality-) constrained OCP as a dense QP solved
-/// by Clarabel, an interior-point solver independent of this library.
-fn clarabel_cost(lq: &Lq, umax: f64, x_target: Option<&[f64]>) -> f64 {
-    use clarabel::algebra::CscMatrix;
-    use clarabel::solver::{DefaultSettings, DefaultSolver, IPSolver, SolverStatus, SupportedConeT};
-    let (nx, nu, n) = (lq.nx, lq.nu, lq.n);
-    let xi = |t: usize, i: usize| t * nx + i;
-    let ui = |t: usize, i: usize| (n + 1) * nx + t * nu + i;
-    let nz = (n + 1) * nx + n * nu;
-    // Upper triangle of P and the linear term.
-    let (mut pi, mut pj, mut pv) = (vec![], vec![], vec![]);
-    let mut q = vec![0.0; nz];
-    let mut push = |i: usize, j: usize, v: f64| {
-        if i <= j && v != 0.0 {
-            pi.push(i);
-            pj.push(j);
-            pv.push(v);
-        }
+/// A case of `tests/data/qp_reference.json`: a random box-constrained LQ problem (and
+/// terminal target), and its optimal cost as a dense QP solved by Clarabel, an
+/// interior-point solver independent of this library (`tools/qp-reference` writes the
+/// file).
+struct QpCase {
+    seed: u64,
+    lq: Lq,
+    umax: f64,
+    target: Option<Vec<f64>>,
+    clarabel_cost: f64,
+}
+
+fn qp_reference_cases() -> Vec<QpCase> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/qp_reference.json");
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let vec =
+        |v: &serde_json::Value| -> Vec<f64> { v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect() };
+    let mat = |v: &serde_json::Value| -> Mat<f64> {
+        let rows: Vec<Vec<f64>> = v.as_array().unwrap().iter().map(vec).collect();
+        Mat::from_fn(rows.len(), rows.first().map_or(0, |r| r.len()), |i, j| rows[i][j])
     };
-    for t in 0..n {
-        for i in 0..nx {
-            for j in 0..nx {
-                push(xi(t, i), xi(t, j), lq.q[(i, j)]);
-            }
-            for j in 0..nu {
-                push(xi(t, i), ui(t, j), lq.s[(i, j)]);
-            }
-            q[xi(t, i)] = lq.qv[i];
-        }
-        for i in 0..nu {
-            for j in 0..nu {
-                push(ui(t, i), ui(t, j), lq.r[(i, j)]);
-            }
-            q[ui(t, i)] = lq.rv[i];
-        }
-    }
-    for i in 0..nx {
-        for j in 0..nx {
-            push(xi(n, i), xi(n, j), lq.qf[(i, j)]);
-        }
-        q[xi(n, i)] = lq.qfv[i];
-    }
-    let p = CscMatrix::new_from_triplets(nz, nz, pi, pj, pv);
-    // Equalities: x_0 = x0, x_{t+1} - A x_t - B u_t = c, (x_N = target); then u <= umax, -u <= umax.
-    let (mut ai, mut aj, mut av, mut b) = (vec![], vec![], vec![], vec![]);
-    let mut row = 0;
-    for i in 0..nx {
-        ai.push(row);
-        aj.push(xi(0, i));
-        av.push(1.0);
-        b.push(lq.x0[i]);
-        row += 1;
-    }
-    for t in 0..n {
-        for i in 0..nx {
-            ai.push(row);
-            aj.push(xi(t + 1, i));
-            av.push(1.0);
-            for j in 0..nx {
-                ai.push(row);
-                aj.push(xi(t, j));
-                av.push(-lq.a[(i, j)]);
-            }
-            for j in 0..nu {
-                ai.push(row);
-                aj.push(ui(t, j));
-                av.push(-lq.b[(i, j)]);
-            }
-            b.push(lq.c[i]);
-            row += 1;
-        }
-    }
-    if let Some(xt) = x_target {
-        for i in 0..nx {
-            ai.push(row);
-            aj.push(xi(n, i));
-            av.push(1.0);
-            b.push(xt[i]);
-            row += 1;
-        }
-    }
-    let neq = row;
-    for t in 0..n {
-        for i in 0..nu {
-            for sign in [1.0, -1.0] {
-                ai.push(row);
-                aj.push(ui(t, i));
-                av.push(sign);
-                b.push(umax);
-                row += 1;
-            }
-        }
-    }
-    let a = CscMatrix::new_from_triplets(row, nz, ai, aj, av);
-    let cones = [
-        SupportedConeT::ZeroConeT(neq),
-        SupportedConeT::NonnegativeConeT(row - neq),
-    ];
-    let settings = DefaultSettings {
-        verbose: false,
-        tol_gap_abs: 1e-12,
-        tol_gap_rel: 1e-12,
-        tol_feas: 1e-12,
-        ..Default::default()
-    };
-    let mut solver = DefaultSolver::new(&p, &q, &a, &b, &cones, settings).unwrap();
-    solver.solve();
-    assert!(
-        matches!(
-            solver.solution.status,
-            SolverStatus::Solved | SolverStatus::AlmostSolved
-        ),
-        "{:?}",
-        solver.solution.status
-    );
-    solver.solution.obj_val
+    let size = |c: &serde_json::Value, k: &str| c[k].as_u64().unwrap() as usize;
+    doc["cases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| QpCase {
+            seed: c["seed"].as_u64().unwrap(),
+            lq: Lq {
+                nx: size(c, "nx"),
+                nu: size(c, "nu"),
+                n: size(c, "N"),
+                a: mat(&c["A"]),
+                b: mat(&c["B"]),
+                c: vec(&c["c"]),
+                q: mat(&c["Q"]),
+                s: mat(&c["S"]),
+                r: mat(&c["R"]),
+                qv: vec(&c["q"]),
+                rv: vec(&c["r"]),
+                qf: mat(&c["Qf"]),
+                qfv: vec(&c["qf"]),
+                x0: vec(&c["x0"]),
+            },
+            umax: c["umax"].as_f64().unwrap(),
+            target: (!c["target"].is_null()).then(|| vec(&c["target"])),
+            clarabel_cost: c["clarabel_cost"].as_f64().unwrap(),
+        })
+        .collect()
 }
 
 #[test]
 fn box_constrained_lq_has_the_optimal_cost_of_an_independent_qp_solver() {
-    for (seed, (nx, nu, n), umax) in [(21, (3, 2, 20), 0.2), (22, (4, 2, 40), 0.3), (23, (6, 3, 30), 0.1)] {
-        let lq = random_lq(nx, nu, n, seed);
-        let target = reachable_target(&lq, umax);
-        for x_target in [None, Some(target.as_slice())] {
-            let reference = clarabel_cost(&lq, umax, x_target);
-            let p = ocp(&lq, Some(umax), x_target);
-            for rollout in [Rollout::Linear, Rollout::Nonlinear] {
-                let (xs, us) = zero_guess(&p);
-                // The nonlinear rollout's round-off floor is about eps |x| / mu (see above).
-                let tol = if rollout == Rollout::Linear { 1e-9 } else { 1e-8 };
-                let opts = ProxDdpOptions {
-                    rollout,
-                    tol,
-                    ..Default::default()
-                };
-                let sol = solve(&p, opts, &xs, &us);
-                assert_eq!(sol.status, Status::Converged, "seed {seed} {rollout:?}");
-                let rel = (sol.cost - reference).abs() / reference.abs().max(1.0);
-                assert!(
-                    rel < 1e-6,
-                    "seed {seed} {rollout:?}: cost {} vs QP {reference} ({rel:e})",
-                    sol.cost
-                );
-            }
+    let cases = qp_reference_cases();
+    assert_eq!(cases.iter().filter(|c| c.seed < 40).count(), 6);
+    for case in cases.iter().filter(|c| c.seed < 40) {
+        let (seed, reference) = (case.seed, case.clarabel_cost);
+        let p = ocp(&case.lq, Some(case.umax), case.target.as_deref());
+        for rollout in [Rollout::Linear, Rollout::Nonlinear] {
+            let (xs, us) = zero_guess(&p);
+            // The nonlinear rollout's round-off floor is about eps |x| / mu (see above).
+            let tol = if rollout == Rollout::Linear { 1e-9 } else { 1e-8 };
+            let opts = ProxDdpOptions {
+                rollout,
+                tol,
+                ..Default::default()
+            };
+            let sol = solve(&p, opts, &xs, &us);
+            assert_eq!(sol.status, Status::Converged, "seed {seed} {rollout:?}");
+            let rel = (sol.cost - reference).abs() / reference.abs().max(1.0);
+            assert!(
+                rel < 1e-6,
+                "seed {seed} {rollout:?}: cost {} vs QP {reference} ({rel:e})",
+                sol.cost
+            );
         }
     }
 }
@@ -447,10 +378,11 @@ fn box_constrained_lq_has_the_optimal_cost_of_an_independent_qp_solver() {
 /// prediction in fewer iterations.
 #[test]
 fn active_set_prediction_reaches_the_box_constrained_optimum_in_fewer_iterations() {
-    for (seed, (nx, nu, n), umax) in [(41, (3, 2, 20), 0.2), (42, (4, 2, 40), 0.3), (43, (6, 3, 30), 0.1)] {
-        let lq = random_lq(nx, nu, n, seed);
-        let reference = clarabel_cost(&lq, umax, None);
-        let p = ocp(&lq, Some(umax), None);
+    let cases = qp_reference_cases();
+    assert_eq!(cases.iter().filter(|c| c.seed > 40).count(), 3);
+    for case in cases.iter().filter(|c| c.seed > 40) {
+        let (seed, reference) = (case.seed, case.clarabel_cost);
+        let p = ocp(&case.lq, Some(case.umax), None);
         let (xs, us) = zero_guess(&p);
         let iterations = [0, 10].map(|active_set_iters| {
             let opts = ProxDdpOptions {
