@@ -91,19 +91,15 @@ impl PhaseOde {
     /// configuration manifold (unit quaternions and (cos, sin) pairs within
     /// [`VALID_TOL`]). Allocates only when it fails.
     fn check_inputs(&self, x: &[f64], u: &[f64]) -> Result<()> {
-        let (name, nq, nv) = (self.name, self.nq(), self.nv());
-        check_dim(
-            format_args!("{name}: state x (nq + nv = {nq} + {nv})"),
-            nq + nv,
-            x.len(),
-        )?;
-        check_dim(format_args!("{name}: control u (nu)"), self.actuation.nu(), u.len())?;
+        let name = self.name;
+        self.check_sizes(x, u)?;
         check_finite(format_args!("{name}: state x"), x)?;
         check_finite(format_args!("{name}: control u"), u)?;
-        if !self.space.is_valid(x) {
+        // On a vector space every finite point is valid.
+        if !self.space.is_vector_space() && !self.space.is_valid(x) {
             return Err(Error::InvalidModel(format!(
                 "{name}: state x is not on the configuration manifold: {}",
-                off_manifold_joint(self.model(), &x[..nq])
+                off_manifold_joint(self.model(), &x[..self.nq()])
             )));
         }
         Ok(())
