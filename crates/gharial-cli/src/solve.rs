@@ -157,93 +157,44 @@ pub fn run(args: &SolveArgs) -> i32 {
 /// library's default: `[problem]` (the problem's recommended settings) or `[option]`
 /// (the command line).
 fn settings_line(recommended: &ProxDdpOptions, args: &SolveArgs, o: &ProxDdpOptions) -> String {
-    let d = ProxDdpOptions::default();
-    let tag = |cli: bool, rec: String, def: String| -> String {
-        match (cli, rec != def) {
-            (true, _) => format!(" [option; default {def}]"),
-            (false, true) => format!(" [problem; default {def}]"),
-            (false, false) => String::new(),
-        }
-    };
-    let num = |x: f64| Num(x).to_string();
-    let items = [
-        (
-            "tol",
-            num(o.tol),
-            tag(args.tol.is_some(), num(recommended.tol), num(d.tol)),
-        ),
-        (
-            "mu_init",
-            num(o.mu_init),
-            tag(args.mu_init.is_some(), num(recommended.mu_init), num(d.mu_init)),
-        ),
+    type Field = (&'static str, fn(&ProxDdpOptions) -> String, bool);
+    let fields: [Field; 9] = [
+        ("tol", |o| Num(o.tol).to_string(), args.tol.is_some()),
+        ("mu_init", |o| Num(o.mu_init).to_string(), args.mu_init.is_some()),
         (
             "dyn_al_scale",
-            num(o.dyn_al_scale),
-            tag(
-                args.dyn_al_scale.is_some(),
-                num(recommended.dyn_al_scale),
-                num(d.dyn_al_scale),
-            ),
+            |o| Num(o.dyn_al_scale).to_string(),
+            args.dyn_al_scale.is_some(),
         ),
-        (
-            "max_iters",
-            o.max_iters.to_string(),
-            tag(
-                args.max_iters.is_some(),
-                recommended.max_iters.to_string(),
-                d.max_iters.to_string(),
-            ),
-        ),
-        (
-            "rollout",
-            format!("{:?}", o.rollout),
-            tag(
-                args.rollout.is_some(),
-                format!("{:?}", recommended.rollout),
-                format!("{:?}", d.rollout),
-            ),
-        ),
+        ("max_iters", |o| o.max_iters.to_string(), args.max_iters.is_some()),
+        ("rollout", |o| format!("{:?}", o.rollout), args.rollout.is_some()),
         (
             "step acceptance",
-            format!("{:?}", o.step_acceptance),
-            tag(
-                args.step_acceptance.is_some(),
-                format!("{:?}", recommended.step_acceptance),
-                format!("{:?}", d.step_acceptance),
-            ),
+            |o| format!("{:?}", o.step_acceptance),
+            args.step_acceptance.is_some(),
         ),
-        (
-            "merit",
-            format!("{:?}", o.merit),
-            tag(
-                args.merit.is_some(),
-                format!("{:?}", recommended.merit),
-                format!("{:?}", d.merit),
-            ),
-        ),
+        ("merit", |o| format!("{:?}", o.merit), args.merit.is_some()),
         (
             "active-set iters",
-            o.active_set_iters.to_string(),
-            tag(
-                args.active_set_iters.is_some(),
-                recommended.active_set_iters.to_string(),
-                d.active_set_iters.to_string(),
-            ),
+            |o| o.active_set_iters.to_string(),
+            args.active_set_iters.is_some(),
         ),
-        (
-            "threads",
-            o.num_threads.to_string(),
-            tag(
-                args.threads.is_some(),
-                recommended.num_threads.to_string(),
-                d.num_threads.to_string(),
-            ),
-        ),
+        ("threads", |o| o.num_threads.to_string(), args.threads.is_some()),
     ];
-    items
+    let d = ProxDdpOptions::default();
+    fields
         .iter()
-        .map(|(name, value, source)| format!("{name} {value}{source}"))
+        .map(|&(name, get, cli)| {
+            let (value, def) = (get(o), get(&d));
+            let source = if cli {
+                format!(" [option; default {def}]")
+            } else if get(recommended) != def {
+                format!(" [problem; default {def}]")
+            } else {
+                String::new()
+            };
+            format!("{name} {value}{source}")
+        })
         .collect::<Vec<_>>()
         .join(", ")
 }

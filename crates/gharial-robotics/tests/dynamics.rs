@@ -4,6 +4,8 @@
 
 mod common;
 
+use common::*;
+
 use std::sync::Arc;
 
 use faer::Mat;
@@ -21,8 +23,8 @@ use gharial_robotics::{
     Actuation, ContactSpec, MultibodyConstraintFwdDynamics, MultibodyFreeFwdDynamics, MultibodyPhaseSpace,
     contacts_at_frames, gravity_compensation, set_contact_references,
 };
+use rand::SeedableRng;
 use rand::rngs::SmallRng;
-use rand::{Rng, SeedableRng};
 use serde_json::Value;
 
 const FEET: [&str; 4] = ["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"];
@@ -32,19 +34,6 @@ const G1_FEET: [&str; 2] = ["left_ankle_roll_link", "right_ankle_roll_link"];
 const PIN_TOL: f64 = 1e-9;
 /// Finite-difference checks: step and relative tolerance.
 const FD: CheckOptions = CheckOptions { eps: 1e-6, tol: 2e-6 };
-
-fn vecf(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .expect("array")
-        .iter()
-        .map(|x| x.as_f64().expect("number"))
-        .collect()
-}
-
-fn matf(v: &Value) -> Mat<f64> {
-    let rows: Vec<Vec<f64>> = v.as_array().expect("rows").iter().map(vecf).collect();
-    Mat::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j])
-}
 
 fn col(v: &[f64]) -> Mat<f64> {
     Mat::from_fn(v.len(), 1, |i, _| v[i])
@@ -61,21 +50,6 @@ fn phase_jacobians(dq: &Mat<f64>, dv: &Mat<f64>, du: &Mat<f64>) -> (Mat<f64>, Ma
     });
     let ju = Mat::from_fn(2 * nv, du.ncols(), |i, j| if i < nv { 0.0 } else { du[(i - nv, j)] });
     (jx, ju)
-}
-
-fn space_of(model: &Arc<Model>) -> Arc<MultibodyPhaseSpace> {
-    Arc::new(MultibodyPhaseSpace::new(model.clone()))
-}
-
-/// A random state `(q, v)` (configuration within the limits, `|v_i| ≤ 1`).
-fn random_state(space: &MultibodyPhaseSpace, rng: &mut SmallRng) -> Vec<f64> {
-    let mut x = vec![0.0; space.nx()];
-    space.random(rng, &mut x);
-    x
-}
-
-fn random_vec(rng: &mut SmallRng, n: usize, scale: f64) -> Vec<f64> {
-    (0..n).map(|_| scale * rng.random_range(-1.0..1.0)).collect()
 }
 
 fn evaluated(ode: &dyn Ode, x: &[f64], u: &[f64]) -> OdeData {

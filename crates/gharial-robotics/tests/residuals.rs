@@ -5,6 +5,8 @@
 
 mod common;
 
+use common::*;
+
 #[path = "../../gharial/tests/support/counting_alloc.rs"]
 mod counting_alloc;
 
@@ -31,8 +33,8 @@ use gharial_robotics::residuals::{
     SmoothFrictionConeResidual, WrenchCone, WrenchConeResidual, effort_limits, position_limits, velocity_limits,
 };
 use gharial_robotics::{Actuation, ContactSpec, MultibodyConstraintFwdDynamics, MultibodyPhaseSpace};
+use rand::SeedableRng;
 use rand::rngs::SmallRng;
-use rand::{Rng, SeedableRng};
 use serde_json::Value;
 
 const FD: CheckOptions = CheckOptions { eps: 1e-6, tol: 1e-6 };
@@ -45,51 +47,12 @@ const RF: [ReferenceFrame; 3] = [
 // ---------------------------------------------------------------------------------
 // Helpers.
 
-fn vecf(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .expect("array")
-        .iter()
-        .map(|x| x.as_f64().expect("number"))
-        .collect()
-}
-
-fn matf(v: &Value) -> Mat<f64> {
-    let rows: Vec<Vec<f64>> = v.as_array().expect("rows").iter().map(vecf).collect();
-    Mat::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j])
-}
-
 fn se3f(v: &Value) -> Se3 {
     let m = matf(v);
     Se3::new(
         Mat3::from_fn(|i, j| m[(i, j)]),
         Vec3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]),
     )
-}
-
-fn max_diff(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter().zip(b).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
-}
-
-fn max_diff_mat(a: faer::MatRef<'_, f64>, b: faer::MatRef<'_, f64>) -> f64 {
-    assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()));
-    (0..a.nrows())
-        .flat_map(|i| (0..a.ncols()).map(move |j| (i, j)))
-        .fold(0.0_f64, |m, (i, j)| m.max((a[(i, j)] - b[(i, j)]).abs()))
-}
-
-fn space_of(model: &Arc<Model>) -> Arc<MultibodyPhaseSpace> {
-    Arc::new(MultibodyPhaseSpace::new(model.clone()))
-}
-
-fn random_state(space: &MultibodyPhaseSpace, rng: &mut SmallRng) -> Vec<f64> {
-    let mut x = vec![0.0; space.nx()];
-    space.random(rng, &mut x);
-    x
-}
-
-fn random_vec(rng: &mut SmallRng, n: usize, scale: f64) -> Vec<f64> {
-    (0..n).map(|_| scale * rng.random_range(-1.0..1.0)).collect()
 }
 
 fn random_motion(rng: &mut SmallRng, scale: f64) -> Motion {

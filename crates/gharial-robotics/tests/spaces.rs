@@ -3,38 +3,14 @@
 
 mod common;
 
+use common::{matf, max_diff, max_diff_mat, vecf};
+
 use faer::Mat;
 use gharial::functions::check::{CheckOptions, DualCheckOptions, check_manifold, check_manifold_dual};
 use gharial::spaces::{Arg, Manifold};
 use gharial_robotics::{MultibodyConfiguration, MultibodyPhaseSpace};
 use rand::SeedableRng;
 use rand::rngs::SmallRng;
-use serde_json::Value;
-
-fn vecf(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .expect("array")
-        .iter()
-        .map(|x| x.as_f64().expect("number"))
-        .collect()
-}
-
-fn matf(v: &Value) -> Mat<f64> {
-    let rows: Vec<Vec<f64>> = v.as_array().expect("rows").iter().map(vecf).collect();
-    Mat::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j])
-}
-
-fn max_diff(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter().zip(b).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
-}
-
-fn max_diff_mat(a: &Mat<f64>, b: &Mat<f64>) -> f64 {
-    assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()));
-    (0..a.nrows())
-        .flat_map(|i| (0..a.ncols()).map(move |j| (i, j)))
-        .fold(0.0_f64, |m, (i, j)| m.max((a[(i, j)] - b[(i, j)]).abs()))
-}
 
 /// A quaternion and its negative are the same rotation: compare representations up to
 /// that sign, joint by joint.
@@ -63,12 +39,12 @@ fn integrate_and_difference_equal_pinocchio() {
             assert!(err < TOL, "{fixture}: integrate off by {err:e}");
             space.jintegrate(&q, &v, Arg::First, j.as_mut());
             assert!(
-                max_diff_mat(&j, &matf(&it["d_dq"])) < TOL,
+                max_diff_mat(j.as_ref(), matf(&it["d_dq"]).as_ref()) < TOL,
                 "{fixture}: d integrate / dq"
             );
             space.jintegrate(&q, &v, Arg::Second, j.as_mut());
             assert!(
-                max_diff_mat(&j, &matf(&it["d_dv"])) < TOL,
+                max_diff_mat(j.as_ref(), matf(&it["d_dv"]).as_ref()) < TOL,
                 "{fixture}: d integrate / dv"
             );
 
@@ -79,12 +55,12 @@ fn integrate_and_difference_equal_pinocchio() {
             assert!(max_diff(&d, &vecf(&df["result"])) < TOL, "{fixture}: difference");
             space.jdifference(&q0, &q1, Arg::First, j.as_mut());
             assert!(
-                max_diff_mat(&j, &matf(&df["d_dq0"])) < TOL,
+                max_diff_mat(j.as_ref(), matf(&df["d_dq0"]).as_ref()) < TOL,
                 "{fixture}: d difference / dq0"
             );
             space.jdifference(&q0, &q1, Arg::Second, j.as_mut());
             assert!(
-                max_diff_mat(&j, &matf(&df["d_dq1"])) < TOL,
+                max_diff_mat(j.as_ref(), matf(&df["d_dq1"]).as_ref()) < TOL,
                 "{fixture}: d difference / dq1"
             );
             checked += 1;

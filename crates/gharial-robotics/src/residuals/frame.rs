@@ -39,6 +39,39 @@ fn joint_jacobians(model: &Model, data: &mut Data, q: &[f64], jx: MatMut<'_, f64
     ok_or_nan_mat(compute_joint_jacobians_reusing_placements(model, data, q), jx)
 }
 
+/// Writes `r = log6(...)` of a placement error (`error` gives `(oM, r)` from the
+/// placements in the data) into `data.value`.
+fn evaluate_log6(model: &Model, q: &[f64], data: &mut StageFunctionData, error: impl Fn(&Data) -> (Se3, Motion)) {
+    let w: &mut MultibodyWs = ws(&mut data.ws);
+    let out = slice_mut(&mut data.value);
+    if placements(model, &mut w.data, q, out) {
+        out.copy_from_slice(&error(&w.data).1.to_array());
+    }
+}
+
+/// The Jacobian `Jlog6(r) Ad(oM⁻¹) Σ sign_k J_k` of a placement error whose motion is
+/// the signed sum of the world Jacobian columns `columns` (`(dof, sign)`).
+fn log6_jacobian(
+    model: &Model,
+    q: &[f64],
+    data: &mut StageFunctionData,
+    error: impl Fn(&Data) -> (Se3, Motion),
+    columns: impl Iterator<Item = (usize, f64)>,
+) {
+    let w: &mut MultibodyWs = ws(&mut data.ws);
+    let mut jx = data.jx.as_mut();
+    if !joint_jacobians(model, &mut w.data, q, jx.rb_mut()) {
+        return;
+    }
+    let (o_m, xi) = error(&w.data);
+    let (jl, c) = jlog6_blocks(&xi);
+    jx.fill(0.0);
+    for (k, sign) in columns {
+        let m = o_m.act_inv_motion(&(*w.data.joint_jacobian_column(k) * sign));
+        put6(&mut jx, k, &jlog6_times(&jl, &c, &m));
+    }
+}
+
 /// `Jlog6 m` with `Jlog6 = [[Jl, C], [0, Jl]]` given by its blocks.
 #[inline]
 fn jlog6_times(jl: &Mat3, c: &Mat3, m: &Motion) -> Motion {
@@ -103,26 +136,12 @@ impl UnaryFunction for FramePlacementResidual {
     unary_sizes!(6);
 
     fn evaluate(&self, x: &[f64], data: &mut StageFunctionData) {
-        let w: &mut MultibodyWs = ws(&mut data.ws);
-        let out = slice_mut(&mut data.value);
-        if placements(&self.model, &mut w.data, self.layout.q(x), out) {
-            out.copy_from_slice(&self.error(&w.data).1.to_array());
-        }
+        evaluate_log6(&self.model, self.layout.q(x), data, |d| self.error(d));
     }
 
     fn jacobian(&self, x: &[f64], data: &mut StageFunctionData) {
-        let w: &mut MultibodyWs = ws(&mut data.ws);
-        let mut jx = data.jx.as_mut();
-        if !joint_jacobians(&self.model, &mut w.data, self.layout.q(x), jx.rb_mut()) {
-            return;
-        }
-        let (o_mf, xi) = self.error(&w.data);
-        let (jl, c) = jlog6_blocks(&xi);
-        jx.fill(0.0);
-        for &k in &self.frame.support {
-            let m = o_mf.act_inv_motion(w.data.joint_jacobian_column(k));
-            put6(&mut jx, k, &jlog6_times(&jl, &c, &m));
-        }
+        let columns = self.frame.support.iter().map(|&k| (k, 1.0));
+        log6_jacobian(&self.model, self.layout.q(x), data, |d| self.error(d), columns);
     }
 }
 
@@ -351,25 +370,11 @@ impl UnaryFunction for RelativePlacementResidual {
     unary_sizes!(6);
 
     fn evaluate(&self, x: &[f64], data: &mut StageFunctionData) {
-        let w: &mut MultibodyWs = ws(&mut data.ws);
-        let out = slice_mut(&mut data.value);
-        if placements(&self.model, &mut w.data, self.layout.q(x), out) {
-            out.copy_from_slice(&self.error(&w.data).1.to_array());
-        }
+        evaluate_log6(&self.model, self.layout.q(x), data, |d| self.error(d));
     }
 
     fn jacobian(&self, x: &[f64], data: &mut StageFunctionData) {
-        let w: &mut MultibodyWs = ws(&mut data.ws);
-        let mut jx = data.jx.as_mut();
-        if !joint_jacobians(&self.model, &mut w.data, self.layout.q(x), jx.rb_mut()) {
-            return;
-        }
-        let (o_mb, xi) = self.error(&w.data);
-        let (jl, c) = jlog6_blocks(&xi);
-        jx.fill(0.0);
-        for &(k, sign) in &self.columns {
-            let m = o_mb.act_inv_motion(&(*w.data.joint_jacobian_column(k) * sign));
-            put6(&mut jx, k, &jlog6_times(&jl, &c, &m));
-        }
+        let columns = self.columns.iter().copied();
+        log6_jacobian(&self.model, self.layout.q(x), data, |d| self.error(d), columns);
     }
 }

@@ -5,7 +5,12 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
+use faer::Mat;
+use gharial::spaces::Manifold;
 use gharial_multibody::{Model, RootJoint};
+use gharial_robotics::MultibodyPhaseSpace;
+use rand::Rng;
+use rand::rngs::SmallRng;
 use serde_json::Value;
 
 /// The fixtures of `gharial-multibody/tests/data/fixtures/pinocchio`.
@@ -58,4 +63,50 @@ pub fn ur5() -> Arc<Model> {
 /// The G1 humanoid with a free flyer.
 pub fn g1() -> Arc<Model> {
     robot("g1_29dof_rev_1_0.urdf", RootJoint::FreeFlyer)
+}
+
+/// A JSON array of numbers.
+pub fn vecf(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .expect("array")
+        .iter()
+        .map(|x| x.as_f64().expect("number"))
+        .collect()
+}
+
+/// A JSON array of rows.
+pub fn matf(v: &Value) -> Mat<f64> {
+    let rows: Vec<Vec<f64>> = v.as_array().expect("rows").iter().map(vecf).collect();
+    Mat::from_fn(rows.len(), rows[0].len(), |i, j| rows[i][j])
+}
+
+/// `max |a_i - b_i|`.
+pub fn max_diff(a: &[f64], b: &[f64]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    a.iter().zip(b).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()))
+}
+
+/// `max |a_ij - b_ij|`.
+pub fn max_diff_mat(a: faer::MatRef<'_, f64>, b: faer::MatRef<'_, f64>) -> f64 {
+    assert_eq!((a.nrows(), a.ncols()), (b.nrows(), b.ncols()));
+    (0..a.nrows())
+        .flat_map(|i| (0..a.ncols()).map(move |j| (i, j)))
+        .fold(0.0_f64, |m, (i, j)| m.max((a[(i, j)] - b[(i, j)]).abs()))
+}
+
+/// The phase space of `model`.
+pub fn space_of(model: &Arc<Model>) -> Arc<MultibodyPhaseSpace> {
+    Arc::new(MultibodyPhaseSpace::new(model.clone()))
+}
+
+/// A random state `(q, v)` (configuration within the limits, `|v_i| ≤ 1`).
+pub fn random_state(space: &MultibodyPhaseSpace, rng: &mut SmallRng) -> Vec<f64> {
+    let mut x = vec![0.0; space.nx()];
+    space.random(rng, &mut x);
+    x
+}
+
+/// `n` numbers uniform in `[-scale, scale]`.
+pub fn random_vec(rng: &mut SmallRng, n: usize, scale: f64) -> Vec<f64> {
+    (0..n).map(|_| scale * rng.random_range(-1.0..1.0)).collect()
 }
