@@ -1,0 +1,96 @@
+//! ProxDDP's iterates on the whole catalogue, with each rollout, against the values
+//! recorded before the solver layer was reshaped: iteration counts exactly, final cost,
+//! residuals and the last state to 1e-10 relative (residuals with an absolute floor of
+//! 1e-14, below which they are round-off). Changes of behaviour update this table in
+//! their own commits.
+
+use Rollout::{Linear, Nonlinear};
+use gharial::solvers::InitialGuess;
+use gharial::solvers::proxddp::{ProxDdp, Rollout};
+
+/// `(problem, rollout, iterations, AL iterations, cost, primal residual, dual residual,
+/// first entry of x_N, Σ α + 1e-300 Σ |merit| over the history)`.
+type Row = (&'static str, Rollout, usize, usize, f64, f64, f64, f64, f64);
+
+#[rustfmt::skip]
+const RECORDED: &[Row] = &[
+("lqr", Linear, 1, 0, 0.005901787821350486, 5.776754075093038e-12, 2.518601646683827e-16, -0.0019196593856970479, 1.0),
+    ("lqr", Nonlinear, 1, 0, 0.005901787821350486, 5.776779011743005e-12, 1.708702623837155e-16, -0.0019196593856970474, 1.0),
+    ("lqr-bounds", Linear, 1, 0, 0.010472546000611682, 9.1048552586237e-9, 4.85722573273506e-16, -0.008591565547878738, 1.0),
+    ("lqr-bounds", Nonlinear, 1, 0, 0.010472546000611668, 9.1048552586237e-9, 9.298117831235686e-16, -0.008591565547878828, 1.0),
+    ("lqr-term", Linear, 1, 0, 0.005862819620316324, 5.190249202646768e-9, 1.9131893595411564e-10, 0.09999999760167294, 1.0),
+    ("lqr-term", Nonlinear, 1, 0, 0.005862819620316318, 5.1902491887689806e-9, 2.030716541104316e-10, 0.09999999760167294, 1.0),
+    ("lqr-bounds-term", Linear, 2, 0, 0.010382681259551638, 2.6644997513924906e-8, 2.482166815837017e-11, 0.09999999034779934, 2.0),
+    ("lqr-bounds-term", Nonlinear, 2, 0, 0.010382681259551638, 2.6644997541680482e-8, 3.0985408683292803e-11, 0.09999999034779934, 2.0),
+    ("clqr", Linear, 4, 1, 11.98794122208603, 1.41442815293491e-11, 1.7763568394002505e-15, 5.589150709777683e-5, 4.0),
+    ("clqr", Nonlinear, 4, 1, 11.987941222086024, 1.4144226019308093e-11, 4.440892098500626e-15, 5.589150709777686e-5, 4.0),
+    ("pendulum", Linear, 6, 5, 0.9555363997972999, 2.6945255567967837e-7, 5.319974167306007e-7, 0.9999999999999877, 6.0),
+    ("pendulum", Nonlinear, 6, 5, 0.955536327307163, 2.4296026980704603e-7, 5.536848404763539e-7, 0.9999999999999996, 6.0),
+    ("cartpole", Linear, 186, 1, 0.05116776123355111, 2.827695897433813e-7, 4.551269619235132e-7, -0.0007520233152975765, 108.31913285815716),
+    ("cartpole", Nonlinear, 242, 1, 0.0511677577192875, 2.8654921047088777e-7, 7.458671795551814e-7, -0.0007570325666226063, 129.14212638800882),
+    ("acrobot", Linear, 300, 0, 0.2803485380477417, 0.01620443435702157, 0.001419058018820453, 0.999999999972056, 36.8359375),
+    ("acrobot", Nonlinear, 71, 2, 0.00580538815682677, 2.1313065207587828e-8, 2.788447518837188e-7, 0.9999999999999998, 41.09375),
+    ("acrobot-bounds", Linear, 600, 1, 0.010979347085128056, 0.03315237311110844, 0.04026629714248385, 0.9999827549733237, 24.581308391318732),
+    ("acrobot-bounds", Nonlinear, 118, 5, 0.005782328668146197, 6.130082395665838e-8, 7.876855827523843e-7, 0.9999982233934995, 30.592594961206935),
+    ("se2-car", Linear, 3, 2, 0.02661329553688971, 3.7877702203741613e-10, 1.6357657080939836e-7, 0.5780809785699133, 3.0),
+    ("se2-car", Nonlinear, 3, 2, 0.026613295537172316, 3.788782938795107e-10, 1.6283822535517745e-7, 0.578080978182599, 3.0),
+    ("quadrotor", Linear, 45, 5, 3.2980271533312986, 1.7263641424042353e-7, 5.52245213003566e-7, 1.4078547890879116, 33.728271484375),
+    ("quadrotor", Nonlinear, 46, 5, 3.2980271500480587, 1.0527113831343415e-7, 6.393497614110011e-7, 1.40785494172018, 22.906761169433594),
+    ("quadrotor-slalom", Linear, 103, 6, 2.382424894783753, 1.5466924724316655e-7, 8.180744106023319e-7, -0.30000000018769474, 74.40174865722656),
+    ("quadrotor-slalom", Nonlinear, 91, 6, 2.382424655276093, 8.71464029494895e-7, 5.008490330804527e-7, -0.2999999965683361, 66.3017578125),
+    ("peers-lqr", Linear, 1, 0, 6.248574700900404, 5.4900797963330916e-8, 8.340550472496489e-15, 0.00030187179254115293, 1.0),
+    ("peers-lqr", Nonlinear, 1, 0, 6.248574700900407, 5.4900797963330916e-8, 8.052586375484339e-15, 0.000301871792541074, 1.0),
+    ("peers-lqr-box", Linear, 8, 1, 6.922115864410658, 7.783062467443537e-9, 1.7763568394002505e-15, 0.0002981072954270975, 8.0),
+    ("peers-lqr-box", Nonlinear, 8, 1, 6.922115864410658, 7.783062460497981e-9, 3.552713678800501e-15, 0.000298107295427097, 8.0),
+    ("peers-lqr-box-term", Linear, 8, 1, 6.922417051653011, 2.494016513034081e-7, 1.6880295989132876e-14, -1.2676113711177426e-8, 8.0),
+    ("peers-lqr-box-term", Nonlinear, 8, 1, 6.922417051653015, 2.4940165130288575e-7, 9.831024883055761e-14, -1.2676113709190941e-8, 8.0),
+    ("ur5", Linear, 6, 1, 0.3388661864869975, 1.823042576273859e-10, 3.583393538009183e-7, 0.7071698169979247, 6.0),
+    ("ur5", Nonlinear, 6, 1, 0.3388661864880976, 1.7298727814305782e-13, 3.1637732478273506e-7, 0.7071698026137072, 6.0),
+    ("ur5-box", Linear, 6, 0, 0.3549431584961732, 6.761242195787656e-9, 5.017356606018541e-7, 0.7067699295918504, 6.0),
+    ("ur5-box", Nonlinear, 6, 0, 0.3549431584958415, 6.761245147081868e-9, 4.55646950336952e-7, 0.7067699033534868, 6.0),
+    ("double-pendulum", Linear, 9, 2, 0.08429064136903787, 4.778211196154736e-7, 3.4341750543981364e-7, 0.0002909127997727273, 9.0),
+    ("double-pendulum", Nonlinear, 8, 2, 0.08429063747741312, 1.3970590906353664e-8, 7.291742210521757e-7, 0.0002909769674381603, 8.0),
+    ("double-pendulum-box", Linear, 83, 1, 0.0848427550043991, 2.1549718690061503e-8, 6.222462915067561e-8, 0.0002914723812813828, 25.655792236328125),
+    ("double-pendulum-box", Nonlinear, 39, 2, 0.08484275484666043, 4.850966739265825e-8, 1.2500907076856693e-7, 0.0002914646340173024, 14.962494671926834),
+    ("double-pendulum-box-term", Linear, 45, 4, 0.08484701177619045, 3.605473696022557e-7, 1.6065953640804348e-8, 3.605473696022556e-7, 22.80108642578125),
+    ("double-pendulum-box-term", Nonlinear, 15, 4, 0.08484701146679341, 3.7121009137966284e-7, 3.001199358476647e-9, 3.7121009137966284e-7, 12.9388427734375),
+];
+
+fn close(a: f64, b: f64, floor: f64) -> bool {
+    (a - b).abs() <= 1e-10 * b.abs() + floor
+}
+
+#[test]
+fn catalogue_iterates_equal_the_recorded_ones() {
+    for &(name, rollout, iters, al, cost, prim, dual, xn0, history) in RECORDED {
+        let ex = gharial_problems::build(name).unwrap();
+        let mut opts = ex.proxddp.clone();
+        opts.rollout = rollout;
+        let mut solver = ProxDdp::new(opts);
+        solver.setup(&ex.problem).unwrap();
+        let sol = solver
+            .solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0))
+            .unwrap();
+        let what = format!("{name} {rollout:?}");
+        assert_eq!((sol.iterations, sol.al_iterations), (iters, al), "{what}");
+        assert!(close(sol.cost, cost, 0.0), "{what}: cost {:e} vs {cost:e}", sol.cost);
+        assert!(
+            close(sol.prim_err, prim, 1e-14),
+            "{what}: prim {:e} vs {prim:e}",
+            sol.prim_err
+        );
+        assert!(
+            close(sol.dual_err, dual, 1e-14),
+            "{what}: dual {:e} vs {dual:e}",
+            sol.dual_err
+        );
+        let last = sol.xs[sol.xs.len() - 1][0];
+        assert!(close(last, xn0, 1e-14), "{what}: x_N[0] {last:e} vs {xn0:e}");
+        let h: f64 = sol
+            .history
+            .iter()
+            .map(|r| r.alpha + r.merit.abs().min(1e300) * 1e-300)
+            .sum();
+        assert!(close(h, history, 0.0), "{what}: history {h:e} vs {history:e}");
+    }
+}
