@@ -54,6 +54,36 @@ pub struct StageData {
     jdiff_phi: Mat<f64>,
     /// Scratch for the co-state mapped through `jdiff_phi`.
     lambda_phi: Vec<f64>,
+    /// Scratch of the next-state solve ([`StageData::solve_next_state`]).
+    next: NextStateScratch,
+}
+
+/// Settings of the Newton-Raphson solve of implicit dynamics for the next state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImplicitSolve {
+    /// Newton iterations at most.
+    pub max_iters: usize,
+    /// Converged when `|f(x, u, y) - s|_∞ <= tol (1 + |s|_∞)`.
+    pub tol: f64,
+}
+
+impl Default for ImplicitSolve {
+    fn default() -> Self {
+        Self {
+            max_iters: 20,
+            tol: 1e-12,
+        }
+    }
+}
+
+/// Buffers of [`StageData::solve_next_state`]: the negated shift, and for implicit
+/// dynamics the LU factorization of `df/dy`, the Newton step and the updated state.
+#[derive(Debug)]
+struct NextStateScratch {
+    shift: Vec<f64>,
+    lu: Option<crate::linalg::Lu>,
+    step: Vec<f64>,
+    ynew: Vec<f64>,
 }
 
 impl StageData {
@@ -87,7 +117,89 @@ impl StageData {
             constraint_jx_zero: vec![false; stage.constraints().len()],
             jdiff_phi: Mat::zeros(ndx2, ndx2),
             lambda_phi: vec![0.0; ndx2],
+            next: NextStateScratch {
+                shift: vec![0.0; ndx2],
+                lu: matches!(stage.dynamics, Dynamics::Implicit(_)).then(|| crate::linalg::Lu::new(ndx2, 1)),
+                step: vec![0.0; ndx2],
+                ynew: vec![0.0; sn.nx()],
+            },
         }
+    }
+
+    /// The next state of a rollout: `y` with `f(x, u, y) = s` (the shifted dynamics of
+    /// multiple-shooting steps; `s = None` for a plain rollout, `s = 0`). Explicit dynamics give
+    /// `y = φ(x, u) ⊕ (-s)` directly; implicit dynamics are solved by Newton-Raphson from
+    /// the `y` passed in. Returns `false` if the state is not finite or the Newton
+    /// iterations do not converge. This is the one solve of the dynamics for the next
+    /// state that every solver's rollout and [`ProblemData::rollout`] use.
+    pub fn solve_next_state(
+        &mut self,
+        stage: &StageModel,
+        x: &[f64],
+        u: &[f64],
+        s: Option<&[f64]>,
+        y: &mut [f64],
+        solve: ImplicitSolve,
+    ) -> bool {
+        let sn = stage.space_next();
+        let scratch = &mut self.next;
+        match s {
+            Some(s) => {
+                for (n, si) in scratch.shift.iter_mut().zip(s) {
+                    *n = -*si;
+                }
+            }
+            None => scratch.shift.fill(0.0),
+        }
+        match (&stage.dynamics, &mut self.dynamics) {
+            (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
+                m.forward(x, u, d);
+                if s.is_some() {
+                    // φ ⊖ y = s  ⇔  y = φ ⊕ (-s)
+                    sn.integrate(d.xnext(), &scratch.shift, y);
+                } else {
+                    y.copy_from_slice(d.xnext());
+                }
+            }
+            (Dynamics::Implicit(m), DynamicsData::Implicit(d)) => {
+                let lu = scratch.lu.as_mut().expect("LU allocated for implicit stages");
+                let mut converged = false;
+                for _ in 0..solve.max_iters {
+                    m.evaluate(x, u, y, d);
+                    let r = d.value_mut();
+                    let mut err: f64 = 0.0;
+                    for i in 0..r.len() {
+                        // r - s = r + shift
+                        r[i] += scratch.shift[i];
+                        err = err.max(r[i].abs());
+                    }
+                    if !err.is_finite() {
+                        return false;
+                    }
+                    if err <= solve.tol * (1.0 + crate::linalg::norm_inf(&scratch.shift)) {
+                        converged = true;
+                        break;
+                    }
+                    m.jacobians(x, u, y, d);
+                    if lu.factor(d.jy.as_ref()).is_err() {
+                        return false;
+                    }
+                    let step = &mut scratch.step;
+                    step.copy_from_slice(d.value());
+                    lu.solve_in_place(crate::linalg::as_mat_mut(step));
+                    for si in step.iter_mut() {
+                        *si = -*si;
+                    }
+                    sn.integrate(y, step, &mut scratch.ynew);
+                    y.copy_from_slice(&scratch.ynew);
+                }
+                if !converged {
+                    return false;
+                }
+            }
+            _ => unreachable!("stage data created for another dynamics kind"),
+        }
+        y.iter().all(|v| v.is_finite())
     }
 
     /// `f(x, u, y)` as a slice.
@@ -475,27 +587,26 @@ impl ProblemData {
         }
     }
 
-    /// Rolls explicit dynamics out from `xs[0]` under the controls `us`, writing
-    /// `xs[1..]` (an initial guess that is dynamically feasible).
+    /// Rolls the dynamics out from `xs[0]` under the controls `us`, writing `xs[1..]` (an
+    /// initial guess that is dynamically feasible). Implicit dynamics are solved by
+    /// Newton-Raphson from the states passed in (or the neutral point where those are
+    /// not valid).
     ///
     /// # Errors
-    /// If a stage has implicit dynamics or a state becomes non-finite.
+    /// If a state becomes non-finite or an implicit solve does not converge.
     pub fn rollout(&mut self, problem: &Problem, xs: &mut [Vec<f64>], us: &[Vec<f64>]) -> Result<()> {
         for (t, stage) in problem.stages().iter().enumerate() {
-            let sd = &mut self.stages[t];
-            match (&stage.dynamics, &mut sd.dynamics) {
-                (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
-                    m.forward(&xs[t], &us[t], d);
-                    if !d.xnext().iter().all(|v| v.is_finite()) {
-                        return Err(Error::non_finite(format!("rollout: state x[{}]", t + 1)));
-                    }
-                    xs[t + 1].copy_from_slice(d.xnext());
-                }
-                _ => {
-                    return Err(Error::InvalidModel(format!(
-                        "rollout: stage {t} has implicit dynamics; provide a state guess instead"
-                    )));
-                }
+            let (done, rest) = xs.split_at_mut(t + 1);
+            let y = &mut rest[0];
+            if !stage.space_next().is_valid(y) {
+                // An implicit solve starts from the state guess; any valid point will do.
+                stage.space_next().neutral(y);
+            }
+            if !self.stages[t].solve_next_state(stage, &done[t], &us[t], None, y, ImplicitSolve::default()) {
+                return Err(Error::non_finite(format!(
+                    "rollout: state x[{}] (non-finite, or the implicit dynamics of stage {t} did not converge)",
+                    t + 1
+                )));
             }
         }
         Ok(())

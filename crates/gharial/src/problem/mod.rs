@@ -14,7 +14,7 @@
 mod data;
 mod kkt;
 
-pub use data::{DynamicsData, ProblemData, StageData};
+pub use data::{DynamicsData, ImplicitSolve, ProblemData, StageData};
 pub use kkt::{KktResiduals, kkt_residuals};
 
 use std::sync::Arc;

@@ -550,3 +550,34 @@ fn set_x0_rejects_what_new_rejects_and_keeps_the_old_state() {
     p.set_x0(&[0.0, 1.0]).unwrap();
     assert_eq!(p.x0(), Some(&[0.0, 1.0][..]));
 }
+
+#[test]
+fn rollout_solves_implicit_dynamics() {
+    use crate::dynamics::{ImplicitEuler, LinearOde};
+    // ẋ = A x + B u, implicit Euler: x⁺ = (I - dt A)⁻¹ (x + dt B u).
+    let a = faer::Mat::from_fn(2, 2, |i, j| [[0.0, 1.0], [-2.0, -0.3]][i][j]);
+    let b = faer::Mat::from_fn(2, 1, |i, _| if i == 1 { 1.0 } else { 0.0 });
+    let ode = Arc::new(LinearOde::new(a.as_ref(), b.as_ref(), &[0.0, 0.0]).unwrap());
+    let dt = 0.1;
+    let dynamics = Dynamics::Implicit(Arc::new(ImplicitEuler::new(ode, dt).unwrap()));
+    let stage = StageModel::new(Arc::new(Quad { nu: 1 }), dynamics).unwrap();
+    let p = Problem::new(&[1.0, 0.0], vec![stage; 5], Arc::new(Quad { nu: 0 })).unwrap();
+    let us: Vec<Vec<f64>> = (0..5).map(|t| vec![0.1 * t as f64]).collect();
+    let mut xs = vec![vec![1.0, 0.0]; 6];
+    ProblemData::new(&p, 1).unwrap().rollout(&p, &mut xs, &us).unwrap();
+    let mut x = [1.0, 0.0];
+    for t in 0..5 {
+        // (I - dt A) x⁺ = x + dt B u, solved by Cramer's rule.
+        let m = [[1.0, -dt], [2.0 * dt, 1.0 + 0.3 * dt]];
+        let r = [x[0], x[1] + dt * us[t][0]];
+        let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+        x = [
+            (r[0] * m[1][1] - m[0][1] * r[1]) / det,
+            (m[0][0] * r[1] - m[1][0] * r[0]) / det,
+        ];
+        assert!(
+            (xs[t + 1][0] - x[0]).abs() < 1e-12 && (xs[t + 1][1] - x[1]).abs() < 1e-12,
+            "t = {t}"
+        );
+    }
+}

@@ -8,9 +8,9 @@ use faer::{Accum, Mat};
 use super::options::{HessianApprox, Merit, ProxDdpOptions, Rollout};
 use crate::dynamics::Dynamics;
 use crate::error::Result;
-use crate::linalg::{Lu, matvec, matvec_t, norm_inf, slice, slice_mut};
+use crate::linalg::{matvec, matvec_t, norm_inf, slice, slice_mut};
 use crate::lq::{LqKnot, LqProblem, LqSolution, RiccatiOptions, RiccatiSolver};
-use crate::problem::{DynamicsData, Problem, ProblemData};
+use crate::problem::{DynamicsData, ImplicitSolve, Problem, ProblemData};
 use crate::solvers::InitialGuess;
 
 /// The active-set prediction stops when the step solves the piecewise-linear constraint
@@ -116,8 +116,6 @@ pub(super) struct Workspace {
     cost_slope: f64,
     cost_curv: f64,
     tbuf: Vec<Vec<f64>>,
-    /// Implicit-dynamics Newton solves of the nonlinear rollout, per stage.
-    implicit_lu: Vec<Option<Lu>>,
     /// Smallest constraint scale of the problem (1 without constraints): the smallest
     /// constraint penalty of the Newton system is `min_scale * mu`.
     min_scale: f64,
@@ -159,14 +157,6 @@ impl Workspace {
             },
         )?;
         let step = LqSolution::new(&lq);
-        let implicit_lu = problem
-            .stages()
-            .iter()
-            .map(|s| match &s.dynamics {
-                Dynamics::Implicit(d) => Some(Lu::new(d.space_next().ndx(), 1)),
-                Dynamics::Explicit(_) => None,
-            })
-            .collect();
         let min_scale = (0..=n)
             .flat_map(|t| problem.constraints(t).iter().map(|c| c.scale))
             .fold(1.0_f64, f64::min);
@@ -197,7 +187,6 @@ impl Workspace {
             cost_slope: 0.0,
             cost_curv: 0.0,
             tbuf: vecs(&ndxs),
-            implicit_lu,
             min_scale,
             knot_constants: false,
             lq,
@@ -1111,65 +1100,21 @@ impl Workspace {
                 s[i] = mu_d * (self.trial.lams[t + 1][i] - self.lams_e[t + 1][i]) + (1.0 - alpha) * g[i];
             }
             let stage_model = &problem.stages()[t];
-            let sd = &mut self.data.stages[t];
             let (xs_lo, xs_hi) = self.trial.xs.split_at_mut(t + 1);
             let (x, y) = (&xs_lo[t], &mut xs_hi[0]);
-            let u = &self.trial.us[t];
-            match (&stage_model.dynamics, &mut sd.dynamics) {
-                (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
-                    m.forward(x, u, d);
-                    // φ ⊖ y = s  ⇔  y = φ ⊕ (-s)
-                    for si in s.iter_mut() {
-                        *si = -*si;
-                    }
-                    stage_model.space_next().integrate(d.xnext(), s, y);
+            if matches!(stage_model.dynamics, Dynamics::Implicit(_)) {
+                // Newton-Raphson on f(x, u, y) - s = 0 from y = x_{t+1} ⊕ α δx_{t+1}.
+                let v = &mut self.dxbuf[t + 1];
+                for (vi, st) in v.iter_mut().zip(slice(&self.step.xs[t + 1])) {
+                    *vi = alpha * st;
                 }
-                (Dynamics::Implicit(m), DynamicsData::Implicit(d)) => {
-                    // Newton-Raphson on f(x, u, y) - s = 0 from y = x_{t+1} ⊕ α δx_{t+1}.
-                    let sn = stage_model.space_next();
-                    let v = &mut self.dxbuf[t + 1];
-                    for (vi, st) in v.iter_mut().zip(slice(&self.step.xs[t + 1])) {
-                        *vi = alpha * st;
-                    }
-                    sn.integrate(&self.cur.xs[t + 1], v, y);
-                    let lu = self.implicit_lu[t].as_mut().expect("LU allocated for implicit stages");
-                    let mut ok = false;
-                    for _ in 0..opts.implicit_newton_iters {
-                        m.evaluate(x, u, y, d);
-                        let r = d.value_mut();
-                        let mut err: f64 = 0.0;
-                        for i in 0..r.len() {
-                            r[i] -= s[i];
-                            err = err.max(r[i].abs());
-                        }
-                        if !err.is_finite() {
-                            return false;
-                        }
-                        if err <= opts.implicit_newton_tol * (1.0 + norm_inf(s)) {
-                            ok = true;
-                            break;
-                        }
-                        m.jacobians(x, u, y, d);
-                        if lu.factor(d.jy.as_ref()).is_err() {
-                            return false;
-                        }
-                        let step = &mut self.gx[t + 1];
-                        step.copy_from_slice(d.value());
-                        lu.solve_in_place(crate::linalg::as_mat_mut(step));
-                        for si in step.iter_mut() {
-                            *si = -*si;
-                        }
-                        let ynew = &mut self.ybuf[t + 1];
-                        sn.integrate(y, step, ynew);
-                        y.copy_from_slice(ynew);
-                    }
-                    if !ok {
-                        return false;
-                    }
-                }
-                _ => unreachable!("stage data created for another dynamics kind"),
+                stage_model.space_next().integrate(&self.cur.xs[t + 1], v, y);
             }
-            if !self.trial.xs[t + 1].iter().all(|v| v.is_finite()) {
+            let solve = ImplicitSolve {
+                max_iters: opts.implicit_newton_iters,
+                tol: opts.implicit_newton_tol,
+            };
+            if !self.data.stages[t].solve_next_state(stage_model, x, &self.trial.us[t], Some(s), y, solve) {
                 return false;
             }
         }
