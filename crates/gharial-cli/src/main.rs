@@ -225,7 +225,7 @@ fn solve_help() -> String {
         "Columns of the iteration table:\n{}\n\nThe settings line marks values that are not the library's defaults: \
          [problem] for the problem's recommended settings, [option] for the command line.\n\n\
          Exit code: 0 converged, 1 stopped for another reason (the status says which), 2 invalid input.",
-        gharial::solvers::IterationRecord::LEGEND
+        gharial::solvers::proxddp::TABLE.legend()
     )
 }
 

@@ -82,7 +82,9 @@ pub fn options(example: &Example, args: &SolveArgs) -> ProxDdpOptions {
     if let Some(v) = args.threads {
         o.num_threads = v;
     }
-    o.verbose = args.verbose;
+    if args.verbose {
+        o.log = gharial::solvers::log::LogSink::Stderr;
+    }
     o
 }
 
@@ -131,7 +133,7 @@ pub fn run(args: &SolveArgs) -> i32 {
             return 2;
         }
     };
-    if !opts.verbose {
+    if !args.verbose {
         print_table(&sol.history);
     }
     print_summary(sol);
@@ -201,9 +203,10 @@ fn settings_line(recommended: &ProxDdpOptions, args: &SolveArgs, o: &ProxDdpOpti
 
 /// The iteration table (the columns of DESIGN.md; `gharial solve --help` explains them).
 pub fn print_table(history: &[IterationRecord]) {
-    out!("{}", IterationRecord::table_header());
+    let table = gharial::solvers::proxddp::TABLE;
+    out!("{}", table.header());
     for r in history {
-        out!("{r}");
+        out!("{}", table.row(r));
     }
 }
 

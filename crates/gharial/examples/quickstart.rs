@@ -65,7 +65,7 @@ fn main() -> Result<()> {
     let xs0 = vec![vec![1.0, -0.5, 0.0, 0.0]; horizon + 1];
     let us0 = vec![vec![0.0; 2]; horizon];
     let mut solver = ProxDdp::new(ProxDdpOptions {
-        verbose: true,
+        log: gharial::solvers::log::LogSink::Stderr,
         ..Default::default()
     });
     solver.setup(&problem)?;

@@ -8,6 +8,7 @@
 
 pub mod filter;
 pub mod linesearch;
+pub mod log;
 pub mod proxddp;
 
 use std::fmt;
@@ -93,73 +94,6 @@ pub struct IterationRecord {
     pub al_iter: usize,
     /// Augmented-Lagrangian penalty parameter.
     pub mu: f64,
-}
-
-impl IterationRecord {
-    /// What the columns of the iteration table mean, one line per column.
-    pub const LEGEND: &'static str = "\
-iter        Newton steps taken before this row
-alpha       accepted step length (1: the full Newton step)
-inner_crit  criterion of the current subproblem (ProxDDP (19)); the outer loop updates
-            the multipliers or the penalty when it falls below its tolerance omega
-prim_err    primal residual: dynamics gaps and constraint violations (ProxDDP (53))
-dual_err    dual residual: gradient of the Lagrangian (ProxDDP (52))
-preg        primal regularisation added to the Newton system (0 when none was needed)
-cost        total cost at the start of the step
-dphi0       slope of the merit function along the step at alpha = 0 (negative: descent)
-merit       merit function after the step (ProxDDP (17), or (35) with the primal merit)
-dM          change of the merit function over the step
-al          augmented-Lagrangian (outer) iterations so far
-mu          augmented-Lagrangian penalty parameter";
-
-    /// The header line of the iteration table whose rows are the [`fmt::Display`] of
-    /// records.
-    pub fn table_header() -> impl fmt::Display {
-        struct Header;
-        impl fmt::Display for Header {
-            fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-                write!(
-                    f,
-                    "{:>5} {:>9} {:>10} {:>10} {:>10} {:>9} {:>13} {:>10} {:>13} {:>10} {:>4} {:>9}",
-                    "iter",
-                    "alpha",
-                    "inner_crit",
-                    "prim_err",
-                    "dual_err",
-                    "preg",
-                    "cost",
-                    "dphi0",
-                    "merit",
-                    "dM",
-                    "al",
-                    "mu"
-                )
-            }
-        }
-        Header
-    }
-}
-
-impl fmt::Display for IterationRecord {
-    /// One row of the iteration table.
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{:>5} {:>9.3e} {:>10.3e} {:>10.3e} {:>10.3e} {:>9.2e} {:>13.6e} {:>10.3e} {:>13.6e} {:>10.3e} {:>4} {:>9.2e}",
-            self.iter,
-            self.alpha,
-            self.inner_crit,
-            self.prim_err,
-            self.dual_err,
-            self.preg,
-            self.cost,
-            self.dphi0,
-            self.merit,
-            self.dmerit,
-            self.al_iter,
-            self.mu
-        )
-    }
 }
 
 /// The result of a solve: trajectory, multipliers, gains, status and history.

@@ -29,6 +29,7 @@ use crate::lq::LqError;
 use crate::problem::Problem;
 use crate::solvers::filter::Filter;
 use crate::solvers::linesearch::{LinesearchResult, Nonmonotone, armijo};
+use crate::solvers::log::{Column, Format, LogSink, Table};
 use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 
 /// Trials of the filter may be at most this factor more infeasible than the initial
@@ -40,6 +41,97 @@ const THETA_MAX_FACTOR: f64 = 1e4;
 /// hundred-thousand-fold smaller infeasibility, and a miss at round-off level (the
 /// nonlinear rollout's floor is about `eps |x| / mu`) would decrease `mu` needlessly.
 const MIN_ETA_FACTOR: f64 = 1e-2;
+
+/// ProxDDP's iteration table.
+pub const TABLE: Table = Table(COLUMNS);
+
+/// The columns of ProxDDP's iteration table.
+const COLUMNS: &[Column] = &[
+    Column {
+        name: "iter",
+        width: 5,
+        format: Format::Count,
+        value: |r| r.iter as f64,
+        meaning: "Newton steps taken before this row",
+    },
+    Column {
+        name: "alpha",
+        width: 9,
+        format: Format::Sci(3),
+        value: |r| r.alpha,
+        meaning: "accepted step length (1: the full Newton step)",
+    },
+    Column {
+        name: "inner_crit",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.inner_crit,
+        meaning: "criterion of the current subproblem (19); the outer loop updates the multipliers or the penalty when it falls below its tolerance omega",
+    },
+    Column {
+        name: "prim_err",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.prim_err,
+        meaning: "primal residual: dynamics gaps and constraint violations (53)",
+    },
+    Column {
+        name: "dual_err",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.dual_err,
+        meaning: "dual residual: gradient of the Lagrangian (52)",
+    },
+    Column {
+        name: "preg",
+        width: 9,
+        format: Format::Sci(2),
+        value: |r| r.preg,
+        meaning: "primal regularisation added to the Newton system (0 when none was needed)",
+    },
+    Column {
+        name: "cost",
+        width: 13,
+        format: Format::Sci(6),
+        value: |r| r.cost,
+        meaning: "total cost at the start of the step",
+    },
+    Column {
+        name: "dphi0",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.dphi0,
+        meaning: "slope of the merit function along the step at alpha = 0 (negative: descent)",
+    },
+    Column {
+        name: "merit",
+        width: 13,
+        format: Format::Sci(6),
+        value: |r| r.merit,
+        meaning: "merit function after the step ((17), or (35) with the primal merit)",
+    },
+    Column {
+        name: "dM",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.dmerit,
+        meaning: "change of the merit function over the step",
+    },
+    Column {
+        name: "al",
+        width: 4,
+        format: Format::Count,
+        value: |r| r.al_iter as f64,
+        meaning: "augmented-Lagrangian (outer) iterations so far",
+    },
+    Column {
+        name: "mu",
+        width: 9,
+        format: Format::Sci(2),
+        value: |r| r.mu,
+        meaning: "augmented-Lagrangian penalty parameter",
+    },
+];
 
 /// The ProxDDP solver.
 ///
@@ -183,8 +275,8 @@ impl ProxDdp {
         let mut stall_updates = 0;
         let mut stall_err = f64::INFINITY;
         sol.history.clear();
-        if opts.verbose {
-            eprintln!("{}", IterationRecord::table_header());
+        if opts.log.is_active() {
+            opts.log.line(format_args!("{}", TABLE.header()));
         }
 
         let mut cost = match ws.evaluate_current(problem) {
@@ -235,8 +327,8 @@ impl ProxDdp {
                 // Outer update of Algorithm 2 (lines 9-24).
                 al_iter += 1;
                 let success = res.prim <= eta;
-                if opts.verbose {
-                    eprintln!(
+                if opts.log.is_active() {
+                    opts.log.line(format_args!(
                         "  outer {al_iter}: prim_err {:.3e} {} eta {eta:.3e} -> {}",
                         res.prim,
                         if success { "<=" } else { ">" },
@@ -245,7 +337,7 @@ impl ProxDdp {
                         } else {
                             "mu decreased"
                         }
-                    );
+                    ));
                 }
                 if success {
                     ws.accept_multipliers();
@@ -442,7 +534,7 @@ impl ProxDdp {
                 // Restore the data of the current point, then retry with a larger primal
                 // regularisation (a step closer to steepest descent), up to its bound.
                 ws.evaluate_current(problem);
-                push_record(sol, record, opts.verbose);
+                push_record(sol, record, &opts.log);
                 preg = (preg * opts.preg_increase).max(opts.preg_min);
                 if preg > opts.preg_max {
                     status = Status::LinesearchFailure;
@@ -460,7 +552,7 @@ impl ProxDdp {
             if preg < opts.preg_min {
                 preg = 0.0;
             }
-            push_record(sol, record, opts.verbose);
+            push_record(sol, record, &opts.log);
             if let Some(cb) = callback.as_mut()
                 && !cb.on_iteration(&record)
             {
@@ -592,11 +684,11 @@ impl Watchdog {
     }
 }
 
-fn push_record(sol: &mut Solution, record: IterationRecord, verbose: bool) {
+fn push_record(sol: &mut Solution, record: IterationRecord, log: &LogSink) {
     if sol.history.len() < sol.history.capacity() {
         sol.history.push(record);
     }
-    if verbose {
-        eprintln!("{record}");
+    if log.is_active() {
+        log.line(format_args!("{}", TABLE.row(&record)));
     }
 }

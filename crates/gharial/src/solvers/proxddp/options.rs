@@ -144,8 +144,9 @@ pub struct ProxDdpOptions {
     pub max_time: Option<Duration>,
     /// Threads for stage-wise evaluation (default 1).
     pub num_threads: usize,
-    /// Print the iteration table to standard error (default false).
-    pub verbose: bool,
+    /// Where the iteration table and the outer-loop updates are written (default:
+    /// nowhere).
+    pub log: crate::solvers::log::LogSink,
 }
 
 /// The largest [`ProxDdpOptions::active_set_iters`]: each iteration is an LQ solve, and
@@ -185,7 +186,7 @@ impl Default for ProxDdpOptions {
             active_set_iters: 0,
             max_time: None,
             num_threads: 1,
-            verbose: false,
+            log: crate::solvers::log::LogSink::Silent,
         }
     }
 }
