@@ -168,14 +168,14 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(table.header().to_string(), " iter       cost");
-        assert_eq!(table.row(&record).to_string(), "    3    1.23e3");
+        assert_eq!(table.row(&record).to_string(), "    3     1.23e3");
         assert!(table.legend().contains("cost  the cost"));
         let buffer = Arc::new(Mutex::new(Vec::<u8>::new()));
         let sink = LogSink::Writer(buffer.clone());
         sink.line(format_args!("{}", table.row(&record)));
         assert_eq!(
             String::from_utf8(buffer.lock().unwrap().clone()).unwrap(),
-            "    3    1.23e3\n"
+            "    3     1.23e3\n"
         );
         let seen = Arc::new(Mutex::new(String::new()));
         let s2 = seen.clone();
