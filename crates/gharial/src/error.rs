@@ -8,6 +8,7 @@ use std::fmt;
 
 /// Errors raised when a model, a problem, an option or a linear system is invalid.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum Error {
     /// A vector or matrix does not have the size the model expects.
     #[error("dimension mismatch in {what}: expected {expected}, got {got}")]

@@ -652,7 +652,7 @@ fn time_budget_and_callbacks_stop_the_solve_with_a_usable_iterate() {
         .unwrap();
     assert_eq!(sol.iterations, 2);
     assert_eq!(sol.history.len(), 2);
-    assert_eq!(sol.status, Status::MaxIterations);
+    assert_eq!(sol.status, Status::Interrupted);
     // The stopped iterate warm-starts a full solve.
     let warm = sol.clone();
     let sol = solver.solve(&p, InitialGuess::from_solution(&warm)).unwrap();

@@ -19,8 +19,9 @@ use faer::{Col, Mat};
 use crate::error::{Result, check_dim, check_finite};
 use crate::problem::Problem;
 
-/// How a solver stopped.
+/// How a solver stopped (more variants may come with new solvers).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
 pub enum Status {
     /// Not solved yet.
     #[default]
@@ -42,6 +43,8 @@ pub enum Status {
     /// Newton steps no longer reduce the residuals: they are at the round-off floor of
     /// the arithmetic (for ProxDDP, about `ε |x| / mu`), above the requested tolerance.
     Stalled,
+    /// A callback asked the solver to stop; the last accepted iterate is returned.
+    Interrupted,
 }
 
 impl Status {
@@ -62,6 +65,7 @@ impl fmt::Display for Status {
             Status::RegularizationFailure => "regularization failure",
             Status::TimeBudget => "time budget exhausted",
             Status::Stalled => "stalled at round-off level",
+            Status::Interrupted => "stopped by a callback",
         };
         f.write_str(s)
     }
@@ -247,4 +251,37 @@ impl<'a> InitialGuess<'a> {
 pub trait Callback {
     /// Receives the record of the iteration just finished.
     fn on_iteration(&mut self, record: &IterationRecord) -> bool;
+}
+
+/// What every solver offers, so that the command-line tool, the benchmarks, the
+/// catalogue and receding-horizon control can pick one by name and drive it the same way.
+pub trait Solver: Send {
+    /// The solver's name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`).
+    fn name(&self) -> &'static str;
+
+    /// Validates the options and allocates every buffer for `problem`'s dimensions.
+    ///
+    /// # Errors
+    /// If an option is out of range or the solver cannot solve this kind of problem.
+    fn setup(&mut self, problem: &Problem) -> Result<()>;
+
+    /// Solves `problem` from `guess` (without allocating), calling `callback` after every
+    /// iteration; a callback returning `false` stops the solve with
+    /// [`Status::Interrupted`].
+    ///
+    /// # Errors
+    /// If `setup` was not called for a problem of these dimensions, or the guess has a
+    /// wrong size or a non-finite value.
+    fn solve_with(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        callback: Option<&mut dyn Callback>,
+    ) -> Result<&Solution>;
+
+    /// The solution of the last solve.
+    fn solution(&self) -> &Solution;
+
+    /// The solver's iteration table (the columns of [`Solution::history`] it fills).
+    fn table(&self) -> log::Table;
 }

@@ -558,7 +558,7 @@ impl ProxDdp {
             {
                 cost = ws.evaluate_current(problem).unwrap_or(f64::NAN);
                 res = ws.estimates_and_residuals(problem, mu, mu_d);
-                status = Status::MaxIterations;
+                status = Status::Interrupted;
                 break;
             }
             match ws.derivatives_at_accepted(problem) {
@@ -602,6 +602,29 @@ impl ProxDdp {
         sol.mu = mu;
         sol.solve_time = start.elapsed();
         Ok(&self.solution)
+    }
+}
+
+impl crate::solvers::Solver for ProxDdp {
+    fn name(&self) -> &'static str {
+        "proxddp"
+    }
+    fn setup(&mut self, problem: &Problem) -> Result<()> {
+        ProxDdp::setup(self, problem)
+    }
+    fn solve_with(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        callback: Option<&mut dyn Callback>,
+    ) -> Result<&Solution> {
+        self.run(problem, guess, callback)
+    }
+    fn solution(&self) -> &Solution {
+        &self.solution
+    }
+    fn table(&self) -> Table {
+        TABLE
     }
 }
 
