@@ -70,4 +70,13 @@ pub trait ConstraintSet: Send + Sync + Debug {
     /// Violation of `z ∈ C` in the infinity norm: `|z - proj_C(z)|_∞` for indicator
     /// sets (0 for penalties, which are never violated).
     fn violation(&self, z: &[f64]) -> f64;
+
+    /// For a set that is a box `lower ≤ z ≤ upper` (a box, the negative orthant, `{0}`),
+    /// writes its bounds (`z.len()` entries each, infinite where unbounded) and returns
+    /// `true`; other sets return `false` (the default). Solvers that treat bounds
+    /// directly, such as box-DDP, recognise them this way.
+    fn box_bounds(&self, lower: &mut [f64], upper: &mut [f64]) -> bool {
+        let _ = (lower, upper);
+        false
+    }
 }

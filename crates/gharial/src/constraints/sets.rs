@@ -52,6 +52,11 @@ impl ConstraintSet for EqualityConstraintSet {
     fn violation(&self, z: &[f64]) -> f64 {
         crate::linalg::norm_inf(z)
     }
+    fn box_bounds(&self, lower: &mut [f64], upper: &mut [f64]) -> bool {
+        lower.fill(0.0);
+        upper.fill(0.0);
+        true
+    }
 }
 
 /// The negative orthant `{z : z ≤ 0}`: `h(x, u) ≤ 0`.
@@ -62,6 +67,11 @@ impl ConstraintSet for EqualityConstraintSet {
 pub struct NegativeOrthant;
 
 impl ConstraintSet for NegativeOrthant {
+    fn box_bounds(&self, lower: &mut [f64], upper: &mut [f64]) -> bool {
+        lower.fill(f64::NEG_INFINITY);
+        upper.fill(0.0);
+        true
+    }
     fn penalty(&self, z: &[f64]) -> f64 {
         if z.iter().all(|&v| v <= 0.0) {
             0.0
@@ -186,6 +196,13 @@ impl BoxConstraint {
 impl ConstraintSet for BoxConstraint {
     fn dim(&self) -> Option<usize> {
         Some(self.lower.len())
+    }
+    fn box_bounds(&self, lower: &mut [f64], upper: &mut [f64]) -> bool {
+        for ((l, u), (lo, hi)) in lower.iter_mut().zip(upper.iter_mut()).zip(self.lower.iter().zip(self.upper.iter())) {
+            *l = lo;
+            *u = hi;
+        }
+        true
     }
     fn penalty(&self, z: &[f64]) -> f64 {
         let inside = self.with_bounds(z).all(|(l, u, v)| l <= v && v <= u);

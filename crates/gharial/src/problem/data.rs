@@ -202,6 +202,39 @@ impl StageData {
         y.iter().all(|v| v.is_finite())
     }
 
+    /// One stage of a rollout that also evaluates the stage: the next state `y` as in
+    /// [`StageData::solve_next_state`], then cost, dynamics residual and constraint values
+    /// at `(x, u, y)`, as [`ProblemData::evaluate`] writes them, with explicit dynamics
+    /// evaluated once. Returns `false` as `solve_next_state` does; finish the evaluation
+    /// of the trajectory with [`ProblemData::evaluate_terminal`].
+    pub fn rollout_and_evaluate(
+        &mut self,
+        stage: &StageModel,
+        x: &[f64],
+        u: &[f64],
+        s: Option<&[f64]>,
+        y: &mut [f64],
+        solve: ImplicitSolve,
+    ) -> bool {
+        if !self.solve_next_state(stage, x, u, s, y, solve) {
+            return false;
+        }
+        match (&stage.dynamics, &self.dynamics) {
+            (Dynamics::Explicit(_), DynamicsData::Explicit(d)) => {
+                // φ(x, u) is in the data already: only the residual f = φ ⊖ y is left.
+                stage.space_next().difference(y, d.xnext(), slice_mut(&mut self.dyn_value));
+                stage.cost.evaluate(x, u, &mut self.cost);
+                for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
+                    c.func.evaluate(x, u, cd);
+                }
+            }
+            _ => {
+                self.evaluate(stage, x, u, y);
+            }
+        }
+        true
+    }
+
     /// `f(x, u, y)` as a slice.
     pub fn dyn_value(&self) -> &[f64] {
         slice(&self.dyn_value)
@@ -437,7 +470,14 @@ impl ProblemData {
         self.for_each_stage(|t, sd| {
             sd.evaluate(&stages[t], &xs[t], &us[t], &xs[t + 1]);
         });
-        let n = stages.len();
+        self.evaluate_terminal(problem, xs)
+    }
+
+    /// The part of [`ProblemData::evaluate`] after the stages: terminal cost and
+    /// constraints, the initial residual and the total cost (returned), for solvers whose
+    /// rollouts evaluate the stages one by one ([`StageData::rollout_and_evaluate`]).
+    pub fn evaluate_terminal(&mut self, problem: &Problem, xs: &[Vec<f64>]) -> f64 {
+        let n = problem.horizon();
         problem.terminal_cost().evaluate(&xs[n], &[], &mut self.terminal_cost);
         for (c, cd) in problem
             .terminal_constraints()

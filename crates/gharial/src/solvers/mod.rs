@@ -6,10 +6,13 @@
 //! returns a [`Solution`] whose [`Status`] says how it stopped. The last accepted iterate
 //! is always kept, so a solution can warm-start the next solve.
 
+pub mod boxqp;
+pub mod ddp;
 pub mod filter;
 pub mod linesearch;
 pub mod log;
 pub mod proxddp;
+pub(crate) mod skeleton;
 
 use std::fmt;
 use std::time::Duration;
@@ -18,6 +21,19 @@ use faer::{Col, Mat};
 
 use crate::error::{Result, check_dim, check_finite};
 use crate::problem::Problem;
+
+/// Which Hessian of the Lagrangian builds the Newton (or DDP) system.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum HessianApprox {
+    /// Cost Hessians only (Gauss-Newton; iLQR for the DDP family).
+    #[default]
+    GaussNewton,
+    /// Cost Hessians plus the multiplier-weighted second derivatives (ProxDDP (37d-37i))
+    /// of the dynamics and constraints that provide vector-Hessian products; for the DDP
+    /// family the dynamics' second derivatives weighted by the value gradient (classical
+    /// DDP).
+    Exact,
+}
 
 /// How a solver stopped (more variants may come with new solvers).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -40,8 +56,9 @@ pub enum Status {
     RegularizationFailure,
     /// The wall-time budget was exhausted; the best iterate so far is returned.
     TimeBudget,
-    /// Newton steps no longer reduce the residuals: they are at the round-off floor of
-    /// the arithmetic (for ProxDDP, about `ε |x| / mu`), above the requested tolerance.
+    /// Steps no longer make progress: for ProxDDP the residuals are at the round-off
+    /// floor of the arithmetic (about `ε |x| / mu`), above the requested tolerance; for
+    /// the DDP family only heavily regularised (short) steps decrease the cost.
     Stalled,
     /// A callback asked the solver to stop; the last accepted iterate is returned.
     Interrupted,
@@ -64,7 +81,7 @@ impl fmt::Display for Status {
             Status::NonFinite => "non-finite values",
             Status::RegularizationFailure => "regularization failure",
             Status::TimeBudget => "time budget exhausted",
-            Status::Stalled => "stalled at round-off level",
+            Status::Stalled => "stalled",
             Status::Interrupted => "stopped by a callback",
         };
         f.write_str(s)
@@ -98,6 +115,13 @@ pub struct IterationRecord {
     pub al_iter: usize,
     /// Augmented-Lagrangian penalty parameter.
     pub mu: f64,
+    /// DDP family: `|Δ₁ + ½Δ₂|`, the expected cost decrease of the full step (the
+    /// stopping criterion).
+    pub stop: f64,
+    /// DDP family: expected cost decrease of the accepted step, `α(Δ₁ + ½αΔ₂)`.
+    pub expected_decrease: f64,
+    /// DDP family: actual cost decrease of the accepted step.
+    pub decrease: f64,
 }
 
 /// The result of a solve: trajectory, multipliers, gains, status and history.

@@ -24,12 +24,13 @@ use std::time::Instant;
 
 use workspace::{Residuals, Workspace};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::lq::LqError;
 use crate::problem::Problem;
 use crate::solvers::filter::Filter;
 use crate::solvers::linesearch::{LinesearchResult, Nonmonotone, armijo};
-use crate::solvers::log::{Column, Format, LogSink, Table};
+use crate::solvers::log::{Column, Format, Table};
+use crate::solvers::skeleton::{Signature, push_record, write_gains};
 use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 
 /// Trials of the filter may be at most this factor more infeasible than the initial
@@ -145,7 +146,7 @@ pub struct ProxDdp {
     pub options: ProxDdpOptions,
     ws: Option<Box<Workspace>>,
     solution: Solution,
-    signature: Vec<(usize, usize, usize, usize)>,
+    signature: Signature,
     filter: Filter,
 }
 
@@ -157,24 +158,6 @@ impl std::fmt::Debug for ProxDdp {
     }
 }
 
-/// Dimensions `(nx, ndx, nu, nc)` of every knot, then `(nc0, 0, 0, 0)`, to check that
-/// `solve` gets a problem of the dimensions `setup` was made for.
-fn knot_signature(problem: &Problem) -> impl Iterator<Item = (usize, usize, usize, usize)> + '_ {
-    let n = problem.horizon();
-    (0..=n + 1).map(move |t| {
-        if t < n {
-            let st = &problem.stages()[t];
-            (st.space().nx(), st.space().ndx(), st.nu(), st.nc())
-        } else if t == n {
-            let sp = problem.space(n);
-            let ncn = problem.terminal_constraints().iter().map(|c| c.nr()).sum();
-            (sp.nx(), sp.ndx(), 0, ncn)
-        } else {
-            (problem.nc0(), 0, 0, 0)
-        }
-    })
-}
-
 impl ProxDdp {
     /// A solver with the given options (nothing allocated until `setup`).
     pub fn new(options: ProxDdpOptions) -> Self {
@@ -182,7 +165,7 @@ impl ProxDdp {
             options,
             ws: None,
             solution: Solution::default(),
-            signature: Vec::new(),
+            signature: Signature::default(),
             filter: Filter::new(1, 1e-5, 1e-5),
         }
     }
@@ -195,7 +178,7 @@ impl ProxDdp {
         self.options.validate()?;
         self.ws = Some(Box::new(Workspace::new(problem, &self.options)?));
         self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
-        self.signature = knot_signature(problem).collect();
+        self.signature = Signature::of(problem);
         self.filter = Filter::new(self.options.max_iters.saturating_add(1), 1e-5, 1e-5);
         Ok(())
     }
@@ -234,14 +217,7 @@ impl ProxDdp {
         guess: InitialGuess<'_>,
         mut callback: Option<&mut dyn Callback>,
     ) -> Result<&Solution> {
-        if self.ws.is_none() {
-            return Err(Error::InvalidModel("ProxDdp::solve called before setup".into()));
-        }
-        if !knot_signature(problem).eq(self.signature.iter().copied()) {
-            return Err(Error::InvalidModel(
-                "ProxDdp::solve: the problem's dimensions differ from those given to setup".into(),
-            ));
-        }
+        self.signature.check(problem, "ProxDdp")?;
         guess.check(problem)?;
         let opts = &self.options;
         let ws = self.ws.as_mut().expect("checked above");
@@ -529,12 +505,13 @@ impl ProxDdp {
                 dmerit: ls.phi - phi0,
                 al_iter,
                 mu,
+                ..Default::default()
             };
             if !ls.accepted {
                 // Restore the data of the current point, then retry with a larger primal
                 // regularisation (a step closer to steepest descent), up to its bound.
                 ws.evaluate_current(problem);
-                push_record(sol, record, &opts.log);
+                push_record(sol, record, &opts.log, &TABLE);
                 preg = (preg * opts.preg_increase).max(opts.preg_min);
                 if preg > opts.preg_max {
                     status = Status::LinesearchFailure;
@@ -552,7 +529,7 @@ impl ProxDdp {
             if preg < opts.preg_min {
                 preg = 0.0;
             }
-            push_record(sol, record, &opts.log);
+            push_record(sol, record, &opts.log, &TABLE);
             if let Some(cb) = callback.as_mut()
                 && !cb.on_iteration(&record)
             {
@@ -588,11 +565,7 @@ impl ProxDdp {
         for (a, b) in sol.nus.iter_mut().zip(&ws.cur.nus) {
             a.copy_from_slice(b);
         }
-        for t in 0..problem.horizon() {
-            let st = ws.riccati.stage(t);
-            crate::linalg::slice_mut(&mut sol.feedforward[t]).copy_from_slice(st.k());
-            sol.feedback[t].copy_from(st.K());
-        }
+        write_gains(sol, ws.riccati.stages());
         sol.status = status;
         sol.iterations = iter;
         sol.al_iterations = al_iter;
@@ -704,14 +677,5 @@ impl Watchdog {
         self.phase = None;
         self.shortened = 0;
         self.trigger = self.trigger.saturating_mul(2);
-    }
-}
-
-fn push_record(sol: &mut Solution, record: IterationRecord, log: &LogSink) {
-    if sol.history.len() < sol.history.capacity() {
-        sol.history.push(record);
-    }
-    if log.is_active() {
-        log.line(format_args!("{}", TABLE.row(&record)));
     }
 }

@@ -41,16 +41,7 @@ pub enum Merit {
     Primal,
 }
 
-/// Which Hessian of the Lagrangian builds the Newton system.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum HessianApprox {
-    /// Cost Hessians only (Gauss-Newton).
-    #[default]
-    GaussNewton,
-    /// Cost Hessians plus the multiplier-weighted second derivatives (37d-37i) of the
-    /// dynamics and constraints that provide vector-Hessian products.
-    Exact,
-}
+pub use crate::solvers::HessianApprox;
 
 /// Options of [`super::ProxDdp`].
 #[derive(Debug, Clone)]

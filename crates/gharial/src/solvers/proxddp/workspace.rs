@@ -3,15 +3,16 @@
 //! allocated in [`Workspace::new`]; no method allocates.
 
 use faer::prelude::ReborrowMut;
-use faer::{Accum, Mat};
+use faer::Accum;
 
 use super::options::{HessianApprox, Merit, ProxDdpOptions, Rollout};
 use crate::dynamics::Dynamics;
 use crate::error::Result;
 use crate::linalg::{matvec, matvec_t, norm_inf, slice, slice_mut};
-use crate::lq::{LqKnot, LqProblem, LqSolution, RiccatiOptions, RiccatiSolver};
+use crate::lq::{LqProblem, LqSolution, RiccatiOptions, RiccatiSolver};
 use crate::problem::{DynamicsData, ImplicitSolve, Problem, ProblemData};
 use crate::solvers::InitialGuess;
+use crate::solvers::skeleton::copy_stage_model;
 
 /// The active-set prediction stops when the step solves the piecewise-linear constraint
 /// rows of its subproblem to this fraction of the change `J δz` it makes in the
@@ -137,18 +138,8 @@ impl Workspace {
             .map(|t| problem.constraints(t).iter().map(|c| c.nr()).sum())
             .collect();
         let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
-        let mut knots = Vec::with_capacity(n + 1);
-        for t in 0..=n {
-            let nx_next = if t < n { ndxs[t + 1] } else { 0 };
-            knots.push(LqKnot::new(ndxs[t], problem.nu(t), ncs[t], nx_next));
-        }
         let nc0 = problem.nc0();
-        let lq = LqProblem {
-            knots,
-            G0: Mat::zeros(nc0, ndxs[0]),
-            g0: faer::Col::zeros(nc0),
-            mu0: 0.0,
-        };
+        let lq = crate::solvers::skeleton::lq_for(problem, true);
         let riccati = RiccatiSolver::with_options(
             &lq,
             RiccatiOptions {
@@ -398,20 +389,13 @@ impl Workspace {
             if t < n {
                 let sd = &self.data.stages[t];
                 let stage = &problem.stages()[t];
-                if !(keep_hessian && stage.cost.hessian_is_constant()) {
-                    crate::linalg::copy(knot.Q.as_mut(), sd.cost.lxx.as_ref());
-                    crate::linalg::copy(knot.S.as_mut(), sd.cost.lxu.as_ref());
-                    crate::linalg::copy(knot.R.as_mut(), sd.cost.luu.as_ref());
-                }
+                copy_stage_model(
+                    knot,
+                    sd,
+                    !(keep_hessian && stage.cost.hessian_is_constant()),
+                    !(keep && stage.dynamics.jacobians_are_constant()),
+                );
                 slice_mut(&mut knot.r).copy_from_slice(&self.gu[t]);
-                if !(keep && stage.dynamics.jacobians_are_constant()) {
-                    crate::linalg::copy(knot.A.as_mut(), sd.dyn_jx.as_ref());
-                    crate::linalg::copy(knot.B.as_mut(), sd.dyn_ju.as_ref());
-                    // The knot was made with E = -I, which nothing else writes.
-                    if !sd.dyn_jy_is_minus_identity {
-                        crate::linalg::copy(knot.E.as_mut(), sd.dyn_jy.as_ref());
-                    }
-                }
                 for i in 0..knot.nx_next {
                     knot.f[i] = mu_d * (self.lams_p[t + 1][i] - self.cur.lams[t + 1][i]);
                 }

@@ -1,0 +1,425 @@
+//! The DDP family on gharial's problems: DDP / iLQR, FDDP, box-DDP and box-FDDP, as
+//! crocoddyl implements them (`SolverDDP`, `SolverFDDP`, `SolverBoxDDP`,
+//! `SolverBoxFDDP`), on the shared LQ kernels.
+//!
+//! Each iteration is a backward pass, a line search on the step length and a
+//! regularisation update:
+//! - *Backward pass*: the LQ subproblem of the current point (cost Hessians, dynamics
+//!   Jacobians, and the gaps while they are open) solved by the Riccati recursion of
+//!   [`crate::lq`] with the Levenberg-Marquardt regularisation `ρ` added to `Q_uu` and to
+//!   the value Hessians `V_xx` (crocoddyl's `preg`). A `Q_uu` that is not positive
+//!   definite raises `ρ` tenfold and repeats the pass. Box variants replace the stage
+//!   solve of bounded stages by the projected-Newton box QP ([`crate::solvers::boxqp`]):
+//!   `k` its solution, `K = -H_ff⁻¹ Q_fx` on the free controls (Tassa et al. 2014).
+//! - *Expected improvement* of the step `α`: `ΔV_exp = α(Δ₁ + ½αΔ₂)` with
+//!   `Δ₁ = -Σ Q_uᵀk`, `Δ₂ = -Σ kᵀ(Q_uu + ρ)k` for DDP; FDDP adds the gap terms of
+//!   Mastalli et al. (2020), (19)-(20): `Δ₁ += -Σ V_xᵀ fs + Δ_v`, `Δ₂ += Σ fsᵀV_xx fs - 2Δ_v`,
+//!   `V_x = p + P fs`, `Δ_v = Σ fsᵀ P (x̃ ⊖ x)` of the trial.
+//! - *Line search*: `α = 1, 1/2, ..., 2⁻⁹`; the trial rolls the dynamics out with
+//!   `ũ = u + αk + K(x̃ ⊖ x)` (clamped into the bounds for the box variants), FDDP keeping
+//!   the part `1 - α` of the gaps while they are open. It is accepted if
+//!   `ΔV_exp ≥ 0` and `ΔV > 0.1 ΔV_exp` (or `|Δ₁| < 1e-12`, or, for DDP, while the guess
+//!   is infeasible), or for FDDP if `ΔV_exp < 0` and `ΔV > 2 ΔV_exp`.
+//! - *Regularisation*: divided by 10 after a step longer than 1/2, multiplied by 10 after
+//!   one of at most 1/100 or none; reaching its upper bound stops the solve.
+//!
+//! The solve has converged when the gaps are closed and the expected decrease of the
+//! full step `|Δ₁ + ½Δ₂|` is below `tol² N` (crocoddyl's `th_stop`); it is checked after the
+//! backward pass, before a step is taken, so a converged solve reports one iteration fewer
+//! than crocoddyl, which checks after the step it takes with that direction.
+//!
+//! DDP and FDDP refuse problems with constraints; the box variants accept bounds on the
+//! controls only ([`bounds`]), anything else is refused with an error naming the
+//! constraint. All need a fixed initial state.
+
+mod bounds;
+mod options;
+mod workspace;
+
+pub use options::{DdpOptions, DdpVariant};
+
+use std::time::Instant;
+
+use workspace::{Expected, Workspace};
+
+use crate::error::Result;
+use crate::lq::LqError;
+use crate::problem::Problem;
+use crate::solvers::log::{Column, Format, Table};
+use crate::solvers::skeleton::{Signature, push_record, write_gains};
+use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
+
+/// The DDP family's iteration table.
+pub const TABLE: Table = Table(COLUMNS);
+
+const COLUMNS: &[Column] = &[
+    Column {
+        name: "iter",
+        width: 5,
+        format: Format::Count,
+        value: |r| r.iter as f64,
+        meaning: "iterations before this row",
+    },
+    Column {
+        name: "alpha",
+        width: 9,
+        format: Format::Sci(3),
+        value: |r| r.alpha,
+        meaning: "step length (the last one tried when no step was accepted)",
+    },
+    Column {
+        name: "cost",
+        width: 13,
+        format: Format::Sci(6),
+        value: |r| r.cost,
+        meaning: "total cost at the start of the step",
+    },
+    Column {
+        name: "stop",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.stop,
+        meaning: "|D1 + D2/2|: expected cost decrease of the full step (converged below tol^2 N with closed gaps)",
+    },
+    Column {
+        name: "dV_exp",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.expected_decrease,
+        meaning: "expected cost decrease of the step, alpha (D1 + alpha D2 / 2)",
+    },
+    Column {
+        name: "dV",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.decrease,
+        meaning: "actual cost decrease of the step",
+    },
+    Column {
+        name: "gaps",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.prim_err,
+        meaning: "largest dynamics gap (infinity norm) at the start of the step",
+    },
+    Column {
+        name: "|Q_u|",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.dual_err,
+        meaning: "largest control gradient of the Q-function (clamped controls left out)",
+    },
+    Column {
+        name: "reg",
+        width: 9,
+        format: Format::Sci(2),
+        value: |r| r.preg,
+        meaning: "Levenberg-Marquardt regularisation of Q_uu and V_xx",
+    },
+];
+
+/// DDP / iLQR, FDDP, box-DDP or box-FDDP ([`DdpOptions::variant`]).
+///
+/// ```text
+/// let mut solver = Ddp::new(DdpOptions::new(DdpVariant::Fddp));
+/// solver.setup(&problem)?;                                   // allocates
+/// let sol = solver.solve(&problem, InitialGuess::primal(&xs, &us))?;  // does not
+/// ```
+pub struct Ddp {
+    /// Options; changes take effect at the next `setup`.
+    pub options: DdpOptions,
+    ws: Option<Box<Workspace>>,
+    solution: Solution,
+    signature: Signature,
+}
+
+impl std::fmt::Debug for Ddp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Ddp").field("options", &self.options).finish_non_exhaustive()
+    }
+}
+
+/// The outcome of a line search.
+#[derive(Debug, Clone, Copy)]
+struct Step {
+    /// Accepted step length, or the last one tried.
+    alpha: f64,
+    /// Cost of the accepted trial.
+    cost: Option<f64>,
+    expected: f64,
+    decrease: f64,
+}
+
+/// Residuals and stopping criterion after a backward pass.
+#[derive(Debug, Clone, Copy, Default)]
+struct Measures {
+    gaps: f64,
+    dual: f64,
+    stop: f64,
+}
+
+impl Ddp {
+    /// A solver with the given options (nothing allocated until `setup`).
+    pub fn new(options: DdpOptions) -> Self {
+        Self {
+            options,
+            ws: None,
+            solution: Solution::default(),
+            signature: Signature::default(),
+        }
+    }
+
+    /// Validates the options, checks that the problem is one this variant solves, and
+    /// allocates every buffer for its dimensions.
+    ///
+    /// # Errors
+    /// If an option is out of range, or the problem has constraints the variant does not
+    /// handle (any for DDP and FDDP, anything but control bounds for the box variants) or
+    /// no fixed initial state.
+    pub fn setup(&mut self, problem: &Problem) -> Result<()> {
+        self.options.validate()?;
+        self.signature = Signature::default();
+        self.ws = Some(Box::new(Workspace::new(problem, &self.options)?));
+        self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
+        self.signature = Signature::of(problem);
+        Ok(())
+    }
+
+    /// The solution of the last solve.
+    pub fn solution(&self) -> &Solution {
+        &self.solution
+    }
+
+    /// Solves `problem` from `guess` (states need not satisfy the dynamics: FDDP keeps
+    /// the gaps and closes them, DDP rolls out from `x_0`).
+    ///
+    /// # Errors
+    /// If `setup` was not called for a problem of these dimensions, the guess has a wrong
+    /// size or a non-finite value, or the control bounds of a stage are empty.
+    /// Algorithmic outcomes are reported in [`Solution::status`].
+    pub fn solve(&mut self, problem: &Problem, guess: InitialGuess<'_>) -> Result<&Solution> {
+        self.run(problem, guess, None)
+    }
+
+    /// As [`Ddp::solve`], calling `callback` after every iteration.
+    ///
+    /// # Errors
+    /// As [`Ddp::solve`].
+    pub fn solve_with_callback(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        callback: &mut dyn Callback,
+    ) -> Result<&Solution> {
+        self.run(problem, guess, Some(callback))
+    }
+
+    fn run(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        mut callback: Option<&mut dyn Callback>,
+    ) -> Result<&Solution> {
+        let name = self.options.variant.name();
+        self.signature.check(problem, name)?;
+        guess.check(problem)?;
+        let start = Instant::now();
+        let opts = &self.options;
+        let ws = self.ws.as_mut().expect("checked by the signature");
+        let sol = &mut self.solution;
+        sol.history.clear();
+        if opts.log.is_active() {
+            opts.log.line(format_args!("{}", TABLE.header()));
+        }
+        let th_stop = opts.th_stop.unwrap_or(opts.tol * opts.tol * problem.horizon().max(1) as f64);
+        let mut reg = opts.reg_init;
+        let mut iter = 0;
+        let mut m = Measures::default();
+        let mut rebuild = true;
+        // `MaxIterations` while running: what the solve reports if no other stop applies.
+        let mut status = if ws.load_guess(problem, guess.xs, guess.us, opts.gap_tol)? {
+            Status::MaxIterations
+        } else {
+            Status::NonFinite
+        };
+        while status == Status::MaxIterations {
+            let e = match backward(ws, problem, opts, &mut reg, rebuild) {
+                Ok(e) => e,
+                Err(s) => {
+                    status = s;
+                    break;
+                }
+            };
+            let (e, dual) = e;
+            m = Measures {
+                gaps: ws.max_gap(),
+                dual,
+                stop: (e.dg + 0.5 * e.dq).abs(),
+            };
+            if ws.feasible && m.stop < th_stop {
+                status = if reg <= opts.reg_converged {
+                    Status::Converged
+                } else {
+                    Status::Stalled
+                };
+                break;
+            }
+            if opts.max_time.is_some_and(|b| start.elapsed() >= b) {
+                status = Status::TimeBudget;
+                break;
+            }
+            if iter >= opts.max_iters {
+                break;
+            }
+            let cost = ws.cost;
+            let step = line_search(ws, problem, e, opts);
+            let record = IterationRecord {
+                iter,
+                alpha: step.alpha,
+                prim_err: m.gaps,
+                dual_err: m.dual,
+                preg: reg,
+                cost,
+                stop: m.stop,
+                expected_decrease: step.expected,
+                decrease: step.decrease,
+                ..Default::default()
+            };
+            push_record(sol, record, &opts.log, &TABLE);
+            iter += 1;
+            rebuild = step.cost.is_some();
+            if let Some(c) = step.cost
+                && !ws.accept(problem, c, step.alpha)
+            {
+                status = Status::NonFinite;
+                break;
+            }
+            if !update_reg(&mut reg, &step, opts) {
+                status = Status::RegularizationFailure;
+                break;
+            }
+            if let Some(cb) = callback.as_mut()
+                && !cb.on_iteration(&record)
+            {
+                status = Status::Interrupted;
+                break;
+            }
+        }
+        write_solution(sol, ws, status, iter, m);
+        sol.solve_time = start.elapsed();
+        Ok(&self.solution)
+    }
+}
+
+/// The backward pass at the current point (knots rebuilt after a step, else only the
+/// regularisation changed), raising the regularisation until it succeeds; then the
+/// expected improvement and the dual residual.
+fn backward(
+    ws: &mut Workspace,
+    problem: &Problem,
+    opts: &DdpOptions,
+    reg: &mut f64,
+    rebuild: bool,
+) -> std::result::Result<(Expected, f64), Status> {
+    if rebuild {
+        ws.build_lq(problem, *reg);
+    }
+    loop {
+        ws.set_reg(*reg);
+        match ws.backward(*reg, &opts.box_qp) {
+            Ok(()) => return Ok(ws.expected(*reg)),
+            Err(LqError::NonFinite { .. }) => return Err(Status::NonFinite),
+            Err(_) => {
+                *reg = (*reg * opts.reg_increase).min(opts.reg_max);
+                if *reg >= opts.reg_max {
+                    return Err(Status::RegularizationFailure);
+                }
+            }
+        }
+    }
+}
+
+/// Backtracking on the step length with crocoddyl's acceptance rules (module docs).
+fn line_search(ws: &mut Workspace, problem: &Problem, e: Expected, opts: &DdpOptions) -> Step {
+    let multiple_shooting = opts.variant.multiple_shooting();
+    let mut step = Step {
+        alpha: 1.0,
+        cost: None,
+        expected: 0.0,
+        decrease: 0.0,
+    };
+    for i in 0..opts.linesearch_steps {
+        step.alpha = 0.5_f64.powi(i as i32);
+        let Some(c) = ws.trial(problem, step.alpha, opts) else {
+            continue;
+        };
+        let (d1, d2) = ws.model(e);
+        let a = step.alpha;
+        step.expected = a * (d1 + 0.5 * a * d2);
+        step.decrease = ws.cost - c;
+        let accept = if step.expected >= 0.0 {
+            d1.abs() < opts.th_grad
+                || (!ws.feasible && !multiple_shooting)
+                || step.decrease > opts.th_accept * step.expected
+        } else {
+            multiple_shooting && step.decrease > opts.th_accept_neg * step.expected
+        };
+        if accept {
+            step.cost = Some(c);
+            return step;
+        }
+    }
+    step
+}
+
+/// Levenberg-Marquardt update after a line search; `false` when the regularisation
+/// reaches its upper bound.
+fn update_reg(reg: &mut f64, step: &Step, opts: &DdpOptions) -> bool {
+    if step.cost.is_some() && step.alpha > opts.step_decrease_reg {
+        *reg = (*reg / opts.reg_decrease).max(opts.reg_min);
+    }
+    if step.cost.is_none() || step.alpha <= opts.step_increase_reg {
+        *reg = (*reg * opts.reg_increase).min(opts.reg_max);
+        return *reg < opts.reg_max;
+    }
+    true
+}
+
+fn write_solution(sol: &mut Solution, ws: &mut Workspace, status: Status, iter: usize, m: Measures) {
+    crate::solvers::skeleton::copy_trajectory(&mut sol.xs, &ws.xs);
+    crate::solvers::skeleton::copy_trajectory(&mut sol.us, &ws.us);
+    if status != Status::NonFinite {
+        ws.multipliers(&mut sol.lambdas, &mut sol.nus);
+        write_gains(sol, ws.riccati.stages());
+    }
+    sol.status = status;
+    sol.iterations = iter;
+    sol.al_iterations = 0;
+    sol.prim_err = ws.max_gap();
+    sol.dual_err = m.dual;
+    sol.cost = ws.cost;
+    sol.mu = 0.0;
+}
+
+impl crate::solvers::Solver for Ddp {
+    fn name(&self) -> &'static str {
+        self.options.variant.name()
+    }
+    fn setup(&mut self, problem: &Problem) -> Result<()> {
+        Ddp::setup(self, problem)
+    }
+    fn solve_with(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        callback: Option<&mut dyn Callback>,
+    ) -> Result<&Solution> {
+        self.run(problem, guess, callback)
+    }
+    fn solution(&self) -> &Solution {
+        &self.solution
+    }
+    fn table(&self) -> Table {
+        TABLE
+    }
+}

@@ -1,0 +1,446 @@
+//! The DDP family's workspace: iterates, gaps, the LQ subproblem and its Riccati solver,
+//! the box QPs, and the per-iteration computations (backward pass, expected improvement,
+//! rollout). Everything is allocated in [`Workspace::new`]; no method allocates.
+
+use faer::{Accum, Mat};
+
+use super::bounds::ControlBounds;
+use super::options::{DdpOptions, DdpVariant};
+use crate::error::{Error, Result};
+use crate::linalg::{dot, matvec, norm_inf, slice, slice_mut};
+use crate::lq::{LqError, LqProblem, LqSolution, RiccatiSolver, RiccatiStage};
+use crate::problem::{InitialCondition, Problem, ProblemData};
+use crate::solvers::HessianApprox;
+use crate::solvers::boxqp::{BoxQp, BoxQpOptions};
+use crate::solvers::skeleton::{copy_stage_model, copy_trajectory, lq_for};
+
+/// The terms of the expected improvement of FDDP (Mastalli et al. 2020, (19)-(20)) that do
+/// not depend on the trial: `Δ_g` and `Δ_q` (crocoddyl's `dg`, `dq`).
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct Expected {
+    pub dg: f64,
+    pub dq: f64,
+}
+
+pub(super) struct Workspace {
+    variant: DdpVariant,
+    /// Current iterate.
+    pub xs: Vec<Vec<f64>>,
+    pub us: Vec<Vec<f64>>,
+    /// Trial iterate of the line search.
+    pub xs_try: Vec<Vec<f64>>,
+    pub us_try: Vec<Vec<f64>>,
+    /// Gaps `fs_t` in the tangent space at `x_t`: `fs_0 = x̂_0 ⊖ x_0`,
+    /// `fs_{t+1} = f_t(x_t, u_t, x_{t+1}) = φ(x_t, u_t) ⊖ x_{t+1}` (crocoddyl's `fs`).
+    fs: Vec<Vec<f64>>,
+    /// Whether the gaps are closed (and left out of the backward pass).
+    pub feasible: bool,
+    /// `P_t fs_t`.
+    pfs: Vec<Vec<f64>>,
+    /// `x̃_t ⊖ x_t` of the last trial.
+    dx: Vec<Vec<f64>>,
+    /// Kept part `(1 - α) fs_{t+1}` of the gaps in a multiple-shooting trial.
+    shift: Vec<Vec<f64>>,
+    x0: Vec<f64>,
+    /// Regularisation currently on the diagonals of the knots' `Q`.
+    knot_reg: f64,
+    pub lq: LqProblem,
+    pub riccati: RiccatiSolver,
+    /// Solution of the LQ subproblem (for the co-states of the solution).
+    pub lq_sol: LqSolution,
+    pub data: ProblemData,
+    pub bounds: Option<ControlBounds>,
+    qps: Vec<BoxQp>,
+    /// Whether the box QP gave the gains of stage `t` in the last backward pass.
+    qp_used: Vec<bool>,
+    /// Per stage: `Q_uu + ρI`, the QP solution `k`, the gain `K`, relative bounds.
+    hbuf: Vec<Mat<f64>>,
+    kbuf: Vec<Vec<f64>>,
+    gain_buf: Vec<Mat<f64>>,
+    dlb: Vec<Vec<f64>>,
+    dub: Vec<Vec<f64>>,
+    /// Scratch of control size.
+    wu: Vec<f64>,
+    pub cost: f64,
+    /// Whether a step was accepted in this solve.
+    stepped: bool,
+}
+
+impl Workspace {
+    pub fn new(problem: &Problem, opts: &DdpOptions) -> Result<Self> {
+        let variant = opts.variant;
+        let name = variant.name();
+        let InitialCondition::Fixed(x0) = problem.initial_condition() else {
+            return Err(Error::InvalidModel(format!(
+                "{name} needs a fixed initial state x_0 (the problem has a general initial constraint)"
+            )));
+        };
+        let bounds = if variant.control_bounds() {
+            Some(ControlBounds::new(problem, name)?)
+        } else {
+            let constrained = problem.stages().iter().position(|s| s.nc() > 0);
+            if let Some(t) = constrained {
+                return Err(Error::InvalidModel(format!(
+                    "{name} does not handle constraints: stage {t} has constraint `{}` (use box-ddp or \
+                     box-fddp for bounds on the controls, proxddp for general constraints)",
+                    problem.stages()[t].constraints()[0].name
+                )));
+            }
+            if let Some(c) = problem.terminal_constraints().first() {
+                return Err(Error::InvalidModel(format!(
+                    "{name} does not handle constraints: terminal constraint `{}` (use proxddp)",
+                    c.name
+                )));
+            }
+            None
+        };
+        if opts.hessian == HessianApprox::Exact {
+            return Err(Error::option(
+                "hessian",
+                format!("{name} implements the Gauss-Newton Hessian only"),
+            ));
+        }
+        let n = problem.horizon();
+        let s = crate::solvers::Solution::new(problem, 0);
+        let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
+        let vecs = |sizes: &[usize]| sizes.iter().map(|&k| vec![0.0; k]).collect::<Vec<_>>();
+        let nus: Vec<usize> = (0..n).map(|t| problem.nu(t)).collect();
+        let lq = lq_for(problem, false);
+        let riccati = RiccatiSolver::new(&lq)?;
+        let lq_sol = LqSolution::new(&lq);
+        Ok(Self {
+            variant,
+            xs_try: s.xs.clone(),
+            us_try: s.us.clone(),
+            xs: s.xs,
+            us: s.us,
+            fs: vecs(&ndxs),
+            feasible: false,
+            pfs: vecs(&ndxs),
+            dx: vecs(&ndxs),
+            shift: vecs(&ndxs[1..]),
+            x0: x0.clone(),
+            knot_reg: 0.0,
+            lq,
+            riccati,
+            lq_sol,
+            data: ProblemData::new(problem, opts.num_threads)?,
+            bounds,
+            qps: nus.iter().map(|&m| BoxQp::new(m)).collect(),
+            qp_used: vec![false; n],
+            hbuf: nus.iter().map(|&m| Mat::zeros(m, m)).collect(),
+            kbuf: vecs(&nus),
+            gain_buf: (0..n).map(|t| Mat::zeros(nus[t], ndxs[t])).collect(),
+            dlb: vecs(&nus),
+            dub: vecs(&nus),
+            wu: vec![0.0; nus.iter().copied().max().unwrap_or(0)],
+            cost: 0.0,
+            stepped: false,
+        })
+    }
+
+    /// Loads a guess, evaluates it with first derivatives and reads its gaps and control
+    /// bounds; returns `false` if a value is not finite.
+    ///
+    /// # Errors
+    /// If the control bounds of a stage are empty.
+    pub fn load_guess(&mut self, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>], gap_tol: f64) -> Result<bool> {
+        copy_trajectory(&mut self.xs, xs);
+        copy_trajectory(&mut self.us, us);
+        if let InitialCondition::Fixed(x0) = problem.initial_condition() {
+            // The initial state may have moved since setup (MPC).
+            self.x0.copy_from_slice(x0);
+        }
+        self.kbuf.iter_mut().for_each(|k| k.fill(0.0));
+        self.stepped = false;
+        self.data.invalidate_constant_derivatives();
+        self.cost = self.data.evaluate(problem, &self.xs, &self.us);
+        if !self.values_finite() {
+            return Ok(false);
+        }
+        if let Some(b) = &mut self.bounds {
+            b.refresh(problem, &self.data, &self.us)?;
+        }
+        self.data.compute_derivatives(problem, &self.xs, &self.us);
+        self.read_gaps(problem);
+        self.feasible = self.max_gap() <= gap_tol;
+        Ok(true)
+    }
+
+    /// Whether the cost, the dynamics residuals and the states are finite.
+    fn values_finite(&self) -> bool {
+        self.cost.is_finite()
+            && self.data.stages.iter().all(|s| s.dyn_value().iter().all(|v| v.is_finite()))
+            && self.data.init.value().iter().all(|v| v.is_finite())
+    }
+
+    /// The gaps of the current point from the data of its evaluation.
+    fn read_gaps(&mut self, problem: &Problem) {
+        problem.space(0).difference(&self.xs[0], &self.x0, &mut self.fs[0]);
+        for (f, sd) in self.fs[1..].iter_mut().zip(&self.data.stages) {
+            f.copy_from_slice(sd.dyn_value());
+        }
+    }
+
+    /// Largest gap (infinity norm) of the current point.
+    pub fn max_gap(&self) -> f64 {
+        self.fs.iter().map(|f| norm_inf(f)).fold(0.0, f64::max)
+    }
+
+    /// Fills the LQ knots at the current point: cost derivatives, dynamics Jacobians, the
+    /// gaps unless they are closed, and the regularisation `reg` on `Q` (`V_xx`).
+    pub fn build_lq(&mut self, problem: &Problem, reg: f64) {
+        let n = problem.horizon();
+        crate::linalg::copy(self.lq.G0.as_mut(), self.data.init.jx.as_ref());
+        let g0 = slice_mut(&mut self.lq.g0);
+        if self.feasible {
+            g0.fill(0.0);
+        } else {
+            g0.copy_from_slice(self.data.init.value());
+        }
+        for t in 0..=n {
+            let knot = &mut self.lq.knots[t];
+            if t < n {
+                let sd = &self.data.stages[t];
+                copy_stage_model(knot, sd, true, true);
+                slice_mut(&mut knot.q).copy_from_slice(sd.cost.lx());
+                slice_mut(&mut knot.r).copy_from_slice(sd.cost.lu());
+                let f = slice_mut(&mut knot.f);
+                if self.feasible {
+                    f.fill(0.0);
+                } else {
+                    f.copy_from_slice(sd.dyn_value());
+                }
+            } else {
+                crate::linalg::copy(knot.Q.as_mut(), self.data.terminal_cost.lxx.as_ref());
+                slice_mut(&mut knot.q).copy_from_slice(self.data.terminal_cost.lx());
+            }
+            for i in 0..knot.nx {
+                knot.Q[(i, i)] += reg;
+            }
+        }
+        self.knot_reg = reg;
+    }
+
+    /// Changes the regularisation on the knots' `Q` to `reg`.
+    pub fn set_reg(&mut self, reg: f64) {
+        let delta = reg - self.knot_reg;
+        for knot in &mut self.lq.knots {
+            for i in 0..knot.nx {
+                knot.Q[(i, i)] += delta;
+            }
+        }
+        self.knot_reg = reg;
+    }
+
+    /// Backward pass with the regularisation `reg` on `Q_uu`: the Riccati recursion, with
+    /// the box QP as the control law of the bounded stages once a step was taken and the
+    /// gaps are closed. The first step from a guess is the unconstrained one, clamped in
+    /// the rollout (crocoddyl's behaviour from a guess it is not told is feasible): from
+    /// far away, box-QP steps whose feedback the rollout clamps heavily are short.
+    pub fn backward(&mut self, reg: f64, qp_opts: &BoxQpOptions) -> std::result::Result<(), LqError> {
+        let use_qp = self.feasible && self.stepped && self.bounds.is_some();
+        if !use_qp {
+            self.qp_used.fill(false);
+            return self.riccati.backward(&self.lq, reg);
+        }
+        let bounds = self.bounds.as_ref().expect("checked above");
+        let (qps, qp_used, us) = (&mut self.qps, &mut self.qp_used, &self.us);
+        let (hbuf, kbuf, gain_buf) = (&mut self.hbuf, &mut self.kbuf, &mut self.gain_buf);
+        let (dlb, dub) = (&mut self.dlb, &mut self.dub);
+        let n = us.len();
+        self.riccati.backward_with(&self.lq, |knot, st, next| {
+            let t = st.index();
+            if t == n || !bounds.bounded(t) {
+                if t < n {
+                    qp_used[t] = false;
+                }
+                st.solve_kkt(knot, next.map(|p| p.0), reg)?;
+                return st.solve_kkt_vectors(knot, next);
+            }
+            qp_used[t] = true;
+            for j in 0..us[t].len() {
+                dlb[t][j] = bounds.lb[t][j] - us[t][j];
+                dub[t][j] = bounds.ub[t][j] - us[t][j];
+            }
+            box_law(st, &mut qps[t], &mut hbuf[t], &mut kbuf[t], &mut gain_buf[t], &dlb[t], &dub[t], reg, qp_opts)
+        })
+    }
+
+    /// `Δ_g`, `Δ_q` of the expected improvement from the last backward pass with
+    /// regularisation `reg`; with box QPs, the gradient `Q_u` of clamped controls is left
+    /// out (crocoddyl zeroes it). Also returns the dual residual `max_t |Q_u|_∞`.
+    pub fn expected(&mut self, reg: f64) -> (Expected, f64) {
+        let stages = self.riccati.stages();
+        let n = self.us.len();
+        let mut e = Expected::default();
+        let mut dual: f64 = 0.0;
+        for t in 0..n {
+            let st = &stages[t];
+            let (k, qu) = (st.k(), st.Q_u());
+            let w = &mut self.wu[..k.len()];
+            matvec(w, Accum::Replace, st.Q_uu(), k, 1.0);
+            e.dg -= dot(qu, k);
+            for j in 0..k.len() {
+                if !self.qp_used[t] || self.qps[t].is_free(j) {
+                    dual = dual.max(qu[j].abs());
+                }
+            }
+            e.dq -= dot(w, k) + reg * dot(k, k);
+        }
+        if !self.feasible {
+            for t in 0..=n {
+                let st = &stages[t];
+                matvec(&mut self.pfs[t], Accum::Replace, st.P(), &self.fs[t], 1.0);
+                let (fs, pfs) = (&self.fs[t], &self.pfs[t]);
+                if self.variant.multiple_shooting() {
+                    e.dg -= dot(st.p(), fs) + dot(pfs, fs);
+                    e.dq += dot(fs, pfs);
+                }
+            }
+        }
+        (e, dual)
+    }
+
+    /// `(Δ₁, Δ₂)` of the last trial: FDDP's `Δ₁ = Δ_g + Δ_v`, `Δ₂ = Δ_q - 2Δ_v` with
+    /// `Δ_v = Σ fs_tᵀ P_t (x̃_t ⊖ x_t)` while gaps are open, else `(Δ_g, Δ_q)`.
+    pub fn model(&self, e: Expected) -> (f64, f64) {
+        if self.feasible || !self.variant.multiple_shooting() {
+            return (e.dg, e.dq);
+        }
+        // crocoddyl's dv = -Σ fsᵀ P (x ⊖ x̃), with x ⊖ x̃ = -(x̃ ⊖ x).
+        let dv: f64 = self.pfs.iter().zip(&self.dx).map(|(p, d)| dot(p, d)).sum();
+        (e.dg + dv, e.dq - 2.0 * dv)
+    }
+
+    /// The trial of step length `alpha` (crocoddyl's forward pass): controls
+    /// `ũ = u + αk + K(x̃ ⊖ x)` (clamped into the bounds), next states by the dynamics,
+    /// keeping the part `1 - α` of the gaps for FDDP while they are open; evaluates it and
+    /// returns its cost, or `None` if the rollout fails or a value is not finite.
+    pub fn trial(&mut self, problem: &Problem, alpha: f64, opts: &DdpOptions) -> Option<f64> {
+        let n = problem.horizon();
+        let keep_gaps = self.variant.multiple_shooting() && !self.feasible && alpha < 1.0;
+        if keep_gaps {
+            let v = &mut self.dx[0];
+            for (vi, f) in v.iter_mut().zip(&self.fs[0]) {
+                *vi = (alpha - 1.0) * f;
+            }
+            problem.space(0).integrate(&self.x0, v, &mut self.xs_try[0]);
+        } else {
+            self.xs_try[0].copy_from_slice(&self.x0);
+        }
+        let stages = self.riccati.stages();
+        for (t, stage) in problem.stages().iter().enumerate() {
+            let space = problem.space(t);
+            space.difference(&self.xs[t], &self.xs_try[t], &mut self.dx[t]);
+            let st = &stages[t];
+            let u = &mut self.us_try[t];
+            for (j, ui) in u.iter_mut().enumerate() {
+                *ui = self.us[t][j] + alpha * st.k()[j];
+            }
+            matvec(u, Accum::Add, st.K(), &self.dx[t], 1.0);
+            if let Some(b) = &self.bounds {
+                for (j, ui) in u.iter_mut().enumerate() {
+                    *ui = ui.max(b.lb[t][j]).min(b.ub[t][j]);
+                }
+            }
+            let s = if keep_gaps {
+                for (si, f) in self.shift[t].iter_mut().zip(&self.fs[t + 1]) {
+                    *si = (1.0 - alpha) * f;
+                }
+                Some(&self.shift[t][..])
+            } else {
+                None
+            };
+            let (lo, hi) = self.xs_try.split_at_mut(t + 1);
+            let y = &mut hi[0];
+            if matches!(stage.dynamics, crate::dynamics::Dynamics::Implicit(_)) {
+                // Newton-Raphson starts from the current state.
+                y.copy_from_slice(&self.xs[t + 1]);
+            }
+            if !self.data.stages[t].rollout_and_evaluate(stage, &lo[t], u, s, y, opts.implicit) {
+                return None;
+            }
+        }
+        problem.space(n).difference(&self.xs[n], &self.xs_try[n], &mut self.dx[n]);
+        let cost = self.data.evaluate_terminal(problem, &self.xs_try);
+        cost.is_finite().then_some(cost)
+    }
+
+    /// Makes the last trial (the data's last evaluation) the current point: derivatives,
+    /// gaps; `alpha` is its step length. Returns `false` if a derivative is not finite.
+    pub fn accept(&mut self, problem: &Problem, cost: f64, alpha: f64) -> bool {
+        std::mem::swap(&mut self.xs, &mut self.xs_try);
+        std::mem::swap(&mut self.us, &mut self.us_try);
+        self.cost = cost;
+        self.stepped = true;
+        // A single-shooting trial is a rollout; a multiple-shooting one closes the gaps
+        // at the full step (crocoddyl: `setCandidate(.., was_feasible || α == 1)`).
+        self.feasible = !self.variant.multiple_shooting() || self.feasible || alpha == 1.0;
+        self.data.compute_derivatives(problem, &self.xs, &self.us);
+        self.read_gaps(problem);
+        self.lq_derivatives_finite()
+    }
+
+    fn lq_derivatives_finite(&self) -> bool {
+        self.data.stages.iter().all(|s| {
+            crate::linalg::all_finite(s.dyn_jx.as_ref())
+                && crate::linalg::all_finite(s.dyn_ju.as_ref())
+                && s.cost.lx().iter().chain(s.cost.lu()).all(|v| v.is_finite())
+        })
+    }
+
+    /// The co-states `λ` of the last backward pass (its LQ solution) and, with bounds, the
+    /// multipliers of the bound rows, written into `lambdas` and `nus`.
+    pub fn multipliers(&mut self, lambdas: &mut [Vec<f64>], nus: &mut [Vec<f64>]) {
+        if self.riccati.forward(&self.lq, &mut self.lq_sol).is_ok() {
+            for (l, s) in lambdas.iter_mut().zip(&self.lq_sol.lambdas) {
+                l.copy_from_slice(slice(s));
+            }
+        }
+        nus.iter_mut().for_each(|v| v.fill(0.0));
+        if let Some(b) = &mut self.bounds {
+            for t in 0..self.us.len() {
+                if !(self.qp_used[t] && b.bounded(t)) {
+                    continue;
+                }
+                let qp = &self.qps[t];
+                let g = qp.gradient_at_solution();
+                // The bounds are on u + k: at the solution the step is about zero.
+                b.multipliers(t, &self.us[t], |j| (!qp.is_free(j)).then(|| g[j]), &mut nus[t]);
+            }
+        }
+    }
+}
+
+/// Box-DDP's control law at one knot (Tassa et al. 2014, Algorithm 2): the box QP on
+/// `Q_uu + ρI`, `Q_u` within the bounds `dlb ≤ k ≤ dub`, warm-started from the last
+/// step; `k` its solution, `K = -H_ff⁻¹ Q_fx` on the free controls and 0 on the clamped
+/// ones; the value function of these gains.
+#[allow(clippy::too_many_arguments)]
+fn box_law(
+    st: &mut RiccatiStage,
+    qp: &mut BoxQp,
+    h: &mut Mat<f64>,
+    k: &mut [f64],
+    gain: &mut Mat<f64>,
+    dlb: &[f64],
+    dub: &[f64],
+    reg: f64,
+    opts: &BoxQpOptions,
+) -> std::result::Result<(), LqError> {
+    crate::linalg::copy(h.as_mut(), st.Q_uu());
+    for i in 0..h.nrows() {
+        h[(i, i)] += reg;
+    }
+    let r = qp.solve(h.as_ref(), st.Q_u(), dlb, dub, k, opts);
+    if r.is_err() {
+        return Err(LqError::Singular {
+            knot: st.index(),
+            system: "box-QP Hessian Q_uu + reg I on the free controls",
+        });
+    }
+    crate::linalg::copy(gain.as_mut(), st.Q_xu().transpose());
+    qp.apply_free_inverse_negated(gain.as_mut());
+    st.value_from_gains(k, gain.as_ref())
+}
