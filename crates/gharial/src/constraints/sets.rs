@@ -198,7 +198,11 @@ impl ConstraintSet for BoxConstraint {
         Some(self.lower.len())
     }
     fn box_bounds(&self, lower: &mut [f64], upper: &mut [f64]) -> bool {
-        for ((l, u), (lo, hi)) in lower.iter_mut().zip(upper.iter_mut()).zip(self.lower.iter().zip(self.upper.iter())) {
+        for ((l, u), (lo, hi)) in lower
+            .iter_mut()
+            .zip(upper.iter_mut())
+            .zip(self.lower.iter().zip(self.upper.iter()))
+        {
             *l = lo;
             *u = hi;
         }

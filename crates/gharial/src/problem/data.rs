@@ -222,7 +222,9 @@ impl StageData {
         match (&stage.dynamics, &self.dynamics) {
             (Dynamics::Explicit(_), DynamicsData::Explicit(d)) => {
                 // φ(x, u) is in the data already: only the residual f = φ ⊖ y is left.
-                stage.space_next().difference(y, d.xnext(), slice_mut(&mut self.dyn_value));
+                stage
+                    .space_next()
+                    .difference(y, d.xnext(), slice_mut(&mut self.dyn_value));
                 stage.cost.evaluate(x, u, &mut self.cost);
                 for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
                     c.func.evaluate(x, u, cd);

@@ -347,7 +347,11 @@ mod tests {
                 let m = free.len();
                 let hff = Mat::from_fn(m, m, |a, b| h[(free[a], free[b])]);
                 let mut rhs = Mat::from_fn(m, 1, |a, _| {
-                    -q[free[a]] - (0..n).filter(|j| state[*j] != 2).map(|j| h[(free[a], j)] * x[j]).sum::<f64>()
+                    -q[free[a]]
+                        - (0..n)
+                            .filter(|j| state[*j] != 2)
+                            .map(|j| h[(free[a], j)] * x[j])
+                            .sum::<f64>()
                 });
                 let mut lu = crate::linalg::Lu::new(m, 1);
                 lu.factor(hff.as_ref()).expect("positive-definite H");
@@ -395,7 +399,10 @@ mod tests {
             assert_eq!(status, BoxQpStatus::Converged, "trial {trial}");
             let reference = enumerate(&h, &q, &lb, &ub);
             for i in 0..n {
-                assert!((x[i] - reference[i]).abs() < 1e-9, "trial {trial}: {x:?} vs {reference:?}");
+                assert!(
+                    (x[i] - reference[i]).abs() < 1e-9,
+                    "trial {trial}: {x:?} vs {reference:?}"
+                );
             }
             // KKT: free gradient zero, clamped gradient pointing outwards.
             for i in 0..n {
@@ -418,7 +425,8 @@ mod tests {
         let (lb, ub) = (vec![-1.0; n], vec![1.0; n]);
         let mut x = vec![0.0; n];
         let mut qp = BoxQp::new(n);
-        qp.solve(h.as_ref(), &q, &lb, &ub, &mut x, &BoxQpOptions::default()).unwrap();
+        qp.solve(h.as_ref(), &q, &lb, &ub, &mut x, &BoxQpOptions::default())
+            .unwrap();
         let free: Vec<usize> = (0..n).filter(|&i| qp.is_free(i)).collect();
         assert!(free.len() < n && !free.is_empty());
         let qux = Mat::from_fn(n, 3, |_, _| rng.uniform(-1.0, 1.0));
@@ -447,7 +455,9 @@ mod tests {
         let ub = vec![f64::INFINITY, f64::INFINITY];
         let mut x = vec![0.0; n];
         let mut qp = BoxQp::new(n);
-        let st = qp.solve(h.as_ref(), &q, &lb, &ub, &mut x, &BoxQpOptions::default()).unwrap();
+        let st = qp
+            .solve(h.as_ref(), &q, &lb, &ub, &mut x, &BoxQpOptions::default())
+            .unwrap();
         assert_eq!(st, BoxQpStatus::Converged);
         assert!((x[0] - 2.0).abs() < 1e-12 && x[1] == 0.0 && !qp.is_free(1));
         h[(0, 0)] = -1.0;

@@ -79,7 +79,10 @@ impl ControlBounds {
                 for i in 0..nr {
                     let nonzero: Vec<usize> = (0..stage.nu()).filter(|&j| d.ju[(i, j)] != 0.0).collect();
                     let [j] = nonzero[..] else {
-                        return Err(not_a_bound(&format!("has row {i} on {} controls, not one", nonzero.len())));
+                        return Err(not_a_bound(&format!(
+                            "has row {i} on {} controls, not one",
+                            nonzero.len()
+                        )));
                     };
                     stage_rows.push(BoundRow {
                         constraint: k,
@@ -162,7 +165,13 @@ impl ControlBounds {
     /// controls (`clamped_gradient(j)`, `None` for a free control): `ν = -g_j / s` on the
     /// first row whose bound is the active one, 0 elsewhere (the convention of
     /// [`crate::solvers::Solution`]: `∇_u L = g + sν = 0`).
-    pub fn multipliers(&mut self, t: usize, u: &[f64], clamped_gradient: impl Fn(usize) -> Option<f64>, nu: &mut [f64]) {
+    pub fn multipliers(
+        &mut self,
+        t: usize,
+        u: &[f64],
+        clamped_gradient: impl Fn(usize) -> Option<f64>,
+        nu: &mut [f64],
+    ) {
         nu.fill(0.0);
         let assigned = &mut self.assigned[..u.len()];
         assigned.fill(false);

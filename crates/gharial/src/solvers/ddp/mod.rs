@@ -20,8 +20,10 @@
 //!   the part `1 - α` of the gaps while they are open. It is accepted if
 //!   `ΔV_exp ≥ 0` and `ΔV > 0.1 ΔV_exp` (or `|Δ₁| < 1e-12`, or, for DDP, while the guess
 //!   is infeasible), or for FDDP if `ΔV_exp < 0` and `ΔV > 2 ΔV_exp`.
-//! - *Regularisation*: divided by 10 after a step longer than 1/2, multiplied by 10 after
-//!   one of at most 1/100 or none; reaching its upper bound stops the solve.
+//! - *Regularisation*: divided by 10 after a step longer than 1/2 (to 0 below `1e-9`),
+//!   multiplied by 10 (from 0 to `1e-9`) after one of at most 1/100 or none; reaching its
+//!   upper bound stops the solve. It starts at 0, so that steps are exact while `Q_uu` is
+//!   positive definite (crocoddyl starts and stays at `1e-9` or above).
 //!
 //! The solve has converged when the gaps are closed and the expected decrease of the
 //! full step `|Δ₁ + ½Δ₂|` is below `tol² N` (crocoddyl's `th_stop`); it is checked after the
@@ -135,7 +137,9 @@ pub struct Ddp {
 
 impl std::fmt::Debug for Ddp {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("Ddp").field("options", &self.options).finish_non_exhaustive()
+        f.debug_struct("Ddp")
+            .field("options", &self.options)
+            .finish_non_exhaustive()
     }
 }
 
@@ -231,7 +235,9 @@ impl Ddp {
         if opts.log.is_active() {
             opts.log.line(format_args!("{}", TABLE.header()));
         }
-        let th_stop = opts.th_stop.unwrap_or(opts.tol * opts.tol * problem.horizon().max(1) as f64);
+        let th_stop = opts
+            .th_stop
+            .unwrap_or(opts.tol * opts.tol * problem.horizon().max(1) as f64);
         let mut reg = opts.reg_init;
         let mut iter = 0;
         let mut m = Measures::default();
@@ -287,6 +293,7 @@ impl Ddp {
             };
             push_record(sol, record, &opts.log, &TABLE);
             iter += 1;
+            ws.end_iteration();
             rebuild = step.cost.is_some();
             if let Some(c) = step.cost
                 && !ws.accept(problem, c, step.alpha)
@@ -330,8 +337,7 @@ fn backward(
             Ok(()) => return Ok(ws.expected(*reg)),
             Err(LqError::NonFinite { .. }) => return Err(Status::NonFinite),
             Err(_) => {
-                *reg = (*reg * opts.reg_increase).min(opts.reg_max);
-                if *reg >= opts.reg_max {
+                if !increase_reg(reg, opts) {
                     return Err(Status::RegularizationFailure);
                 }
             }
@@ -376,13 +382,21 @@ fn line_search(ws: &mut Workspace, problem: &Problem, e: Expected, opts: &DdpOpt
 /// reaches its upper bound.
 fn update_reg(reg: &mut f64, step: &Step, opts: &DdpOptions) -> bool {
     if step.cost.is_some() && step.alpha > opts.step_decrease_reg {
-        *reg = (*reg / opts.reg_decrease).max(opts.reg_min);
+        *reg /= opts.reg_decrease;
+        if *reg < opts.reg_min {
+            *reg = 0.0;
+        }
     }
     if step.cost.is_none() || step.alpha <= opts.step_increase_reg {
-        *reg = (*reg * opts.reg_increase).min(opts.reg_max);
-        return *reg < opts.reg_max;
+        return increase_reg(reg, opts);
     }
     true
+}
+
+/// Raises the regularisation (from 0 to `reg_min`); `false` when it reaches `reg_max`.
+fn increase_reg(reg: &mut f64, opts: &DdpOptions) -> bool {
+    *reg = (*reg * opts.reg_increase).max(opts.reg_min).min(opts.reg_max);
+    *reg < opts.reg_max
 }
 
 fn write_solution(sol: &mut Solution, ws: &mut Workspace, status: Status, iter: usize, m: Measures) {

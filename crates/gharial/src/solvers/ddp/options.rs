@@ -26,7 +26,12 @@ pub enum DdpVariant {
 
 impl DdpVariant {
     /// Every variant, in the order of [`DdpVariant::name`]'s documentation.
-    pub const ALL: [DdpVariant; 4] = [DdpVariant::Ddp, DdpVariant::Fddp, DdpVariant::BoxDdp, DdpVariant::BoxFddp];
+    pub const ALL: [DdpVariant; 4] = [
+        DdpVariant::Ddp,
+        DdpVariant::Fddp,
+        DdpVariant::BoxDdp,
+        DdpVariant::BoxFddp,
+    ];
 
     /// The solver name: `ddp`, `fddp`, `box-ddp`, `box-fddp`.
     pub fn name(self) -> &'static str {
@@ -73,9 +78,11 @@ pub struct DdpOptions {
     /// terms need dynamics with vector-Hessian products.
     pub hessian: HessianApprox,
     /// Initial Levenberg-Marquardt regularisation, added to `Q_uu` and `V_xx`
-    /// (default `1e-9`).
+    /// (default 0: exact steps while `Q_uu` is positive definite, so that one step solves
+    /// an LQ problem exactly; crocoddyl starts at `1e-9`).
     pub reg_init: f64,
-    /// Smallest regularisation (default `1e-9`).
+    /// Smallest nonzero regularisation: the first increase from 0 goes to it, a decrease
+    /// below it goes to 0 (default `1e-9`).
     pub reg_min: f64,
     /// Largest regularisation; reaching it stops the solve (default `1e9`).
     pub reg_max: f64,
@@ -123,7 +130,7 @@ impl Default for DdpOptions {
             th_stop: None,
             max_iters: 300,
             hessian: HessianApprox::GaussNewton,
-            reg_init: 1e-9,
+            reg_init: 0.0,
             reg_min: 1e-9,
             reg_max: 1e9,
             reg_converged: 1e-6,
@@ -176,8 +183,8 @@ impl DdpOptions {
         pos("reg_min", self.reg_min)?;
         pos("reg_max", self.reg_max)?;
         pos("reg_converged", self.reg_converged)?;
-        if !(self.reg_min <= self.reg_init && self.reg_init <= self.reg_max) {
-            return Err(Error::option("reg_init", "must be within [reg_min, reg_max]"));
+        if !(self.reg_init == 0.0 || (self.reg_min <= self.reg_init && self.reg_init <= self.reg_max)) {
+            return Err(Error::option("reg_init", "must be 0 or within [reg_min, reg_max]"));
         }
         for (name, v) in [("reg_increase", self.reg_increase), ("reg_decrease", self.reg_decrease)] {
             if !(v.is_finite() && v > 1.0) {
@@ -211,7 +218,10 @@ impl DdpOptions {
             return Err(Error::option("num_threads", "must be at least 1"));
         }
         if self.implicit.max_iters == 0 || !(self.implicit.tol > 0.0 && self.implicit.tol.is_finite()) {
-            return Err(Error::option("implicit", "needs max_iters >= 1 and a positive finite tol"));
+            return Err(Error::option(
+                "implicit",
+                "needs max_iters >= 1 and a positive finite tol",
+            ));
         }
         self.box_qp.validate()
     }

@@ -62,8 +62,8 @@ pub(super) struct Workspace {
     /// Scratch of control size.
     wu: Vec<f64>,
     pub cost: f64,
-    /// Whether a step was accepted in this solve.
-    stepped: bool,
+    /// Whether an iteration of this solve has ended (the box QP is used from the second).
+    iterated: bool,
 }
 
 impl Workspace {
@@ -135,7 +135,7 @@ impl Workspace {
             dub: vecs(&nus),
             wu: vec![0.0; nus.iter().copied().max().unwrap_or(0)],
             cost: 0.0,
-            stepped: false,
+            iterated: false,
         })
     }
 
@@ -152,7 +152,7 @@ impl Workspace {
             self.x0.copy_from_slice(x0);
         }
         self.kbuf.iter_mut().for_each(|k| k.fill(0.0));
-        self.stepped = false;
+        self.iterated = false;
         self.data.invalidate_constant_derivatives();
         self.cost = self.data.evaluate(problem, &self.xs, &self.us);
         if !self.values_finite() {
@@ -170,7 +170,11 @@ impl Workspace {
     /// Whether the cost, the dynamics residuals and the states are finite.
     fn values_finite(&self) -> bool {
         self.cost.is_finite()
-            && self.data.stages.iter().all(|s| s.dyn_value().iter().all(|v| v.is_finite()))
+            && self
+                .data
+                .stages
+                .iter()
+                .all(|s| s.dyn_value().iter().all(|v| v.is_finite()))
             && self.data.init.value().iter().all(|v| v.is_finite())
     }
 
@@ -234,12 +238,13 @@ impl Workspace {
     }
 
     /// Backward pass with the regularisation `reg` on `Q_uu`: the Riccati recursion, with
-    /// the box QP as the control law of the bounded stages once a step was taken and the
-    /// gaps are closed. The first step from a guess is the unconstrained one, clamped in
-    /// the rollout (crocoddyl's behaviour from a guess it is not told is feasible): from
-    /// far away, box-QP steps whose feedback the rollout clamps heavily are short.
+    /// the box QP as the control law of the bounded stages from the second iteration on,
+    /// while the gaps are closed. The first step from a guess is the unconstrained one,
+    /// clamped in the rollout (crocoddyl's behaviour from a guess it is not told is
+    /// feasible): from far away, box-QP steps whose feedback the rollout clamps heavily
+    /// are short.
     pub fn backward(&mut self, reg: f64, qp_opts: &BoxQpOptions) -> std::result::Result<(), LqError> {
-        let use_qp = self.feasible && self.stepped && self.bounds.is_some();
+        let use_qp = self.feasible && self.iterated && self.bounds.is_some();
         if !use_qp {
             self.qp_used.fill(false);
             return self.riccati.backward(&self.lq, reg);
@@ -263,7 +268,17 @@ impl Workspace {
                 dlb[t][j] = bounds.lb[t][j] - us[t][j];
                 dub[t][j] = bounds.ub[t][j] - us[t][j];
             }
-            box_law(st, &mut qps[t], &mut hbuf[t], &mut kbuf[t], &mut gain_buf[t], &dlb[t], &dub[t], reg, qp_opts)
+            box_law(
+                st,
+                &mut qps[t],
+                &mut hbuf[t],
+                &mut kbuf[t],
+                &mut gain_buf[t],
+                &dlb[t],
+                &dub[t],
+                reg,
+                qp_opts,
+            )
         })
     }
 
@@ -362,9 +377,16 @@ impl Workspace {
                 return None;
             }
         }
-        problem.space(n).difference(&self.xs[n], &self.xs_try[n], &mut self.dx[n]);
+        problem
+            .space(n)
+            .difference(&self.xs[n], &self.xs_try[n], &mut self.dx[n]);
         let cost = self.data.evaluate_terminal(problem, &self.xs_try);
         cost.is_finite().then_some(cost)
+    }
+
+    /// Marks the end of an iteration (accepted step or not).
+    pub fn end_iteration(&mut self) {
+        self.iterated = true;
     }
 
     /// Makes the last trial (the data's last evaluation) the current point: derivatives,
@@ -373,7 +395,6 @@ impl Workspace {
         std::mem::swap(&mut self.xs, &mut self.xs_try);
         std::mem::swap(&mut self.us, &mut self.us_try);
         self.cost = cost;
-        self.stepped = true;
         // A single-shooting trial is a rollout; a multiple-shooting one closes the gaps
         // at the full step (crocoddyl: `setCandidate(.., was_feasible || α == 1)`).
         self.feasible = !self.variant.multiple_shooting() || self.feasible || alpha == 1.0;

@@ -2,8 +2,8 @@
 //! per-iteration computations (residuals, Newton system, merit, rollouts). Everything is
 //! allocated in [`Workspace::new`]; no method allocates.
 
-use faer::prelude::ReborrowMut;
 use faer::Accum;
+use faer::prelude::ReborrowMut;
 
 use super::options::{HessianApprox, Merit, ProxDdpOptions, Rollout};
 use crate::dynamics::Dynamics;

@@ -1,0 +1,266 @@
+//! The DDP family (DDP, FDDP, box-DDP, box-FDDP) on linear-quadratic problems, against
+//! independent references: the dense KKT solve of the exact problem, the Clarabel optimum
+//! of box-constrained problems, and the solver-independent KKT residuals of the result.
+
+#[path = "support/lq_ocp.rs"]
+mod lq_ocp;
+
+use std::sync::Arc;
+
+use faer::{Col, Mat};
+use gharial::constraints::{BoxConstraint, NegativeOrthant};
+use gharial::costs::QuadraticCost;
+use gharial::dynamics::{Dynamics, ImplicitEuler, LinearOde};
+use gharial::functions::{StateError, Unary};
+use gharial::lq::dense;
+use gharial::problem::{Problem, StageConstraint, StageModel, kkt_residuals};
+use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
+use gharial::solvers::{Callback, InitialGuess, IterationRecord, Solution, Solver, Status};
+use lq_ocp::*;
+
+fn solve(p: &Problem, opts: DdpOptions, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Solution {
+    let mut solver = Ddp::new(opts);
+    solver.setup(p).unwrap();
+    solver.solve(p, InitialGuess::primal(xs, us)).unwrap().clone()
+}
+
+fn rollout(p: &Problem, us: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let (mut xs, _) = zero_guess(p);
+    let gharial::problem::InitialCondition::Fixed(x0) = p.initial_condition() else {
+        unreachable!()
+    };
+    xs[0].copy_from_slice(x0);
+    gharial::problem::ProblemData::new(p, 1)
+        .unwrap()
+        .rollout(p, &mut xs, us)
+        .unwrap();
+    xs
+}
+
+/// On an unconstrained LQ one step of every variant is the exact KKT point, from a
+/// rolled-out guess and (the multiple-shooting variants keep the gaps) from states that
+/// violate the dynamics; the convergence check then stops the solve.
+#[test]
+fn one_step_solves_an_unconstrained_lq_exactly() {
+    for (seed, (nx, nu, n)) in [(1, (3, 2, 10)), (2, (5, 3, 25)), (3, (8, 4, 40)), (4, (2, 1, 5))] {
+        let lq = random_lq(nx, nu, n, seed);
+        let p = ocp(&lq, None, None);
+        let reference = dense::solve(&exact_lq(&lq, None)).unwrap();
+        let (zeros, us) = zero_guess(&p);
+        let feasible = rollout(&p, &us);
+        for variant in DdpVariant::ALL {
+            for (guess, xs) in [("rollout", &feasible), ("infeasible", &zeros)] {
+                let sol = solve(&p, DdpOptions::new(variant), xs, &us);
+                let what = format!("seed {seed} {} from the {guess} guess", variant.name());
+                assert_eq!(sol.status, Status::Converged, "{what}");
+                assert_eq!(sol.iterations, 1, "{what}");
+                assert!(max_diff(&sol.xs, &reference.xs) < 1e-9, "{what}");
+                assert!(max_diff(&sol.us, &reference.us) < 1e-9, "{what}");
+                // The co-states of the last backward pass, at the solution.
+                assert!(max_diff(&sol.lambdas, &reference.lambdas) < 1e-8, "{what}");
+                let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+                assert!(kkt.max() < 1e-9, "{what}: {kkt:?}");
+            }
+        }
+    }
+}
+
+/// Implicit dynamics (implicit Euler of a linear ODE): the exact LQ has `E ≠ -I`, and the
+/// rollouts solve for the next state by Newton-Raphson.
+#[test]
+fn implicit_dynamics_reach_the_dense_kkt_solution() {
+    let (nx, nu, n, dt) = (3, 2, 20, 0.1);
+    let lq = random_lq(nx, nu, n, 51);
+    let ac = Mat::from_fn(nx, nx, |i, j| lq.a[(i, j)] - if i == j { 1.0 } else { 0.0 });
+    let ode = Arc::new(LinearOde::new(ac.as_ref(), lq.b.as_ref(), &lq.c).unwrap());
+    let dynamics = Dynamics::Implicit(Arc::new(ImplicitEuler::new(ode, dt).unwrap()));
+    let cost = Arc::new(QuadraticCost::new(lq.q.as_ref(), lq.s.as_ref(), lq.r.as_ref(), &lq.qv, &lq.rv).unwrap());
+    let stage = StageModel::new(cost, dynamics).unwrap();
+    let term = Arc::new(QuadraticCost::terminal(lq.qf.as_ref(), &lq.qfv).unwrap());
+    let p = Problem::new(&lq.x0, vec![stage; n], term).unwrap();
+    let mut exact = exact_lq(&lq, None);
+    for k in exact.knots.iter_mut().take(n) {
+        k.A = Mat::identity(nx, nx);
+        k.B = Mat::from_fn(nx, nu, |i, j| dt * lq.b[(i, j)]);
+        k.E = Mat::from_fn(nx, nx, |i, j| dt * ac[(i, j)] - if i == j { 1.0 } else { 0.0 });
+        k.f = Col::from_fn(nx, |i| dt * lq.c[i]);
+    }
+    let reference = dense::solve(&exact).unwrap();
+    let (xs, us) = zero_guess(&p);
+    for variant in [DdpVariant::Ddp, DdpVariant::Fddp] {
+        let sol = solve(&p, DdpOptions::new(variant), &xs, &us);
+        assert_eq!(sol.status, Status::Converged, "{}", variant.name());
+        assert!(max_diff(&sol.xs, &reference.xs) < 1e-8, "{}", variant.name());
+        assert!(max_diff(&sol.us, &reference.us) < 1e-8, "{}", variant.name());
+        assert!(max_diff(&sol.lambdas, &reference.lambdas) < 1e-7, "{}", variant.name());
+    }
+}
+
+/// The box variants on the box-constrained LQ problems of the Clarabel reference (those
+/// without a terminal constraint, which they refuse): the optimal cost, and the KKT
+/// conditions with the bound multipliers they report.
+#[test]
+fn box_variants_reach_the_optimum_of_an_independent_qp_solver() {
+    let cases: Vec<QpCase> = qp_reference_cases()
+        .into_iter()
+        .filter(|c| c.target.is_none())
+        .collect();
+    assert!(cases.len() >= 3);
+    for case in &cases {
+        let p = ocp(&case.lq, Some(case.umax), None);
+        let (zeros, us) = zero_guess(&p);
+        let xs = rollout(&p, &us);
+        for variant in [DdpVariant::BoxDdp, DdpVariant::BoxFddp] {
+            for (guess, xs) in [("rollout", &xs), ("infeasible", &zeros)] {
+                let what = format!("seed {} {} from the {guess} guess", case.seed, variant.name());
+                let mut opts = DdpOptions::new(variant);
+                opts.tol = 1e-8;
+                let sol = solve(&p, opts, xs, &us);
+                assert_eq!(sol.status, Status::Converged, "{what}");
+                let rel = (sol.cost - case.clarabel_cost).abs() / case.clarabel_cost.abs().max(1.0);
+                assert!(
+                    rel < 1e-9,
+                    "{what}: cost {} vs QP {} ({rel:e})",
+                    sol.cost,
+                    case.clarabel_cost
+                );
+                let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+                assert!(kkt.max() < 1e-6, "{what}: {kkt:?}");
+                let limit = case.umax * (1.0 + 1e-15);
+                assert!(sol.us.iter().flatten().all(|u| u.abs() <= limit), "{what}");
+            }
+        }
+    }
+}
+
+/// Bounds written as `u - umax ≤ 0` and `-u - umax ≤ 0` (two orthant constraints with
+/// negative coefficients) are the same box.
+#[test]
+fn bounds_from_orthant_constraints_and_negative_coefficients() {
+    let lq = random_lq(3, 2, 15, 8);
+    let umax = 0.2;
+    let boxed = ocp(&lq, Some(umax), None);
+    let mut stage = boxed.stages()[0].clone();
+    let mut plain = StageModel::new(stage.cost.clone(), stage.dynamics.clone()).unwrap();
+    for sign in [1.0, -1.0] {
+        let a = Mat::<f64>::zeros(2, 3);
+        let b = Mat::from_fn(2, 2, |i, j| if i == j { sign } else { 0.0 });
+        let f = Arc::new(gharial::functions::LinearFunction::new(a.as_ref(), b.as_ref(), &[-umax, -umax]).unwrap());
+        plain
+            .add_constraint(StageConstraint::new("u_half", f, Arc::new(NegativeOrthant)))
+            .unwrap();
+    }
+    stage = plain;
+    let p = Problem::new(&lq.x0, vec![stage; 15], boxed.terminal_cost().clone()).unwrap();
+    let (_, us) = zero_guess(&p);
+    let xs = rollout(&p, &us);
+    let a = solve(&boxed, DdpOptions::new(DdpVariant::BoxFddp), &xs, &us);
+    let b = solve(&p, DdpOptions::new(DdpVariant::BoxFddp), &xs, &us);
+    assert_eq!(b.status, Status::Converged);
+    assert!(
+        max_diff(
+            &a.us,
+            &b.us.iter().map(|u| Col::from_fn(2, |i| u[i])).collect::<Vec<_>>()
+        ) < 1e-10
+    );
+    let kkt = kkt_residuals(&p, &b.xs, &b.us, &b.lambdas, &b.nus).unwrap();
+    assert!(kkt.max() < 1e-6, "{kkt:?}");
+}
+
+/// Problems a variant cannot solve are refused at setup with an error naming the reason.
+#[test]
+fn unsupported_problems_are_refused_with_a_clear_error() {
+    let lq = random_lq(3, 2, 10, 5);
+    let boxed = ocp(&lq, Some(0.3), None);
+    for variant in [DdpVariant::Ddp, DdpVariant::Fddp] {
+        let err = Ddp::new(DdpOptions::new(variant))
+            .setup(&boxed)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("u_box") && err.contains("box-ddp"), "{err}");
+    }
+    let terminal = ocp(&lq, Some(0.3), Some(&[0.0; 3]));
+    let err = Ddp::new(DdpOptions::new(DdpVariant::BoxFddp))
+        .setup(&terminal)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("terminal"), "{err}");
+    // A bound on the state is not a control bound.
+    let mut stage = ocp(&lq, None, None).stages()[0].clone();
+    let f = Arc::new(Unary::new(Arc::new(StateError::new(space(&lq), &[0.0; 3]).unwrap()), 2));
+    let set = Arc::new(BoxConstraint::new(&[-1.0; 3], &[1.0; 3]).unwrap());
+    stage.add_constraint(StageConstraint::new("x_box", f, set)).unwrap();
+    let term = Arc::new(QuadraticCost::terminal(lq.qf.as_ref(), &lq.qfv).unwrap());
+    let p = Problem::new(&lq.x0, vec![stage; 10], term).unwrap();
+    let err = Ddp::new(DdpOptions::new(DdpVariant::BoxDdp))
+        .setup(&p)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("x_box") && err.contains("state"), "{err}");
+    // Options out of range.
+    let mut opts = DdpOptions::new(DdpVariant::Fddp);
+    opts.reg_increase = 1.0;
+    let err = Ddp::new(opts).setup(&boxed).unwrap_err().to_string();
+    assert!(err.contains("reg_increase"), "{err}");
+}
+
+/// Wrong inputs are errors, not panics; a solve before setup too.
+#[test]
+fn bad_guesses_and_missing_setup_are_errors() {
+    let lq = random_lq(3, 2, 10, 6);
+    let p = ocp(&lq, None, None);
+    let (mut xs, us) = zero_guess(&p);
+    let mut solver = Ddp::new(DdpOptions::default());
+    assert!(solver.solve(&p, InitialGuess::primal(&xs, &us)).is_err());
+    solver.setup(&p).unwrap();
+    xs[3][1] = f64::NAN;
+    let err = solver
+        .solve(&p, InitialGuess::primal(&xs, &us))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("xs[3]"), "{err}");
+    xs[3].pop();
+    assert!(solver.solve(&p, InitialGuess::primal(&xs, &us)).is_err());
+    let other = ocp(&random_lq(4, 2, 10, 6), None, None);
+    let (xo, uo) = zero_guess(&other);
+    assert!(solver.solve(&other, InitialGuess::primal(&xo, &uo)).is_err());
+}
+
+/// A warm start from the solution converges at once; a callback's stop is its own
+/// status; the solver answers to the `Solver` trait by name.
+#[test]
+fn warm_start_callbacks_and_the_solver_trait() {
+    let lq = random_lq(4, 2, 30, 9);
+    let p = ocp(&lq, Some(0.2), None);
+    let (_, us) = zero_guess(&p);
+    let xs = rollout(&p, &us);
+    let mut solver: Box<dyn Solver> = Box::new(Ddp::new(DdpOptions::new(DdpVariant::BoxFddp)));
+    assert_eq!(solver.name(), "box-fddp");
+    solver.setup(&p).unwrap();
+    let first = solver
+        .solve_with(&p, InitialGuess::primal(&xs, &us), None)
+        .unwrap()
+        .clone();
+    assert_eq!(first.status, Status::Converged);
+    assert!(first.iterations >= 2);
+    let again = solver
+        .solve_with(&p, InitialGuess::from_solution(&first), None)
+        .unwrap();
+    assert_eq!(again.status, Status::Converged);
+    assert!(again.iterations <= 1, "{} iterations", again.iterations);
+    struct StopAfterOne;
+    impl Callback for StopAfterOne {
+        fn on_iteration(&mut self, _: &IterationRecord) -> bool {
+            false
+        }
+    }
+    let stopped = solver
+        .solve_with(&p, InitialGuess::primal(&xs, &us), Some(&mut StopAfterOne))
+        .unwrap();
+    assert_eq!(stopped.status, Status::Interrupted);
+    assert_eq!(stopped.iterations, 1);
+    assert!(stopped.cost < first.history[0].cost);
+    assert_eq!(stopped.history.len(), 1);
+    assert_eq!(DdpVariant::from_name("box-fddp"), Some(DdpVariant::BoxFddp));
+    assert_eq!(DdpVariant::from_name("proxddp"), None);
+}
