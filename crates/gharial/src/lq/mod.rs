@@ -88,6 +88,8 @@
 //! - [`ParallelRiccatiSolver`]: the horizon split into legs solved on threads, each leg
 //!   parameterised by its boundary co-state, then a condensed system over the legs'
 //!   boundaries; the same solution as the serial solver.
+//! - [`LqSolver`]: the interface the nonlinear solvers use, serial or parallel by the
+//!   number of threads.
 //! - [`dense`]: the KKT system assembled densely and solved by LU, the reference of the
 //!   tests, and the KKT residuals of any solution.
 //! - [`random`]: random problems (the generator of the peer benchmarks, and a more varied
@@ -102,10 +104,12 @@ pub mod dense;
 mod parallel;
 pub mod random;
 mod riccati;
+mod solver;
 mod stage;
 
 pub use parallel::ParallelRiccatiSolver;
 pub use riccati::{RiccatiOptions, RiccatiSolver};
+pub use solver::LqSolver;
 pub use stage::RiccatiStage;
 
 /// One knot of an LQ problem. Matrix names follow the ProxDDP paper and the LQ literature.

@@ -257,6 +257,14 @@ impl ParallelRiccatiSolver {
         self.legs.len()
     }
 
+    /// Sets the number of iterative refinement steps of [`forward`](Self::forward); no
+    /// effect on a solver created without refinement, whose storage was not allocated.
+    pub(crate) fn set_refinement_steps(&mut self, steps: usize) {
+        if let Some(r) = &mut self.refinement {
+            r.0 = steps;
+        }
+    }
+
     /// Backward pass with primal regularisation `primal_reg` (see
     /// [`RiccatiSolver::backward`](super::RiccatiSolver::backward)): legs on threads, then
     /// the condensed system and the initial stage.

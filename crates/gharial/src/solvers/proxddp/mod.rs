@@ -565,7 +565,9 @@ impl ProxDdp {
         for (a, b) in sol.nus.iter_mut().zip(&ws.cur.nus) {
             a.copy_from_slice(b);
         }
-        write_gains(sol, ws.riccati.stages());
+        if let Ok(stages) = ws.riccati.stages(&ws.lq) {
+            write_gains(sol, stages);
+        }
         sol.status = status;
         sol.iterations = iter;
         sol.al_iterations = al_iter;

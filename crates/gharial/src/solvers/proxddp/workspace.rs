@@ -9,7 +9,7 @@ use super::options::{HessianApprox, Merit, ProxDdpOptions, Rollout};
 use crate::dynamics::Dynamics;
 use crate::error::Result;
 use crate::linalg::{matvec, matvec_t, norm_inf, slice, slice_mut};
-use crate::lq::{LqProblem, LqSolution, RiccatiOptions, RiccatiSolver};
+use crate::lq::{LqProblem, LqSolution, LqSolver, RiccatiOptions};
 use crate::problem::{DynamicsData, ImplicitSolve, Problem, ProblemData};
 use crate::solvers::InitialGuess;
 use crate::solvers::skeleton::copy_stage_model;
@@ -126,7 +126,7 @@ pub(super) struct Workspace {
     knot_constants: bool,
     pub lq: LqProblem,
     pub step: LqSolution,
-    pub riccati: RiccatiSolver,
+    pub riccati: LqSolver,
     pub data: ProblemData,
 }
 
@@ -140,12 +140,13 @@ impl Workspace {
         let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
         let nc0 = problem.nc0();
         let lq = crate::solvers::skeleton::lq_for(problem, true);
-        let riccati = RiccatiSolver::with_options(
+        let riccati = LqSolver::new(
             &lq,
             RiccatiOptions {
                 rollout_gains: true,
                 refinement_steps: 1,
             },
+            opts.num_threads,
         )?;
         let step = LqSolution::new(&lq);
         let min_scale = (0..=n)
