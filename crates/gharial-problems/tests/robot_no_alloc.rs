@@ -1,6 +1,7 @@
-//! `ProxDdp::solve` allocates nothing after `setup` on robot problems, counted with a
-//! global allocator: the UR5 of the catalogue, and Solo-12 standing on four point
-//! contacts with friction cones (second-order-cone sets) and torque limits.
+//! No solver allocates in `solve` after `setup` on robot problems, counted with a global
+//! allocator: ProxDDP and the DDP family on the UR5 of the catalogue (the box variants
+//! with its torque limits), and ProxDDP on Solo-12 standing on four point contacts with
+//! friction cones (second-order-cone sets) and torque limits.
 
 #[path = "../../gharial/tests/support/counting_alloc.rs"]
 mod counting_alloc;
@@ -12,6 +13,7 @@ use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, SemiImplicitEuler};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::InitialGuess;
+use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::spaces::Manifold;
 use gharial_multibody::{Model, ReferenceFrame, RootJoint};
@@ -50,6 +52,33 @@ fn ur5_solves_without_allocating() {
     for name in ["ur5", "ur5-box"] {
         let ex = gharial_problems::build(name).unwrap();
         assert_no_allocation(name, &ex.problem, &ex.xs0, &ex.us0, ex.proxddp.mu_init);
+    }
+}
+
+#[test]
+fn ur5_solves_without_allocating_with_the_ddp_family() {
+    for (name, variants) in [
+        ("ur5", [DdpVariant::Ddp, DdpVariant::Fddp]),
+        ("ur5-box", [DdpVariant::BoxDdp, DdpVariant::BoxFddp]),
+    ] {
+        let ex = gharial_problems::build(name).unwrap();
+        for variant in variants {
+            let mut opts = DdpOptions::new(variant);
+            opts.max_iters = 8;
+            let mut solver = Ddp::new(opts);
+            solver.setup(&ex.problem).unwrap();
+            let mut iterations = 0;
+            let count = counting_alloc::allocations(|| {
+                let guess = InitialGuess::primal(&ex.xs0, &ex.us0);
+                iterations = solver.solve(&ex.problem, guess).unwrap().iterations;
+            });
+            assert!(
+                iterations >= 2,
+                "{name} {}: the solves must do real work",
+                variant.name()
+            );
+            assert_eq!(count, 0, "{name} {}", variant.name());
+        }
     }
 }
 

@@ -1,6 +1,8 @@
-//! `ProxDdp::solve` allocates nothing after `setup`, counted with a global allocator, for
-//! every rollout and step acceptance, with and without the active-set prediction, on a
-//! nonlinear problem with path and terminal constraints.
+//! No solver allocates in `solve` after `setup`, counted with a global allocator: ProxDDP
+//! for every rollout and step acceptance, with and without the active-set prediction, on a
+//! nonlinear problem with path and terminal constraints; the DDP family on the same
+//! problem without constraints (box variants: with its control bounds), from a guess that
+//! violates the dynamics, with explicit and implicit dynamics.
 
 #[path = "support/counting_alloc.rs"]
 mod counting_alloc;
@@ -13,6 +15,7 @@ use gharial::dynamics::{Dynamics, ExplicitRungeKutta, ImplicitEuler, Ode, OdeDat
 use gharial::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::InitialGuess;
+use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::proxddp::{HessianApprox, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::spaces::{Manifold, VectorSpace};
 
@@ -72,7 +75,8 @@ impl StageFunction for AngleBound {
     }
 }
 
-fn problem(implicit: bool) -> Problem {
+/// The pendulum swing-up; `constraints`: 0 none, 1 the control bounds, 2 all.
+fn problem(implicit: bool, constraints: usize) -> Problem {
     let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(2));
     let ode: Arc<dyn Ode> = Arc::new(Pendulum { space: space.clone() });
     let dynamics = if implicit {
@@ -88,37 +92,69 @@ fn problem(implicit: bool) -> Problem {
         .unwrap()
         .with("u", ucost, 1.0)
         .unwrap();
-    let stage = StageModel::new(Arc::new(stack), dynamics)
-        .unwrap()
-        .with_constraint(StageConstraint::new(
-            "u_box",
-            Arc::new(ControlError::new(space.as_ref(), &[0.0]).unwrap()),
-            Arc::new(BoxConstraint::new(&[-1.5], &[1.5]).unwrap()),
-        ))
-        .unwrap()
-        .with_constraint(StageConstraint::new(
-            "angle",
-            Arc::new(AngleBound),
-            Arc::new(NegativeOrthant),
-        ))
-        .unwrap();
+    let mut stage = StageModel::new(Arc::new(stack), dynamics).unwrap();
+    if constraints >= 1 {
+        stage
+            .add_constraint(StageConstraint::new(
+                "u_box",
+                Arc::new(ControlError::new(space.as_ref(), &[0.0]).unwrap()),
+                Arc::new(BoxConstraint::new(&[-1.5], &[1.5]).unwrap()),
+            ))
+            .unwrap();
+    }
+    if constraints >= 2 {
+        stage
+            .add_constraint(StageConstraint::new(
+                "angle",
+                Arc::new(AngleBound),
+                Arc::new(NegativeOrthant),
+            ))
+            .unwrap();
+    }
     let term = Arc::new(QuadraticStateCost::diagonal(space.clone(), &target, &[1.0, 1.0], 0).unwrap());
     let mut p = Problem::new(&[0.0, 0.0], vec![stage; 30], term).unwrap();
-    let f = Arc::new(Unary::new(Arc::new(StateError::new(space, &target).unwrap()), 0));
-    p.add_terminal_constraint(StageConstraint::new("x_N", f, Arc::new(EqualityConstraintSet)))
-        .unwrap();
+    if constraints >= 2 {
+        let f = Arc::new(Unary::new(Arc::new(StateError::new(space, &target).unwrap()), 0));
+        p.add_terminal_constraint(StageConstraint::new("x_N", f, Arc::new(EqualityConstraintSet)))
+            .unwrap();
+    }
     p
 }
 
+/// A guess that interpolates the swing-up: it violates the dynamics.
+fn guess(p: &Problem) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let n = p.horizon();
+    let xs = (0..=n)
+        .map(|t| vec![std::f64::consts::PI * t as f64 / n as f64, 0.0])
+        .collect();
+    (xs, vec![vec![0.0]; n])
+}
+
 #[test]
-fn solve_does_not_allocate_after_setup() {
+fn ddp_family_solve_does_not_allocate_after_setup() {
     for implicit in [false, true] {
-        let p = problem(implicit);
-        let n = p.horizon();
-        let xs: Vec<Vec<f64>> = (0..=n)
-            .map(|t| vec![std::f64::consts::PI * t as f64 / n as f64, 0.0])
-            .collect();
-        let us = vec![vec![0.0]; n];
+        for variant in DdpVariant::ALL {
+            let p = problem(implicit, usize::from(variant.control_bounds()));
+            let (xs, us) = guess(&p);
+            let mut opts = DdpOptions::new(variant);
+            opts.max_iters = 30;
+            let mut solver = Ddp::new(opts);
+            solver.setup(&p).unwrap();
+            let mut iterations = 0;
+            let count = counting_alloc::allocations(|| {
+                iterations = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().iterations;
+            });
+            assert!(iterations > 3, "{}: the solves must do real work", variant.name());
+            assert_eq!(count, 0, "implicit {implicit} {}", variant.name());
+        }
+    }
+}
+
+#[test]
+fn proxddp_solve_does_not_allocate_after_setup() {
+    for implicit in [false, true] {
+        let p = problem(implicit, 2);
+        let (xs, us) = guess(&p);
         for rollout in [Rollout::Linear, Rollout::Nonlinear] {
             for step_acceptance in [
                 StepAcceptance::Linesearch,

@@ -1,0 +1,89 @@
+//! The DDP family on the peer harness's problems against the peers' results (crocoddyl
+//! 3.2.1 and aligator 0.19.1, from the harness's quiet-machine run): iterations and final
+//! costs.
+//!
+//! crocoddyl checks convergence after the step of an iteration, with the direction of that
+//! iteration; gharial checks it before the step, so on a converged solve it reports one
+//! iteration fewer (the step it skips is the one whose expected decrease is below the
+//! tolerance).
+
+use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
+use gharial::solvers::{InitialGuess, Solution, Status};
+
+fn solve(name: &str, variant: DdpVariant) -> Solution {
+    let ex = gharial_problems::build(name).unwrap();
+    let mut opts = DdpOptions::new(variant);
+    opts.max_iters = 500;
+    let mut solver = Ddp::new(opts);
+    solver.setup(&ex.problem).unwrap();
+    solver
+        .solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0))
+        .unwrap()
+        .clone()
+}
+
+fn rel(a: f64, b: f64) -> f64 {
+    (a - b).abs() / b.abs()
+}
+
+/// DDP and FDDP: crocoddyl's iterations ±1 and its cost to 1e-8.
+#[test]
+fn ddp_and_fddp_match_crocoddyl_on_the_harness_problems() {
+    // (catalogue name, crocoddyl DDP iterations and cost, FDDP iterations and cost)
+    let cases = [
+        ("peers-lqr", (2, 6.248581777225142), (2, 6.248581777225142)),
+        ("ur5", (7, 0.33886618648725525), (7, 0.33886618648725525)),
+        ("double-pendulum", (11, 0.08429063710422653), (12, 0.08429063709752813)),
+    ];
+    for (name, ddp, fddp) in cases {
+        for (variant, (iters, cost)) in [(DdpVariant::Ddp, ddp), (DdpVariant::Fddp, fddp)] {
+            let sol = solve(name, variant);
+            let what = format!("{name} {}", variant.name());
+            assert_eq!(sol.status, Status::Converged, "{what}");
+            assert!(
+                sol.iterations.abs_diff(iters) <= 1,
+                "{what}: {} iterations, crocoddyl {iters}",
+                sol.iterations
+            );
+            assert!(rel(sol.cost, cost) < 1e-8, "{what}: cost {} vs {cost}", sol.cost);
+            assert!(sol.prim_err == 0.0, "{what}: gaps {}", sol.prim_err);
+        }
+    }
+}
+
+/// Box-DDP and box-FDDP converge where crocoddyl's BoxFDDP does (`lqr_box`, `ur5_box`),
+/// to the optimum of crocoddyl (lqr_box) and of aligator's ProxDDP (ur5_box: crocoddyl's
+/// box QP stops at a gradient of 1e-5 and ends 2e-8 above it).
+#[test]
+fn box_variants_converge_where_crocoddyl_does() {
+    let cases = [("peers-lqr-box", 6.922115936560473), ("ur5-box", 0.3549432460007217)];
+    for (name, cost) in cases {
+        for variant in [DdpVariant::BoxDdp, DdpVariant::BoxFddp] {
+            let sol = solve(name, variant);
+            let what = format!("{name} {}", variant.name());
+            assert_eq!(sol.status, Status::Converged, "{what}");
+            assert!(rel(sol.cost, cost) < 1e-9, "{what}: cost {} vs {cost}", sol.cost);
+            assert!(
+                sol.iterations <= 25,
+                "{what}: {} iterations (crocoddyl 4 and 25)",
+                sol.iterations
+            );
+        }
+    }
+}
+
+/// `pendulum_box` (bang-bang torques): crocoddyl's BoxFDDP fails (22 iterations, cost
+/// 171); the box variants here stop without claiming convergence, at a feasible point
+/// of lower cost than the guess, where only heavily regularised steps still decrease
+/// the cost (ProxDDP solves it: `proxddp` tests).
+#[test]
+fn box_variants_on_the_pendulum_with_tight_bounds_stop_without_claiming_convergence() {
+    let ex = gharial_problems::build("double-pendulum-box").unwrap();
+    let init = gharial_problems::total_cost(&ex.problem, &ex.xs0, &ex.us0).unwrap();
+    for variant in [DdpVariant::BoxDdp, DdpVariant::BoxFddp] {
+        let sol = solve("double-pendulum-box", variant);
+        assert_ne!(sol.status, Status::Converged, "{}", variant.name());
+        assert!(sol.cost < 1e-2 * init && sol.prim_err == 0.0, "{}", variant.name());
+        assert!(sol.us.iter().flatten().all(|u| u.abs() <= 0.6), "{}", variant.name());
+    }
+}
