@@ -235,86 +235,106 @@ impl Ddp {
         if opts.log.is_active() {
             opts.log.line(format_args!("{}", TABLE.header()));
         }
-        let th_stop = opts
-            .th_stop
-            .unwrap_or(opts.tol * opts.tol * problem.horizon().max(1) as f64);
-        let mut reg = opts.reg_init;
-        let mut iter = 0;
-        let mut m = Measures::default();
-        let mut rebuild = true;
-        // `MaxIterations` while running: what the solve reports if no other stop applies.
-        let mut status = if ws.load_guess(problem, guess.xs, guess.us, opts.gap_tol)? {
-            Status::MaxIterations
+        let mut lp = Loop {
+            th_stop: opts
+                .th_stop
+                .unwrap_or(opts.tol * opts.tol * problem.horizon().max(1) as f64),
+            reg: opts.reg_init,
+            iter: 0,
+            m: Measures::default(),
+            rebuild: true,
+        };
+        let status = if ws.load_guess(problem, guess.xs, guess.us, opts.gap_tol)? {
+            loop {
+                if let Some(s) = lp.iteration(ws, problem, opts, sol, start, &mut callback) {
+                    break s;
+                }
+            }
         } else {
             Status::NonFinite
         };
-        while status == Status::MaxIterations {
-            let e = match backward(ws, problem, opts, &mut reg, rebuild) {
-                Ok(e) => e,
-                Err(s) => {
-                    status = s;
-                    break;
-                }
-            };
-            let (e, dual) = e;
-            m = Measures {
-                gaps: ws.max_gap(),
-                dual,
-                stop: (e.dg + 0.5 * e.dq).abs(),
-            };
-            if ws.feasible && m.stop < th_stop {
-                status = if reg <= opts.reg_converged {
-                    Status::Converged
-                } else {
-                    Status::Stalled
-                };
-                break;
-            }
-            if opts.max_time.is_some_and(|b| start.elapsed() >= b) {
-                status = Status::TimeBudget;
-                break;
-            }
-            if iter >= opts.max_iters {
-                break;
-            }
-            let cost = ws.cost;
-            let step = line_search(ws, problem, e, opts);
-            let record = IterationRecord {
-                iter,
-                alpha: step.alpha,
-                prim_err: m.gaps,
-                dual_err: m.dual,
-                preg: reg,
-                cost,
-                stop: m.stop,
-                expected_decrease: step.expected,
-                decrease: step.decrease,
-                ..Default::default()
-            };
-            push_record(sol, record, &opts.log, &TABLE);
-            iter += 1;
-            ws.end_iteration();
-            rebuild = step.cost.is_some();
-            if let Some(c) = step.cost
-                && !ws.accept(problem, c, step.alpha)
-            {
-                status = Status::NonFinite;
-                break;
-            }
-            if !update_reg(&mut reg, &step, opts) {
-                status = Status::RegularizationFailure;
-                break;
-            }
-            if let Some(cb) = callback.as_mut()
-                && !cb.on_iteration(&record)
-            {
-                status = Status::Interrupted;
-                break;
-            }
-        }
-        write_solution(sol, ws, status, iter, m);
+        write_solution(sol, ws, status, lp.iter, lp.m);
         sol.solve_time = start.elapsed();
         Ok(&self.solution)
+    }
+}
+
+/// The state of the loop of one solve.
+struct Loop {
+    th_stop: f64,
+    reg: f64,
+    iter: usize,
+    m: Measures,
+    /// Whether the knots must be rebuilt (a step was taken).
+    rebuild: bool,
+}
+
+impl Loop {
+    /// One iteration: backward pass, stopping tests, line search, regularisation update,
+    /// callback. Returns a status when the solve stops.
+    fn iteration(
+        &mut self,
+        ws: &mut Workspace,
+        problem: &Problem,
+        opts: &DdpOptions,
+        sol: &mut Solution,
+        start: Instant,
+        callback: &mut Option<&mut dyn Callback>,
+    ) -> Option<Status> {
+        let (e, dual) = match backward(ws, problem, opts, &mut self.reg, self.rebuild) {
+            Ok(e) => e,
+            Err(s) => return Some(s),
+        };
+        self.m = Measures {
+            gaps: ws.max_gap(),
+            dual,
+            stop: (e.dg + 0.5 * e.dq).abs(),
+        };
+        if ws.feasible && self.m.stop < self.th_stop {
+            return Some(if self.reg <= opts.reg_converged {
+                Status::Converged
+            } else {
+                Status::Stalled
+            });
+        }
+        if opts.max_time.is_some_and(|b| start.elapsed() >= b) {
+            return Some(Status::TimeBudget);
+        }
+        if self.iter >= opts.max_iters {
+            return Some(Status::MaxIterations);
+        }
+        let cost = ws.cost;
+        let step = line_search(ws, problem, e, opts);
+        let record = IterationRecord {
+            iter: self.iter,
+            alpha: step.alpha,
+            prim_err: self.m.gaps,
+            dual_err: self.m.dual,
+            preg: self.reg,
+            cost,
+            stop: self.m.stop,
+            expected_decrease: step.expected,
+            decrease: step.decrease,
+            ..Default::default()
+        };
+        push_record(sol, record, &opts.log, &TABLE);
+        self.iter += 1;
+        ws.end_iteration();
+        self.rebuild = step.cost.is_some();
+        if let Some(c) = step.cost
+            && !ws.accept(problem, c, step.alpha)
+        {
+            return Some(Status::NonFinite);
+        }
+        if !update_reg(&mut self.reg, &step, opts) {
+            return Some(Status::RegularizationFailure);
+        }
+        if let Some(cb) = callback.as_mut()
+            && !cb.on_iteration(&record)
+        {
+            return Some(Status::Interrupted);
+        }
+        None
     }
 }
 

@@ -1012,8 +1012,8 @@ impl Workspace {
 
     /// Trial point of the nonlinear rollout (51): the feedback gains act on
     /// `x_t^α ⊖ x_t` and the next state solves the shifted dynamics of the subproblem
-    /// (see the comment on (51e) below). Returns `false` if the rollout fails
-    /// (non-finite state or an implicit solve that does not converge).
+    /// (see [`Workspace::next_state`]). Returns `false` if the rollout fails (non-finite
+    /// state or an implicit solve that does not converge).
     pub fn nonlinear_trial(&mut self, problem: &Problem, opts: &ProxDdpOptions, alpha: f64, mu_d: f64) -> bool {
         let n = problem.horizon();
         // (51a), (51b)
@@ -1029,81 +1029,88 @@ impl Workspace {
             }
         }
         for t in 0..=n {
-            // e = x_t^α ⊖ x_t, measured from the linear prediction x̂ = x_t ⊕ α δx_t as
-            // e = (x_t^α ⊖ x̂) + α δx_t: the same on vector spaces, and on spaces with
-            // angles (SO(2), SO(3)) it does not wrap by a full turn when the step turns a
-            // joint by more than π, which would feed a 2π error through the gains.
-            let space = problem.space(t);
-            let xhat = &mut self.ybuf[t];
-            let v = &mut self.dxbuf[t];
-            for (vi, s) in v.iter_mut().zip(slice(&self.step.xs[t])) {
-                *vi = alpha * s;
-            }
-            space.integrate(&self.cur.xs[t], v, xhat);
-            space.difference(xhat, &self.trial.xs[t], v);
-            for (vi, s) in v.iter_mut().zip(slice(&self.step.xs[t])) {
-                *vi += alpha * s;
-            }
-            let stage = self.riccati.stage(t);
-            let e = &self.dxbuf[t];
-            // (51c) and the path multipliers.
-            if t < n {
-                let (k, kk) = (stage.k(), stage.K());
-                let u = &mut self.trial.us[t];
-                for i in 0..u.len() {
-                    u[i] = self.cur.us[t][i] + alpha * k[i];
-                }
-                matvec(u, Accum::Add, kk, e, 1.0);
-            }
-            let (zeta, zz) = (stage.zeta(), stage.Z());
-            let nu = &mut self.trial.nus[t];
-            for i in 0..nu.len() {
-                nu[i] = self.cur.nus[t][i] + alpha * zeta[i];
-            }
-            matvec(nu, Accum::Add, zz, e, 1.0);
-            if t == n {
-                break;
-            }
-            // (51d)
-            let Some((xi, xxi)) = stage.lambda_next_gains() else {
-                return false;
-            };
-            let lam = &mut self.trial.lams[t + 1];
-            for i in 0..lam.len() {
-                lam[i] = self.cur.lams[t + 1][i] + alpha * xi[i];
-            }
-            matvec(lam, Accum::Add, xxi, e, 1.0);
-            // (51e), with the part (1 - α) of the current shifted gap
-            // g = f + mu_d (λ_e - λ) (the knot's `f`) kept, as FDDP keeps its gaps: the
-            // next state solves f(x^α, u^α, y) = s with
-            // s = mu_d (λ^α - λ_e) + (1 - α) g,
-            // so that α = 0 gives the current point back and, on linear dynamics, the
-            // rollout equals the linear step (50).
-            let s = &mut self.tbuf[t + 1];
-            let g = &self.lq.knots[t].f;
-            for i in 0..s.len() {
-                s[i] = mu_d * (self.trial.lams[t + 1][i] - self.lams_e[t + 1][i]) + (1.0 - alpha) * g[i];
-            }
-            let stage_model = &problem.stages()[t];
-            let (xs_lo, xs_hi) = self.trial.xs.split_at_mut(t + 1);
-            let (x, y) = (&xs_lo[t], &mut xs_hi[0]);
-            if matches!(stage_model.dynamics, Dynamics::Implicit(_)) {
-                // Newton-Raphson on f(x, u, y) - s = 0 from y = x_{t+1} ⊕ α δx_{t+1}.
-                let v = &mut self.dxbuf[t + 1];
-                for (vi, st) in v.iter_mut().zip(slice(&self.step.xs[t + 1])) {
-                    *vi = alpha * st;
-                }
-                stage_model.space_next().integrate(&self.cur.xs[t + 1], v, y);
-            }
-            let solve = ImplicitSolve {
-                max_iters: opts.implicit_newton_iters,
-                tol: opts.implicit_newton_tol,
-            };
-            if !self.data.stages[t].solve_next_state(stage_model, x, &self.trial.us[t], Some(s), y, solve) {
+            self.trial_deviation(problem, t, alpha);
+            self.feedback(t, n, alpha);
+            if t < n && !self.next_state(problem, opts, t, alpha, mu_d) {
                 return false;
             }
         }
         true
+    }
+
+    /// `e = x_t^α ⊖ x_t` into `dxbuf[t]`, measured from the linear prediction
+    /// `x̂ = x_t ⊕ α δx_t` as `e = (x_t^α ⊖ x̂) + α δx_t`: the same on vector spaces, and on
+    /// spaces with angles (SO(2), SO(3)) it does not wrap by a full turn when the step
+    /// turns a joint by more than π, which would feed a 2π error through the gains.
+    fn trial_deviation(&mut self, problem: &Problem, t: usize, alpha: f64) {
+        let space = problem.space(t);
+        let xhat = &mut self.ybuf[t];
+        let v = &mut self.dxbuf[t];
+        for (vi, s) in v.iter_mut().zip(slice(&self.step.xs[t])) {
+            *vi = alpha * s;
+        }
+        space.integrate(&self.cur.xs[t], v, xhat);
+        space.difference(xhat, &self.trial.xs[t], v);
+        for (vi, s) in v.iter_mut().zip(slice(&self.step.xs[t])) {
+            *vi += alpha * s;
+        }
+    }
+
+    /// (51c) and the path multipliers of knot `t` from the deviation `e` in `dxbuf[t]`.
+    fn feedback(&mut self, t: usize, n: usize, alpha: f64) {
+        let stage = self.riccati.stage(t);
+        let e = &self.dxbuf[t];
+        if t < n {
+            let (k, kk) = (stage.k(), stage.K());
+            let u = &mut self.trial.us[t];
+            for i in 0..u.len() {
+                u[i] = self.cur.us[t][i] + alpha * k[i];
+            }
+            matvec(u, Accum::Add, kk, e, 1.0);
+        }
+        let (zeta, zz) = (stage.zeta(), stage.Z());
+        let nu = &mut self.trial.nus[t];
+        for i in 0..nu.len() {
+            nu[i] = self.cur.nus[t][i] + alpha * zeta[i];
+        }
+        matvec(nu, Accum::Add, zz, e, 1.0);
+    }
+
+    /// (51d) the next co-state, and (51e) the next state, with the part `1 - α` of the
+    /// current shifted gap `g = f + mu_d (λ_e - λ)` (the knot's `f`) kept, as FDDP keeps
+    /// its gaps: the next state solves `f(x^α, u^α, y) = s` with
+    /// `s = mu_d (λ^α - λ_e) + (1 - α) g`, so that `α = 0` gives the current point back
+    /// and, on linear dynamics, the rollout equals the linear step (50).
+    fn next_state(&mut self, problem: &Problem, opts: &ProxDdpOptions, t: usize, alpha: f64, mu_d: f64) -> bool {
+        let Some((xi, xxi)) = self.riccati.stage(t).lambda_next_gains() else {
+            return false;
+        };
+        let lam = &mut self.trial.lams[t + 1];
+        for i in 0..lam.len() {
+            lam[i] = self.cur.lams[t + 1][i] + alpha * xi[i];
+        }
+        matvec(lam, Accum::Add, xxi, &self.dxbuf[t], 1.0);
+        let s = &mut self.tbuf[t + 1];
+        let g = &self.lq.knots[t].f;
+        for i in 0..s.len() {
+            s[i] = mu_d * (self.trial.lams[t + 1][i] - self.lams_e[t + 1][i]) + (1.0 - alpha) * g[i];
+        }
+        let stage_model = &problem.stages()[t];
+        let (xs_lo, xs_hi) = self.trial.xs.split_at_mut(t + 1);
+        let (x, y) = (&xs_lo[t], &mut xs_hi[0]);
+        if matches!(stage_model.dynamics, Dynamics::Implicit(_)) {
+            // Newton-Raphson on f(x, u, y) - s = 0 from y = x_{t+1} ⊕ α δx_{t+1}.
+            let v = &mut self.dxbuf[t + 1];
+            for (vi, st) in v.iter_mut().zip(slice(&self.step.xs[t + 1])) {
+                *vi = alpha * st;
+            }
+            stage_model.space_next().integrate(&self.cur.xs[t + 1], v, y);
+        }
+        let solve = ImplicitSolve {
+            max_iters: opts.implicit_newton_iters,
+            tol: opts.implicit_newton_tol,
+        };
+        self.data.stages[t].solve_next_state(stage_model, x, &self.trial.us[t], Some(s), y, solve)
     }
 
     /// Makes the trial point the current one.
