@@ -1,20 +1,23 @@
-//! `gharial bench solve` (every catalogue example) and `gharial bench peers` (the LQR
-//! family of the peer harness, as JSON lines in the harness's format).
+//! `gharial bench solve` (the catalogue's examples, with any solver) and `gharial bench
+//! peers` (the peer harness's problems with ProxDDP and the DDP family, as JSON lines in
+//! the harness's format).
 //!
 //! Each timed solve starts from the same guess with a freshly constructed and set-up
 //! solver (construction and setup are not timed, as in the harness); the median and
-//! minimum over the repeats are reported, with
-//! the time of one full-horizon model evaluation and derivative pass, to separate model
-//! cost from solver cost.
+//! minimum over the repeats are reported, with the time of one full-horizon model
+//! evaluation and derivative pass, to separate model cost from solver cost.
 
 use std::io::Write;
 use std::time::Instant;
 
+use gharial::error::Num;
 use gharial::problem::{Problem, ProblemData, kkt_residuals};
-use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::solvers::{InitialGuess, Solution};
 use gharial_problems::peers::{PeersLqrParams, PeersVariant};
 use serde_json::json;
+
+use crate::solver_choice::{AcceptanceArg, CommonArgs, ProxDdpArgs, SolverArgs, SolverConfig, SolverKind};
+use crate::{HARNESS_PROBLEMS, MAX_DIM, MAX_HORIZON, MAX_REPEATS, count, positive_int, positive_real};
 
 /// Timings of repeated solves of one problem.
 pub struct Timing {
@@ -37,31 +40,51 @@ fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-/// Solves `problem` `repeats` times from `(xs, us)` and times it.
+/// Why repeated solves could not be timed.
+#[derive(Debug)]
+pub enum TimingError {
+    /// The solver does not take the problem (its setup refused it).
+    Refused(gharial::Error),
+    /// The solve failed (e.g. an invalid guess).
+    Failed(gharial::Error),
+}
+
+impl std::fmt::Display for TimingError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            TimingError::Refused(e) | TimingError::Failed(e) => e.fmt(f),
+        }
+    }
+}
+
+/// Solves `problem` `repeats` times from `(xs, us)` with fresh solvers of `config` and
+/// times it.
 ///
 /// # Errors
-/// If setup or the guess is invalid.
+/// If the solver's setup refuses the problem, or the guess is invalid.
 pub fn time_solves(
     problem: &Problem,
     xs: &[Vec<f64>],
     us: &[Vec<f64>],
-    opts: &ProxDdpOptions,
+    config: &SolverConfig,
     repeats: usize,
-) -> gharial::Result<Timing> {
+) -> Result<Timing, TimingError> {
     let mut times = Vec::with_capacity(repeats.max(1));
     let mut solution = Solution::default();
     for _ in 0..repeats.max(1) {
         // A freshly constructed and set-up solver per repeat (not timed), as the harness.
-        let mut solver = ProxDdp::new(opts.clone());
-        solver.setup(problem)?;
+        let mut solver = config.build();
+        solver.setup(problem).map_err(TimingError::Refused)?;
         let t = Instant::now();
-        solver.solve(problem, InitialGuess::primal(xs, us))?;
+        solver
+            .solve_with(problem, InitialGuess::primal(xs, us), None)
+            .map_err(TimingError::Failed)?;
         times.push(t.elapsed().as_secs_f64() * 1e3);
         solution = solver.solution().clone();
     }
     let min_ms = times.iter().copied().fold(f64::INFINITY, f64::min);
     let median_ms = median(&mut times);
-    let mut data = ProblemData::new(problem, 1)?;
+    let mut data = ProblemData::new(problem, 1).map_err(TimingError::Failed)?;
     let init_cost = data.evaluate(problem, xs, us);
     let (mut ev, mut de) = (Vec::new(), Vec::new());
     for _ in 0..11 {
@@ -82,18 +105,37 @@ pub fn time_solves(
     })
 }
 
-/// `gharial bench solve`: iterations, time and time per iteration of every example, at
-/// its recommended settings (with `rollout` and `active_set_iters` if given), and the
-/// largest KKT residual of the solution recomputed by [`kkt_residuals`].
-pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>, active_set_iters: Option<usize>) -> i32 {
-    let names: Vec<String> = if names.is_empty() {
+/// The arguments of `gharial bench solve`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ExamplesArgs {
+    /// Problems (default: the whole catalogue).
+    pub problems: Vec<String>,
+    /// Timed solves per problem (at most 10,000).
+    #[arg(long, default_value_t = 5, value_parser = count(1, MAX_REPEATS))]
+    pub repeats: usize,
+    // The solver and its options.
+    #[command(flatten)]
+    pub solver: SolverArgs,
+}
+
+/// `gharial bench solve`: iterations, time and time per iteration of every example with
+/// the chosen solver (ProxDDP at the example's recommended settings), with the options
+/// given, and the largest KKT residual of the solution recomputed by [`kkt_residuals`].
+/// Problems the solver does not take are listed as skipped, with the reason.
+pub fn examples(args: &ExamplesArgs) -> i32 {
+    if let Err(e) = args.solver.check() {
+        eprintln!("gharial bench solve: {e}");
+        return 2;
+    }
+    let names: Vec<String> = if args.problems.is_empty() {
         gharial_problems::catalogue()
             .iter()
             .map(|p| p.name.to_string())
             .collect()
     } else {
-        names.to_vec()
+        args.problems.clone()
     };
+    out!("solver {}", args.solver.solver.name());
     out!(
         "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12} {:>10} {:>10} {:>15} {:>15} {:>9} {:>9} {:>9}",
         "problem",
@@ -119,14 +161,12 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>, acti
                 return 2;
             }
         };
-        let mut opts = ex.proxddp.clone();
-        if let Some(r) = rollout {
-            opts.rollout = r;
-        }
-        if let Some(k) = active_set_iters {
-            opts.active_set_iters = k;
-        }
-        match time_solves(&ex.problem, &ex.xs0, &ex.us0, &opts, repeats) {
+        let config = args.solver.config(&ex);
+        let rollout = match &config {
+            SolverConfig::ProxDdp(o) => format!("{:?}", o.rollout).to_lowercase(),
+            SolverConfig::Ddp(_) => "-".to_string(),
+        };
+        match time_solves(&ex.problem, &ex.xs0, &ex.us0, &config, args.repeats) {
             Ok(t) => {
                 let s = &t.solution;
                 if !s.status.converged() {
@@ -136,7 +176,7 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>, acti
                 out!(
                     "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12.3} {:>10.3} {:>10.4} {:>7.3}/{:<7.3} {:>15.9e} {:>9.2e} {:>9.2e} {:>9.2e}",
                     name,
-                    format!("{:?}", opts.rollout).to_lowercase(),
+                    rollout,
                     if s.status.converged() {
                         "converged".to_string()
                     } else {
@@ -155,6 +195,7 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>, acti
                     kkt
                 );
             }
+            Err(TimingError::Refused(e)) => out!("{name:<20} skipped: {e}"),
             Err(e) => {
                 eprintln!("gharial bench solve {name}: {e}");
                 code = 1;
@@ -165,21 +206,61 @@ pub fn examples(names: &[String], repeats: usize, rollout: Option<Rollout>, acti
     code
 }
 
-/// Settings of `gharial bench peers`, matching the harness's environment.
+/// The arguments of `gharial bench peers`, matching the harness's environment.
+#[derive(clap::Args, Debug, Clone)]
 pub struct PeersArgs {
-    /// Harness problem names (`lqr`, `lqr_box`, `lqr_box_term`, `ur5`, `ur5_box`,
-    /// `pendulum`, `pendulum_box`, `pendulum_box_term`; others get an error line).
+    /// Harness problem names, comma separated (a name gharial does not have gets a line
+    /// with an `error`).
+    #[arg(long, value_delimiter = ',', default_values_t = HARNESS_PROBLEMS.iter().map(|s| s.to_string()).collect::<Vec<_>>())]
     pub problems: Vec<String>,
-    /// Timed solves per problem and solver.
+    /// Timed solves per problem and solver (at most 10,000).
+    #[arg(long, default_value_t = 5, value_parser = count(1, MAX_REPEATS))]
     pub repeats: usize,
     /// Tolerance.
+    #[arg(long, default_value_t = 1e-6, value_parser = positive_real)]
     pub tol: f64,
     /// Iteration limit.
+    #[arg(long, default_value_t = 500, value_parser = positive_int)]
     pub max_iters: usize,
-    /// Directory of the trajectory files (`<problem>__gharial_<solver>.txt`).
+    /// Directory where the final trajectories are written
+    /// (`<problem>__gharial_<solver>.txt`).
+    #[arg(long)]
     pub traj_dir: Option<String>,
-    /// The family's parameters.
-    pub params: PeersLqrParams,
+    // The LQR family's parameters.
+    #[command(flatten)]
+    pub lqr: LqrArgs,
+}
+
+/// The parameters of the harness's LQR family.
+#[derive(clap::Args, Debug, Clone)]
+pub struct LqrArgs {
+    /// State size of the LQR family.
+    #[arg(long, default_value_t = 8, value_parser = count(1, MAX_DIM))]
+    pub lqr_nx: usize,
+    /// Control size.
+    #[arg(long, default_value_t = 4, value_parser = count(1, MAX_DIM))]
+    pub lqr_nu: usize,
+    /// Horizon.
+    #[arg(long = "lqr-N", default_value_t = 100, value_parser = count(1, MAX_HORIZON))]
+    pub lqr_n: usize,
+    /// Seed.
+    #[arg(long, default_value_t = 42)]
+    pub lqr_seed: u64,
+    /// Control bound.
+    #[arg(long, default_value_t = 0.05, value_parser = positive_real)]
+    pub lqr_umax: f64,
+}
+
+impl LqrArgs {
+    fn params(&self) -> PeersLqrParams {
+        PeersLqrParams {
+            nx: self.lqr_nx,
+            nu: self.lqr_nu,
+            horizon: self.lqr_n,
+            seed: self.lqr_seed,
+            umax: self.lqr_umax,
+        }
+    }
 }
 
 /// Writes a trajectory in the harness's format: lines `x v0 v1 ...`, then `u ...`.
@@ -219,29 +300,71 @@ fn harness_problem(name: &str, params: &PeersLqrParams) -> Option<gharial::Resul
     }
 }
 
-/// The solver variants reported: `ProxDDP` with the filter (the harness's ProxDDP),
-/// `ProxDDP_ls` with the nonmonotone line search, `ProxDDP_as` with the filter and the
-/// active-set prediction of the step.
-const VARIANTS: [(&str, StepAcceptance, usize); 3] = [
-    ("ProxDDP", StepAcceptance::Filter, 0),
-    ("ProxDDP_ls", StepAcceptance::NonmonotoneLinesearch, 0),
-    ("ProxDDP_as", StepAcceptance::Filter, 10),
-];
+/// The solvers reported, by the harness's names: `ProxDDP` with the filter (the
+/// harness's ProxDDP), `ProxDDP_ls` with the nonmonotone line search, `ProxDDP_as` with
+/// the filter and the active-set prediction of the step, then the DDP family (`DDP`,
+/// `FDDP`, `BoxDDP`, `BoxFDDP`, as the harness names crocoddyl's) at its defaults; all
+/// with the harness's tolerance and iteration limit, on one thread.
+fn peers_solvers(args: &PeersArgs) -> Vec<(&'static str, SolverArgs)> {
+    let common = CommonArgs {
+        tol: Some(args.tol),
+        max_iters: Some(args.max_iters),
+        threads: Some(1),
+    };
+    let proxddp = |label, acceptance, active_set_iters| {
+        let proxddp = ProxDdpArgs {
+            step_acceptance: Some(acceptance),
+            active_set_iters: Some(active_set_iters),
+            ..Default::default()
+        };
+        let solver = SolverArgs {
+            solver: SolverKind::ProxDdp,
+            common: common.clone(),
+            proxddp,
+        };
+        (label, solver)
+    };
+    let mut solvers = vec![
+        proxddp("ProxDDP", AcceptanceArg::Filter, 0),
+        proxddp("ProxDDP_ls", AcceptanceArg::Nonmonotone, 0),
+        proxddp("ProxDDP_as", AcceptanceArg::Filter, 10),
+    ];
+    for kind in SolverKind::ALL.into_iter().filter(|&k| k != SolverKind::ProxDdp) {
+        let solver = SolverArgs {
+            common: common.clone(),
+            ..SolverArgs::new(kind)
+        };
+        solvers.push((kind.label(), solver));
+    }
+    solvers
+}
 
 /// `gharial bench peers`: one JSON line per (problem, solver), trajectories written for
-/// the harness's independent check; a problem gharial cannot run gets a line with an
-/// `error`. Each problem uses its catalogue settings (the harness's: `mu_init` and
-/// rollout per family) with the harness's tolerance and iteration limit.
+/// the harness's independent check, all solvers of a problem together. ProxDDP starts
+/// from each problem's catalogue settings (the harness's: `mu_init` and rollout per
+/// family). A DDP-family solver whose setup refuses a problem (DDP and FDDP take no
+/// constraints, the box variants control bounds only) gets no line, as the harness runs
+/// crocoddyl's solvers only on the problems they take; the skips are noted on standard
+/// error. A problem gharial cannot build, or any other failure, gets a line with an
+/// `error`.
 pub fn peers(args: &PeersArgs) -> i32 {
+    // Measured: ProxDDP holds about 40 doubles per entry of (nx + nu)² per stage.
+    let lqr = &args.lqr;
+    if let Err(e) = crate::check_memory("the LQR family", lqr.lqr_nx + lqr.lqr_nu, lqr.lqr_n + 1, 40.0 * 8.0) {
+        eprintln!("gharial bench peers: {e}");
+        return 2;
+    }
+    let solvers = peers_solvers(args);
+    let params = lqr.params();
     for name in &args.problems {
-        let ex = match harness_problem(name, &args.params) {
+        let ex = match harness_problem(name, &params) {
             Some(Ok(e)) => e,
             other => {
                 let error = match other {
                     Some(Err(e)) => e.to_string(),
                     _ => format!("gharial has no problem `{name}`"),
                 };
-                for (solver, _, _) in VARIANTS {
+                for (solver, _) in &solvers {
                     out!(
                         "{}",
                         json!({"problem": name, "lib": "gharial", "solver": solver, "side": "rust", "error": error})
@@ -250,30 +373,41 @@ pub fn peers(args: &PeersArgs) -> i32 {
                 continue;
             }
         };
-        for (solver, acceptance, active_set_iters) in VARIANTS {
-            let opts = ProxDdpOptions {
-                tol: args.tol,
-                max_iters: args.max_iters,
-                step_acceptance: acceptance,
-                active_set_iters,
-                ..ex.proxddp.clone()
-            };
-            peers_line(args, name, solver, &ex, &opts);
+        let mut skipped = Vec::new();
+        for (solver, solver_args) in &solvers {
+            let config = solver_args.config(&ex);
+            if !peers_line(args, name, solver, &ex, &config) {
+                skipped.push(*solver);
+            }
+        }
+        if !skipped.is_empty() {
+            eprintln!(
+                "gharial bench peers: {name}: not run by {} (the problem has constraints they do not take)",
+                skipped.join(", ")
+            );
         }
     }
     0
 }
 
-/// Times one solver variant on one harness problem and prints its JSON line.
-fn peers_line(args: &PeersArgs, name: &str, solver: &str, ex: &gharial_problems::Example, opts: &ProxDdpOptions) {
-    let t = match time_solves(&ex.problem, &ex.xs0, &ex.us0, opts, args.repeats) {
+/// Times one solver on one harness problem and prints its JSON line; `false` if a
+/// DDP-family solver refused the problem (no line).
+fn peers_line(
+    args: &PeersArgs,
+    name: &str,
+    solver: &str,
+    ex: &gharial_problems::Example,
+    config: &SolverConfig,
+) -> bool {
+    let t = match time_solves(&ex.problem, &ex.xs0, &ex.us0, config, args.repeats) {
         Ok(t) => t,
+        Err(TimingError::Refused(_)) if config.kind() != SolverKind::ProxDdp => return false,
         Err(e) => {
             out!(
                 "{}",
                 json!({"problem": name, "lib": "gharial", "solver": solver, "side": "rust", "error": e.to_string()})
             );
-            return;
+            return true;
         }
     };
     let s = &t.solution;
@@ -283,10 +417,6 @@ fn peers_line(args: &PeersArgs, name: &str, solver: &str, ex: &gharial_problems:
             eprintln!("gharial bench peers: cannot write {path}: {e}");
         }
     }
-    let settings = format!(
-        "mu_init={:e} rollout={:?} step_acceptance={:?} active_set_iters={}",
-        opts.mu_init, opts.rollout, opts.step_acceptance, opts.active_set_iters
-    );
     out!(
         "{}",
         json!({
@@ -294,7 +424,7 @@ fn peers_line(args: &PeersArgs, name: &str, solver: &str, ex: &gharial_problems:
             "solver": solver, "side": "rust",
             "N": ex.problem.horizon(), "nx": ex.problem.space(0).nx(), "nu": ex.problem.nu(0),
             "tol": args.tol, "max_iters": args.max_iters, "repeats": args.repeats,
-            "settings": settings,
+            "settings": peers_settings(config),
             "iters": s.iterations, "converged": s.status.converged(),
             "prim_res": s.prim_err, "dual_res": s.dual_err,
             "init_cost": t.init_cost, "final_cost": s.cost,
@@ -303,4 +433,22 @@ fn peers_line(args: &PeersArgs, name: &str, solver: &str, ex: &gharial_problems:
             "model_eval_ms": t.eval_ms, "model_deriv_ms": t.deriv_ms,
         })
     );
+    true
+}
+
+/// The harness's free-form `settings` string of a solver.
+fn peers_settings(config: &SolverConfig) -> String {
+    match config {
+        SolverConfig::ProxDdp(o) => format!(
+            "mu_init={:e} rollout={:?} step_acceptance={:?} active_set_iters={} threads={}",
+            o.mu_init, o.rollout, o.step_acceptance, o.active_set_iters, o.num_threads
+        ),
+        SolverConfig::Ddp(o) => format!(
+            "tol={} th_stop=tol^2*N variant={} reg_init={} threads={}",
+            Num(o.tol),
+            o.variant.name(),
+            Num(o.reg_init),
+            o.num_threads
+        ),
+    }
 }

@@ -14,9 +14,9 @@ macro_rules! out {
 mod bench;
 mod bench_solve;
 mod solve;
+mod solver_choice;
 
-use clap::{Parser, Subcommand, ValueEnum};
-use gharial::solvers::proxddp::{Merit, Rollout, StepAcceptance};
+use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(name = "gharial", version, about = "Constrained trajectory optimization for robots")]
@@ -25,109 +25,12 @@ struct Cli {
     command: Command,
 }
 
-/// Forward pass of the solver.
-#[derive(Clone, Copy, ValueEnum)]
-enum RolloutArg {
-    /// The SQP step (50).
-    Linear,
-    /// A closed-loop rollout of the nonlinear dynamics (51).
-    Nonlinear,
-}
-
-impl From<RolloutArg> for Rollout {
-    fn from(r: RolloutArg) -> Self {
-        match r {
-            RolloutArg::Linear => Rollout::Linear,
-            RolloutArg::Nonlinear => Rollout::Nonlinear,
-        }
-    }
-}
-
-/// Step acceptance of the solver.
-#[derive(Clone, Copy, ValueEnum)]
-enum AcceptanceArg {
-    /// Armijo backtracking on the merit function.
-    Linesearch,
-    /// Armijo backtracking against the average of past merit values.
-    Nonmonotone,
-    /// Filter on (merit, primal infeasibility).
-    Filter,
-}
-
-impl From<AcceptanceArg> for StepAcceptance {
-    fn from(a: AcceptanceArg) -> Self {
-        match a {
-            AcceptanceArg::Linesearch => StepAcceptance::Linesearch,
-            AcceptanceArg::Nonmonotone => StepAcceptance::NonmonotoneLinesearch,
-            AcceptanceArg::Filter => StepAcceptance::Filter,
-        }
-    }
-}
-
-/// Merit function of the step acceptance.
-#[derive(Clone, Copy, ValueEnum)]
-enum MeritArg {
-    /// The primal-dual augmented Lagrangian (17).
-    PrimalDual,
-    /// The primal augmented Lagrangian (35).
-    Primal,
-}
-
-impl From<MeritArg> for Merit {
-    fn from(m: MeritArg) -> Self {
-        match m {
-            MeritArg::PrimalDual => Merit::PrimalDual,
-            MeritArg::Primal => Merit::Primal,
-        }
-    }
-}
-
 #[derive(Subcommand)]
 enum Command {
     /// List the built-in problems and solvers.
     List,
     /// Solve a built-in problem: iteration table, summary, optional JSON output.
-    #[command(after_help = solve_help())]
-    Solve {
-        /// Problem name (see `gharial list`).
-        problem: String,
-        /// Solver.
-        #[arg(long, default_value = "proxddp")]
-        solver: String,
-        /// Tolerance on the primal and dual residuals.
-        #[arg(long, value_parser = positive_real)]
-        tol: Option<f64>,
-        /// Initial augmented-Lagrangian penalty.
-        #[arg(long, value_parser = positive_real)]
-        mu_init: Option<f64>,
-        /// Dynamics penalty relative to the penalty (appendix C of the ProxDDP paper).
-        #[arg(long, value_parser = positive_real)]
-        dyn_al_scale: Option<f64>,
-        /// Active-set prediction iterations per step (0: the plain Newton step; at most 100).
-        #[arg(long, value_parser = count(0, ACTIVE_SET_ITERS_MAX))]
-        active_set_iters: Option<usize>,
-        /// Iteration limit.
-        #[arg(long, value_parser = positive_int)]
-        max_iters: Option<usize>,
-        /// Forward pass.
-        #[arg(long, value_enum)]
-        rollout: Option<RolloutArg>,
-        /// Step acceptance.
-        #[arg(long, value_enum)]
-        step_acceptance: Option<AcceptanceArg>,
-        /// Merit function of the step acceptance.
-        #[arg(long, value_enum)]
-        merit: Option<MeritArg>,
-        /// Threads for stage-wise evaluation.
-        #[arg(long, value_parser = positive_int)]
-        threads: Option<usize>,
-        /// Print the solver's live log (with outer updates) instead of the table afterwards.
-        #[arg(long)]
-        verbose: bool,
-        /// Write the solution, settings and history to this JSON file.
-        #[arg(long)]
-        output: Option<String>,
-    },
+    Solve(solve::SolveArgs),
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -137,54 +40,12 @@ enum Command {
 
 #[derive(Subcommand)]
 enum BenchCommand {
-    /// Iterations, time per solve and per iteration of the built-in problems.
-    Solve {
-        /// Problems (default: the whole catalogue).
-        problems: Vec<String>,
-        /// Timed solves per problem (at most 10,000).
-        #[arg(long, default_value_t = 5, value_parser = count(1, MAX_REPEATS))]
-        repeats: usize,
-        /// Forward pass (default: each problem's recommended one).
-        #[arg(long, value_enum)]
-        rollout: Option<RolloutArg>,
-        /// Active-set prediction iterations per step (default: each problem's setting).
-        #[arg(long)]
-        active_set_iters: Option<usize>,
-    },
-    /// The problems of the peer harness, as JSON lines in its format.
-    Peers {
-        /// Harness problem names, comma separated (a name gharial does not have gets a
-        /// line with an `error`).
-        #[arg(long, value_delimiter = ',', default_values_t = HARNESS_PROBLEMS.iter().map(|s| s.to_string()).collect::<Vec<_>>())]
-        problems: Vec<String>,
-        /// Timed solves per problem and solver (at most 10,000).
-        #[arg(long, default_value_t = 5, value_parser = count(1, MAX_REPEATS))]
-        repeats: usize,
-        /// Tolerance.
-        #[arg(long, default_value_t = 1e-6, value_parser = positive_real)]
-        tol: f64,
-        /// Iteration limit.
-        #[arg(long, default_value_t = 500, value_parser = positive_int)]
-        max_iters: usize,
-        /// Directory where the final trajectories are written.
-        #[arg(long)]
-        traj_dir: Option<String>,
-        /// State size of the LQR family.
-        #[arg(long, default_value_t = 8, value_parser = count(1, MAX_DIM))]
-        lqr_nx: usize,
-        /// Control size.
-        #[arg(long, default_value_t = 4, value_parser = count(1, MAX_DIM))]
-        lqr_nu: usize,
-        /// Horizon.
-        #[arg(long = "lqr-N", default_value_t = 100, value_parser = count(1, MAX_HORIZON))]
-        lqr_n: usize,
-        /// Seed.
-        #[arg(long, default_value_t = 42)]
-        lqr_seed: u64,
-        /// Control bound.
-        #[arg(long, default_value_t = 0.05, value_parser = positive_real)]
-        lqr_umax: f64,
-    },
+    /// Iterations, time per solve and per iteration of the built-in problems, with any
+    /// solver (problems it does not take are listed as skipped).
+    Solve(bench_solve::ExamplesArgs),
+    /// The problems of the peer harness, as JSON lines in its format: ProxDDP and the
+    /// DDP family on the problems each takes.
+    Peers(bench_solve::PeersArgs),
     /// Proximal Riccati solver (serial and parallel) on the peers' random LQ problems.
     Riccati {
         /// Thread counts (legs of the parallel solver) to time (1 = the serial solver),
@@ -218,14 +79,15 @@ enum BenchCommand {
     },
 }
 
-/// The part of `gharial solve --help` after the options: the table's columns and the
+/// The part of `gharial solve --help` after the options: the tables' columns and the
 /// exit codes.
 fn solve_help() -> String {
     format!(
-        "Columns of the iteration table:\n{}\n\nThe settings line marks values that are not the library's defaults: \
+        "{}\n\nThe settings line marks values that are not the library's defaults: \
          [problem] for the problem's recommended settings, [option] for the command line.\n\n\
-         Exit code: 0 converged, 1 stopped for another reason (the status says which), 2 invalid input.",
-        gharial::solvers::proxddp::TABLE.legend()
+         Exit code: 0 converged, 1 stopped for another reason (the status says which), 2 invalid input \
+         (including an option the solver does not take, and a problem it does not take).",
+        solver_choice::tables_legend()
     )
 }
 
@@ -250,8 +112,6 @@ const MAX_REFINE: usize = 10;
 const MAX_LEGS: usize = 1_024;
 const MAX_DIM: usize = 1_000;
 const MAX_HORIZON: usize = 1_000_000;
-use gharial::solvers::proxddp::ACTIVE_SET_ITERS_MAX;
-
 /// The memory a benchmark may plan to use.
 const MEMORY_BUDGET: f64 = 16.0 * (1u64 << 30) as f64;
 
@@ -334,88 +194,13 @@ fn main() {
     let cli = Cli::parse();
     match cli.command {
         Command::List => solve::list(),
-        Command::Solve {
-            problem,
-            solver,
-            tol,
-            mu_init,
-            dyn_al_scale,
-            active_set_iters,
-            max_iters,
-            rollout,
-            step_acceptance,
-            merit,
-            threads,
-            verbose,
-            output,
-        } => {
-            let args = solve::SolveArgs {
-                problem,
-                solver,
-                tol,
-                mu_init,
-                dyn_al_scale,
-                active_set_iters,
-                max_iters,
-                rollout: rollout.map(Rollout::from),
-                step_acceptance: step_acceptance.map(StepAcceptance::from),
-                merit: merit.map(Merit::from),
-                threads,
-                verbose,
-                output,
-            };
-            std::process::exit(solve::run(&args));
-        }
+        Command::Solve(args) => std::process::exit(solve::run(&args)),
         Command::Bench {
-            which:
-                BenchCommand::Solve {
-                    problems,
-                    repeats,
-                    rollout,
-                    active_set_iters,
-                },
-        } => std::process::exit(bench_solve::examples(
-            &problems,
-            repeats,
-            rollout.map(Rollout::from),
-            active_set_iters,
-        )),
+            which: BenchCommand::Solve(args),
+        } => std::process::exit(bench_solve::examples(&args)),
         Command::Bench {
-            which:
-                BenchCommand::Peers {
-                    problems,
-                    repeats,
-                    tol,
-                    max_iters,
-                    traj_dir,
-                    lqr_nx,
-                    lqr_nu,
-                    lqr_n,
-                    lqr_seed,
-                    lqr_umax,
-                },
-        } => {
-            // Measured: ProxDDP holds about 40 doubles per entry of (nx + nu)² per stage.
-            if let Err(e) = check_memory("the LQR family", lqr_nx + lqr_nu, lqr_n + 1, 40.0 * 8.0) {
-                eprintln!("gharial bench peers: {e}");
-                std::process::exit(2);
-            }
-            let args = bench_solve::PeersArgs {
-                problems,
-                repeats,
-                tol,
-                max_iters,
-                traj_dir,
-                params: gharial_problems::peers::PeersLqrParams {
-                    nx: lqr_nx,
-                    nu: lqr_nu,
-                    horizon: lqr_n,
-                    seed: lqr_seed,
-                    umax: lqr_umax,
-                },
-            };
-            std::process::exit(bench_solve::peers(&args));
-        }
+            which: BenchCommand::Peers(args),
+        } => std::process::exit(bench_solve::peers(&args)),
         Command::Bench {
             which:
                 BenchCommand::Riccati {

@@ -13,6 +13,9 @@ fn gharial(args: &[&str]) -> Output {
         .expect("the gharial binary runs")
 }
 
+/// The solvers' command-line names.
+const SOLVERS: [&str; 5] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp"];
+
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
@@ -26,7 +29,10 @@ fn list_names_every_catalogue_problem() {
     let o = gharial(&["list"]);
     assert!(o.status.success());
     let text = stdout(&o);
-    assert!(text.contains("proxddp"));
+    for solver in SOLVERS {
+        let line = text.lines().find(|l| l.split_whitespace().next() == Some(solver));
+        assert!(line.is_some(), "`gharial list` misses the solver {solver}: {text}");
+    }
     for info in gharial_problems::catalogue() {
         assert!(text.contains(info.name), "`gharial list` misses {}", info.name);
     }
@@ -98,7 +104,11 @@ fn bad_input_gives_a_message_and_a_failure_code() {
 
     let o = gharial(&["solve", "lqr", "--solver", "nope"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("proxddp"));
+    let err = stderr(&o);
+    assert!(err.contains("nope"), "{err}");
+    for solver in SOLVERS {
+        assert!(err.contains(solver), "the message does not list {solver}: {err}");
+    }
 }
 
 #[test]
@@ -167,6 +177,26 @@ fn invalid_options_are_refused_before_any_work() {
         (&["solve", "lqr", "--tol", "inf"], "--tol"),
         (&["solve", "lqr", "--output", unwritable], "cannot write"),
         (&["solve", "lqr", "--active-set-iters", "101"], "--active-set-iters"),
+        (&["solve", "lqr", "--solver", "fddp", "--mu-init", "1"], "--mu-init"),
+        (
+            &["solve", "lqr", "--solver", "box-ddp", "--step-acceptance", "filter"],
+            "--step-acceptance",
+        ),
+        (&["solve", "lqr", "--solver", "ddp", "--rollout", "linear"], "--rollout"),
+        (
+            &["solve", "lqr", "--solver", "fddp", "--output", unwritable],
+            "cannot write",
+        ),
+        (&["solve", "lqr-bounds", "--solver", "ddp"], "u_box"),
+        (&["solve", "lqr", "--solver", "FDDP"], "box-fddp"),
+        (
+            &["bench", "solve", "lqr", "--solver", "fddp", "--merit", "primal"],
+            "--merit",
+        ),
+        (
+            &["bench", "solve", "lqr", "--solver", "ddp", "--active-set-iters", "101"],
+            "--active-set-iters",
+        ),
         (&["bench", "riccati", "--rounds", "18446744073709551615"], "--rounds"),
         (&["bench", "riccati", "--refine", "1000000"], "--refine"),
         (&["bench", "riccati", "--horizons", "1000000000"], "--horizons"),
@@ -212,4 +242,234 @@ fn the_header_says_which_settings_the_problem_recommends() {
     for column in ["inner_crit", "dphi0", "dM", "preg", "al "] {
         assert!(help.contains(column), "`solve --help` does not explain {column}");
     }
+    // The DDP family's table, from the solver itself.
+    let legend = gharial::solvers::ddp::TABLE.legend();
+    assert!(
+        help.contains(&legend),
+        "`solve --help` lacks the DDP family's columns:\n{help}"
+    );
+    for column in ["stop", "dV_exp", "gaps", "|Q_u|", "reg"] {
+        assert!(legend.lines().any(|l| l.starts_with(column)), "{column}");
+    }
+    // The DDP family's settings line: its defaults, and the options given.
+    let text = stdout(&gharial(&["solve", "peers-lqr", "--solver", "fddp", "--tol", "1e-7"]));
+    assert!(
+        text.contains("solver    FDDP (tol 1e-7 [option; default 1e-6], max_iters 300,"),
+        "{text}"
+    );
+    assert!(!text.contains("[problem"), "{text}");
+    assert!(
+        text.contains(&gharial::solvers::ddp::TABLE.header().to_string()),
+        "{text}"
+    );
+}
+
+/// Solves `problem` with `solver` writing the JSON output; returns the document (its
+/// `solver`, `converged` and history checked) and the catalogue's example.
+fn solve_to_json(problem: &str, solver: &str, extra: &[&str]) -> (serde_json::Value, gharial_problems::Example) {
+    let path = std::env::temp_dir().join(format!("gharial-cli-{solver}-{problem}-{}.json", std::process::id()));
+    let path_str = path.to_str().expect("UTF-8 temp path");
+    let mut args = vec!["solve", problem, "--solver", solver, "--output", path_str];
+    args.extend_from_slice(extra);
+    let o = gharial(&args);
+    assert_eq!(o.status.code(), Some(0), "{args:?}: {}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("status    converged"), "{}", stdout(&o));
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    assert_eq!(doc["solver"], solver);
+    assert_eq!(doc["converged"], true);
+    let history = doc["history"].as_array().unwrap();
+    assert_eq!(history.len(), doc["iterations"].as_u64().unwrap() as usize);
+    (doc, gharial_problems::build(problem).unwrap())
+}
+
+/// The KKT residuals of the written primal-dual point, recomputed from the problem the
+/// library builds under that name, and the cost of the written trajectory.
+fn check_written_solution(doc: &serde_json::Value, ex: &gharial_problems::Example, tol: f64) {
+    let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
+    let (lambdas, nus) = (vectors(&doc["lambdas"]), vectors(&doc["nus"]));
+    let kkt = kkt_residuals(&ex.problem, &xs, &us, &lambdas, &nus).unwrap();
+    assert!(kkt.max() < tol, "{kkt:?}");
+    let cost = gharial_problems::total_cost(&ex.problem, &xs, &us).unwrap();
+    assert!((cost - doc["cost"].as_f64().unwrap()).abs() < 1e-12 * cost.abs().max(1.0));
+}
+
+#[test]
+fn fddp_solves_the_peers_lqr_to_a_kkt_point() {
+    let (doc, ex) = solve_to_json("peers-lqr", "fddp", &["--tol", "1e-8"]);
+    assert_eq!(doc["settings"]["tol"], 1e-8);
+    assert_eq!(doc["settings"]["max_iters"], 300);
+    assert!(doc["settings"].get("mu_init").is_none(), "{}", doc["settings"]);
+    // An LQ problem: one exact step (regularisation 0), whose expected decrease is the
+    // actual one.
+    let row = &doc["history"][0];
+    assert_eq!(row["alpha"], 1.0);
+    let (expected, actual) = (
+        row["expected_decrease"].as_f64().unwrap(),
+        row["decrease"].as_f64().unwrap(),
+    );
+    assert!(expected > 0.0 && (expected - actual).abs() < 1e-9 * expected, "{row}");
+    check_written_solution(&doc, &ex, 1e-8);
+}
+
+#[test]
+fn box_fddp_solves_the_peers_box_lqr_to_a_kkt_point_within_the_bounds() {
+    let (doc, ex) = solve_to_json("peers-lqr-box", "box-fddp", &[]);
+    check_written_solution(&doc, &ex, 1e-6);
+    // The bounds |u| <= 0.05 hold and some are active.
+    let us = vectors(&doc["us"]);
+    let u_max = us.iter().flatten().fold(0.0f64, |m, u| m.max(u.abs()));
+    assert!((u_max - 0.05).abs() < 1e-12, "largest |u| = {u_max}");
+    // The same optimum as ProxDDP's (an independent algorithm) to the tolerance.
+    let (prox, _) = solve_to_json("peers-lqr-box", "proxddp", &[]);
+    let (c, c_prox) = (doc["cost"].as_f64().unwrap(), prox["cost"].as_f64().unwrap());
+    assert!((c - c_prox).abs() < 1e-6 * c_prox, "box-fddp {c}, proxddp {c_prox}");
+}
+
+#[test]
+fn a_problem_the_solver_does_not_take_is_refused_naming_the_constraint() {
+    let o = gharial(&["solve", "lqr-bounds", "--solver", "ddp"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stdout(&o));
+    let err = stderr(&o);
+    assert!(err.contains("ddp") && err.contains("u_box"), "{err}");
+    assert!(!stdout(&o).contains("status"), "{}", stdout(&o));
+    // The box variants take the same problem.
+    let o = gharial(&["solve", "lqr-bounds", "--solver", "box-ddp"]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+}
+
+#[test]
+fn bench_solve_lists_the_problems_a_solver_does_not_take_as_skipped() {
+    let o = gharial(&[
+        "bench",
+        "solve",
+        "peers-lqr",
+        "lqr-bounds",
+        "--solver",
+        "fddp",
+        "--repeats",
+        "1",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let text = stdout(&o);
+    let line = |name: &str| {
+        text.lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap_or_else(|| panic!("no line for {name}: {text}"))
+    };
+    assert!(line("peers-lqr").contains("converged"), "{text}");
+    assert!(
+        line("lqr-bounds").contains("skipped") && line("lqr-bounds").contains("u_box"),
+        "{text}"
+    );
+}
+
+#[test]
+fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
+    let dir = std::env::temp_dir().join(format!("gharial-cli-peers-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let o = gharial(&[
+        "bench",
+        "peers",
+        "--problems",
+        "lqr,lqr_box",
+        "--repeats",
+        "1",
+        "--traj-dir",
+        dir.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let lines: Vec<serde_json::Value> = stdout(&o)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect();
+    let solvers = |problem: &str| -> Vec<String> {
+        lines
+            .iter()
+            .filter(|l| l["problem"] == problem)
+            .map(|l| l["solver"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let all = [
+        "ProxDDP",
+        "ProxDDP_ls",
+        "ProxDDP_as",
+        "DDP",
+        "FDDP",
+        "BoxDDP",
+        "BoxFDDP",
+    ];
+    assert_eq!(solvers("lqr"), all);
+    assert_eq!(
+        solvers("lqr_box"),
+        ["ProxDDP", "ProxDDP_ls", "ProxDDP_as", "BoxDDP", "BoxFDDP"]
+    );
+    // All solvers of one problem together.
+    assert!(lines[..all.len()].iter().all(|l| l["problem"] == "lqr"));
+    let params = gharial_problems::peers::PeersLqrParams::default();
+    for l in &lines {
+        let (problem, solver) = (l["problem"].as_str().unwrap(), l["solver"].as_str().unwrap());
+        assert_eq!(l["converged"], true, "{l}");
+        for key in [
+            "iters",
+            "init_cost",
+            "final_cost",
+            "time_ms",
+            "time_ms_min",
+            "prim_res",
+            "dual_res",
+            "model_eval_ms",
+            "model_deriv_ms",
+            "settings",
+        ] {
+            assert!(!l[key].is_null(), "{key} missing: {l}");
+        }
+        // The trajectory written is the solution reported: its cost, recomputed.
+        let variant = if problem == "lqr" {
+            gharial_problems::peers::PeersVariant::Lqr
+        } else {
+            gharial_problems::peers::PeersVariant::Box
+        };
+        let ex = gharial_problems::peers::build(&params, variant).unwrap();
+        let path = dir.join(format!("{problem}__gharial_{solver}.txt"));
+        let (xs, us) = read_traj(&std::fs::read_to_string(&path).unwrap());
+        let cost = gharial_problems::total_cost(&ex.problem, &xs, &us).unwrap();
+        let reported = l["final_cost"].as_f64().unwrap();
+        assert!(
+            (cost - reported).abs() < 1e-12 * reported,
+            "{problem} {solver}: {cost} vs {reported}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+    let settings = lines.iter().find(|l| l["solver"] == "FDDP").unwrap()["settings"].clone();
+    assert_eq!(settings, "tol=1e-6 th_stop=tol^2*N variant=fddp reg_init=0 threads=1");
+    // Every solver reaches the same optimum of each problem (the DDP family to its
+    // tolerance, tol^2 N on the expected decrease).
+    for problem in ["lqr", "lqr_box"] {
+        let costs: Vec<f64> = lines
+            .iter()
+            .filter(|l| l["problem"] == problem)
+            .map(|l| l["final_cost"].as_f64().unwrap())
+            .collect();
+        let (lo, hi) = costs
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(a, b), &c| (a.min(c), b.max(c)));
+        assert!(hi - lo < 1e-5 * lo, "{problem}: final costs {costs:?}");
+    }
+}
+
+/// A trajectory file of the peer harness: `x ...` lines, then `u ...` lines.
+fn read_traj(text: &str) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let (mut xs, mut us) = (Vec::new(), Vec::new());
+    for line in text.lines() {
+        let mut words = line.split_whitespace();
+        let kind = words.next().expect("a tag");
+        let v: Vec<f64> = words.map(|w| w.parse().expect("a number")).collect();
+        match kind {
+            "x" => xs.push(v),
+            "u" => us.push(v),
+            other => panic!("unknown line tag {other}"),
+        }
+    }
+    (xs, us)
 }

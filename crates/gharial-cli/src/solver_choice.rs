@@ -1,0 +1,549 @@
+//! The solver chosen by name and its command-line options, declared once and shared by
+//! `gharial solve`, `gharial bench solve` and `gharial bench peers`.
+//!
+//! [`SolverArgs`] holds what the command line says: the solver's name, the options every
+//! solver takes ([`CommonArgs`]) and ProxDDP's own ([`ProxDdpArgs`]). [`SolverArgs::check`]
+//! refuses an option the chosen solver does not take; [`SolverArgs::config`] applies the
+//! options to the solver's starting settings (a problem's recommended ProxDDP settings, the
+//! DDP family's defaults) and [`SolverConfig::build`] constructs the solver.
+
+use clap::ValueEnum;
+use clap::builder::PossibleValue;
+use gharial::error::Num;
+use gharial::solvers::Solver;
+use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
+use gharial::solvers::log::{LogSink, Table};
+use gharial::solvers::proxddp::{ACTIVE_SET_ITERS_MAX, Merit, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
+use gharial_problems::Example;
+use serde_json::{Value, json};
+
+use crate::{count, positive_int, positive_real};
+
+/// A solver of the library, by the name the command line uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolverKind {
+    /// ProxDDP.
+    ProxDdp,
+    /// A member of the DDP family.
+    Ddp(DdpVariant),
+}
+
+impl SolverKind {
+    /// Every solver, in the order `gharial list` shows them.
+    pub const ALL: [SolverKind; 5] = [
+        SolverKind::ProxDdp,
+        SolverKind::Ddp(DdpVariant::Ddp),
+        SolverKind::Ddp(DdpVariant::Fddp),
+        SolverKind::Ddp(DdpVariant::BoxDdp),
+        SolverKind::Ddp(DdpVariant::BoxFddp),
+    ];
+
+    /// The command-line name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`).
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverKind::ProxDdp => "proxddp",
+            SolverKind::Ddp(v) => v.name(),
+        }
+    }
+
+    /// The name in tables and in the peer harness (`ProxDDP`, `DDP`, `FDDP`, `BoxDDP`,
+    /// `BoxFDDP`, as the harness names aligator's and crocoddyl's solvers).
+    pub fn label(self) -> &'static str {
+        match self {
+            SolverKind::ProxDdp => "ProxDDP",
+            SolverKind::Ddp(DdpVariant::Ddp) => "DDP",
+            SolverKind::Ddp(DdpVariant::Fddp) => "FDDP",
+            SolverKind::Ddp(DdpVariant::BoxDdp) => "BoxDDP",
+            SolverKind::Ddp(DdpVariant::BoxFddp) => "BoxFDDP",
+        }
+    }
+
+    /// One line on the method and the problems it takes.
+    pub fn summary(self) -> &'static str {
+        match self {
+            SolverKind::ProxDdp => "primal-dual augmented-Lagrangian DDP (Jallet et al. 2023); any constraints",
+            SolverKind::Ddp(DdpVariant::Ddp) => "DDP / iLQR, single shooting (Tassa et al. 2012); no constraints",
+            SolverKind::Ddp(DdpVariant::Fddp) => {
+                "feasibility-driven DDP, multiple shooting (Mastalli et al. 2020); no constraints"
+            }
+            SolverKind::Ddp(DdpVariant::BoxDdp) => {
+                "DDP with a projected-Newton box QP (Tassa et al. 2014); control bounds only"
+            }
+            SolverKind::Ddp(DdpVariant::BoxFddp) => {
+                "FDDP with control bounds (Mastalli et al. 2022); control bounds only"
+            }
+        }
+    }
+
+    /// The solver's iteration table (asked of a solver with default options).
+    pub fn table(self) -> Table {
+        let solver: Box<dyn Solver> = match self {
+            SolverKind::ProxDdp => Box::new(ProxDdp::new(ProxDdpOptions::default())),
+            SolverKind::Ddp(v) => Box::new(Ddp::new(DdpOptions::new(v))),
+        };
+        solver.table()
+    }
+
+    /// The settings the solver reports, and the command-line options that set them.
+    fn fields(self) -> Fields {
+        match self {
+            SolverKind::ProxDdp => Fields::ProxDdp(PROXDDP_FIELDS),
+            SolverKind::Ddp(_) => Fields::Ddp(DDP_FIELDS),
+        }
+    }
+}
+
+impl ValueEnum for SolverKind {
+    fn value_variants<'a>() -> &'a [Self] {
+        &Self::ALL
+    }
+
+    fn to_possible_value(&self) -> Option<PossibleValue> {
+        Some(PossibleValue::new(self.name()).help(self.summary()))
+    }
+}
+
+/// Forward pass of ProxDDP.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum RolloutArg {
+    /// The SQP step (50).
+    Linear,
+    /// A closed-loop rollout of the nonlinear dynamics (51).
+    Nonlinear,
+}
+
+impl From<RolloutArg> for Rollout {
+    fn from(r: RolloutArg) -> Self {
+        match r {
+            RolloutArg::Linear => Rollout::Linear,
+            RolloutArg::Nonlinear => Rollout::Nonlinear,
+        }
+    }
+}
+
+/// Step acceptance of ProxDDP.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum AcceptanceArg {
+    /// Armijo backtracking on the merit function.
+    Linesearch,
+    /// Armijo backtracking against the average of past merit values.
+    Nonmonotone,
+    /// Filter on (merit, primal infeasibility).
+    Filter,
+}
+
+impl From<AcceptanceArg> for StepAcceptance {
+    fn from(a: AcceptanceArg) -> Self {
+        match a {
+            AcceptanceArg::Linesearch => StepAcceptance::Linesearch,
+            AcceptanceArg::Nonmonotone => StepAcceptance::NonmonotoneLinesearch,
+            AcceptanceArg::Filter => StepAcceptance::Filter,
+        }
+    }
+}
+
+/// Merit function of ProxDDP's step acceptance.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum MeritArg {
+    /// The primal-dual augmented Lagrangian (17).
+    PrimalDual,
+    /// The primal augmented Lagrangian (35).
+    Primal,
+}
+
+impl From<MeritArg> for Merit {
+    fn from(m: MeritArg) -> Self {
+        match m {
+            MeritArg::PrimalDual => Merit::PrimalDual,
+            MeritArg::Primal => Merit::Primal,
+        }
+    }
+}
+
+/// Options every solver takes.
+#[derive(clap::Args, Debug, Clone, Default)]
+#[command(next_help_heading = "Options of every solver")]
+pub struct CommonArgs {
+    /// Tolerance (ProxDDP: on the primal and dual residuals; DDP family: the expected
+    /// decrease of a full step below tol² N, with the gaps closed).
+    #[arg(long, value_parser = positive_real)]
+    pub tol: Option<f64>,
+    /// Iteration limit.
+    #[arg(long, value_parser = positive_int)]
+    pub max_iters: Option<usize>,
+    /// Threads for stage-wise evaluation.
+    #[arg(long, value_parser = positive_int)]
+    pub threads: Option<usize>,
+}
+
+impl CommonArgs {
+    /// Overrides a solver's tolerance, iteration limit and thread count.
+    fn apply(&self, tol: &mut f64, max_iters: &mut usize, threads: &mut usize) {
+        if let Some(v) = self.tol {
+            *tol = v;
+        }
+        if let Some(v) = self.max_iters {
+            *max_iters = v;
+        }
+        if let Some(v) = self.threads {
+            *threads = v;
+        }
+    }
+}
+
+/// ProxDDP's options (overriding the problem's recommended settings).
+#[derive(clap::Args, Debug, Clone, Default)]
+#[command(next_help_heading = "ProxDDP options (default: the problem's recommended settings)")]
+pub struct ProxDdpArgs {
+    /// Initial augmented-Lagrangian penalty.
+    #[arg(long, value_parser = positive_real)]
+    pub mu_init: Option<f64>,
+    /// Dynamics penalty relative to the penalty (appendix C of the ProxDDP paper).
+    #[arg(long, value_parser = positive_real)]
+    pub dyn_al_scale: Option<f64>,
+    /// Active-set prediction iterations per step (0: the plain Newton step; at most 100).
+    #[arg(long, value_parser = count(0, ACTIVE_SET_ITERS_MAX))]
+    pub active_set_iters: Option<usize>,
+    /// Forward pass.
+    #[arg(long, value_enum)]
+    pub rollout: Option<RolloutArg>,
+    /// Step acceptance.
+    #[arg(long, value_enum)]
+    pub step_acceptance: Option<AcceptanceArg>,
+    /// Merit function of the step acceptance.
+    #[arg(long, value_enum)]
+    pub merit: Option<MeritArg>,
+}
+
+impl ProxDdpArgs {
+    /// Overrides ProxDDP's settings.
+    fn apply(&self, o: &mut ProxDdpOptions) {
+        if let Some(v) = self.mu_init {
+            o.mu_init = v;
+            o.mu_lower_bound = o.mu_lower_bound.min(v);
+        }
+        if let Some(v) = self.dyn_al_scale {
+            o.dyn_al_scale = v;
+        }
+        if let Some(v) = self.active_set_iters {
+            o.active_set_iters = v;
+        }
+        if let Some(v) = self.rollout {
+            o.rollout = v.into();
+        }
+        if let Some(v) = self.step_acceptance {
+            o.step_acceptance = v.into();
+        }
+        if let Some(v) = self.merit {
+            o.merit = v.into();
+        }
+    }
+}
+
+/// The solver and its options, as the command line gives them.
+#[derive(clap::Args, Debug, Clone)]
+pub struct SolverArgs {
+    /// Solver.
+    #[arg(long, value_enum, default_value = "proxddp")]
+    pub solver: SolverKind,
+    // Options of every solver.
+    #[command(flatten)]
+    pub common: CommonArgs,
+    // ProxDDP's options.
+    #[command(flatten)]
+    pub proxddp: ProxDdpArgs,
+}
+
+impl SolverArgs {
+    /// `solver` with no option given.
+    pub fn new(solver: SolverKind) -> Self {
+        Self {
+            solver,
+            common: CommonArgs::default(),
+            proxddp: ProxDdpArgs::default(),
+        }
+    }
+
+    /// Refuses an option given on the command line that the chosen solver does not take.
+    ///
+    /// # Errors
+    /// A message naming the option, the solvers that take it and the chosen solver.
+    pub fn check(&self) -> Result<(), String> {
+        let takes = |kind: SolverKind, flag: &str| kind.fields().flags().any(|(f, _)| f == flag);
+        for kind in SolverKind::ALL {
+            for (flag, given) in kind.fields().flags() {
+                if given(self) && !takes(self.solver, flag) {
+                    let owners: Vec<_> = SolverKind::ALL
+                        .into_iter()
+                        .filter(|&k| takes(k, flag))
+                        .map(SolverKind::name)
+                        .collect();
+                    return Err(format!(
+                        "{flag} is an option of {}; the solver {} does not take it",
+                        owners.join(", "),
+                        self.solver.name()
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The settings of the chosen solver on `example`: ProxDDP starts from the example's
+    /// recommended settings, the DDP family from its defaults; the options given override
+    /// them.
+    pub fn config(&self, example: &Example) -> SolverConfig {
+        match self.solver {
+            SolverKind::ProxDdp => {
+                let mut o = example.proxddp.clone();
+                self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads);
+                self.proxddp.apply(&mut o);
+                SolverConfig::ProxDdp(o)
+            }
+            SolverKind::Ddp(v) => {
+                let mut o = DdpOptions::new(v);
+                self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads);
+                SolverConfig::Ddp(o)
+            }
+        }
+    }
+}
+
+/// The chosen solver's settings, from which fresh solvers are built.
+#[derive(Debug, Clone)]
+pub enum SolverConfig {
+    /// ProxDDP.
+    ProxDdp(ProxDdpOptions),
+    /// The DDP family (the variant is in the options).
+    Ddp(DdpOptions),
+}
+
+impl SolverConfig {
+    /// Which solver.
+    pub fn kind(&self) -> SolverKind {
+        match self {
+            SolverConfig::ProxDdp(_) => SolverKind::ProxDdp,
+            SolverConfig::Ddp(o) => SolverKind::Ddp(o.variant),
+        }
+    }
+
+    /// Sends the solver's live log to `log`.
+    pub fn set_log(&mut self, log: LogSink) {
+        match self {
+            SolverConfig::ProxDdp(o) => o.log = log,
+            SolverConfig::Ddp(o) => o.log = log,
+        }
+    }
+
+    /// A new solver with these settings (not set up).
+    pub fn build(&self) -> Box<dyn Solver> {
+        match self {
+            SolverConfig::ProxDdp(o) => Box::new(ProxDdp::new(o.clone())),
+            SolverConfig::Ddp(o) => Box::new(Ddp::new(o.clone())),
+        }
+    }
+
+    /// The settings line of `gharial solve`: each setting, marked with where it comes
+    /// from when it is not the library's default: `[option; default …]` (the command
+    /// line) or `[problem; default …]` (the problem's recommended ProxDDP settings).
+    pub fn settings_line(&self, example: &Example, args: &SolverArgs) -> String {
+        match self {
+            SolverConfig::ProxDdp(o) => {
+                marked_settings(PROXDDP_FIELDS, o, &example.proxddp, &ProxDdpOptions::default(), args)
+            }
+            SolverConfig::Ddp(o) => {
+                let d = DdpOptions::new(o.variant);
+                marked_settings(DDP_FIELDS, o, &d, &d, args)
+            }
+        }
+    }
+
+    /// The settings as a JSON object (the `settings` of `gharial solve --output`).
+    pub fn settings_json(&self) -> Value {
+        let object = match self {
+            SolverConfig::ProxDdp(o) => settings_object(PROXDDP_FIELDS, o),
+            SolverConfig::Ddp(o) => settings_object(DDP_FIELDS, o),
+        };
+        Value::Object(object)
+    }
+}
+
+/// A setting's value, as printed and as written to JSON.
+#[derive(Debug, Clone, PartialEq)]
+enum Setting {
+    Real(f64),
+    Count(usize),
+    Name(String),
+}
+
+impl std::fmt::Display for Setting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Setting::Real(v) => write!(f, "{}", Num(*v)),
+            Setting::Count(v) => write!(f, "{v}"),
+            Setting::Name(s) => f.write_str(s),
+        }
+    }
+}
+
+impl Setting {
+    fn json(&self) -> Value {
+        match self {
+            Setting::Real(v) => json!(v),
+            Setting::Count(v) => json!(v),
+            Setting::Name(s) => json!(s),
+        }
+    }
+}
+
+/// A command-line option (`--tol`) and whether the command line gives it.
+type Flag = (&'static str, fn(&SolverArgs) -> bool);
+
+/// One reported setting of a solver's options `O`: its name (the options' field), its
+/// value, and the command-line option that sets it, if any.
+struct Field<O> {
+    name: &'static str,
+    value: fn(&O) -> Setting,
+    flag: Option<Flag>,
+}
+
+/// The reported settings of one solver.
+enum Fields {
+    ProxDdp(&'static [Field<ProxDdpOptions>]),
+    Ddp(&'static [Field<DdpOptions>]),
+}
+
+impl Fields {
+    /// The command-line options of these settings.
+    fn flags(&self) -> Box<dyn Iterator<Item = Flag>> {
+        match self {
+            Fields::ProxDdp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
+            Fields::Ddp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
+        }
+    }
+}
+
+const TOL: Flag = ("--tol", |a| a.common.tol.is_some());
+const MAX_ITERS: Flag = ("--max-iters", |a| a.common.max_iters.is_some());
+const THREADS: Flag = ("--threads", |a| a.common.threads.is_some());
+
+const PROXDDP_FIELDS: &[Field<ProxDdpOptions>] = &[
+    Field {
+        name: "tol",
+        value: |o| Setting::Real(o.tol),
+        flag: Some(TOL),
+    },
+    Field {
+        name: "mu_init",
+        value: |o| Setting::Real(o.mu_init),
+        flag: Some(("--mu-init", |a| a.proxddp.mu_init.is_some())),
+    },
+    Field {
+        name: "dyn_al_scale",
+        value: |o| Setting::Real(o.dyn_al_scale),
+        flag: Some(("--dyn-al-scale", |a| a.proxddp.dyn_al_scale.is_some())),
+    },
+    Field {
+        name: "max_iters",
+        value: |o| Setting::Count(o.max_iters),
+        flag: Some(MAX_ITERS),
+    },
+    Field {
+        name: "rollout",
+        value: |o| Setting::Name(format!("{:?}", o.rollout)),
+        flag: Some(("--rollout", |a| a.proxddp.rollout.is_some())),
+    },
+    Field {
+        name: "step_acceptance",
+        value: |o| Setting::Name(format!("{:?}", o.step_acceptance)),
+        flag: Some(("--step-acceptance", |a| a.proxddp.step_acceptance.is_some())),
+    },
+    Field {
+        name: "merit",
+        value: |o| Setting::Name(format!("{:?}", o.merit)),
+        flag: Some(("--merit", |a| a.proxddp.merit.is_some())),
+    },
+    Field {
+        name: "active_set_iters",
+        value: |o| Setting::Count(o.active_set_iters),
+        flag: Some(("--active-set-iters", |a| a.proxddp.active_set_iters.is_some())),
+    },
+    Field {
+        name: "num_threads",
+        value: |o| Setting::Count(o.num_threads),
+        flag: Some(THREADS),
+    },
+];
+
+const DDP_FIELDS: &[Field<DdpOptions>] = &[
+    Field {
+        name: "tol",
+        value: |o| Setting::Real(o.tol),
+        flag: Some(TOL),
+    },
+    Field {
+        name: "max_iters",
+        value: |o| Setting::Count(o.max_iters),
+        flag: Some(MAX_ITERS),
+    },
+    Field {
+        name: "hessian",
+        value: |o| Setting::Name(format!("{:?}", o.hessian)),
+        flag: None,
+    },
+    Field {
+        name: "reg_init",
+        value: |o| Setting::Real(o.reg_init),
+        flag: None,
+    },
+    Field {
+        name: "num_threads",
+        value: |o| Setting::Count(o.num_threads),
+        flag: Some(THREADS),
+    },
+];
+
+/// `name value [mark]` for every field of `o`, comma separated (see
+/// [`SolverConfig::settings_line`]).
+fn marked_settings<O>(fields: &[Field<O>], o: &O, recommended: &O, default: &O, args: &SolverArgs) -> String {
+    fields
+        .iter()
+        .map(|f| {
+            let (value, def) = ((f.value)(o), (f.value)(default));
+            let mark = if f.flag.is_some_and(|(_, given)| given(args)) {
+                format!(" [option; default {def}]")
+            } else if (f.value)(recommended) != def {
+                format!(" [problem; default {def}]")
+            } else {
+                String::new()
+            };
+            format!("{} {value}{mark}", f.name)
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn settings_object<O>(fields: &[Field<O>], o: &O) -> serde_json::Map<String, Value> {
+    fields
+        .iter()
+        .map(|f| (f.name.to_string(), (f.value)(o).json()))
+        .collect()
+}
+
+/// The columns of every solver's iteration table (for `gharial solve --help`), one
+/// section per table, naming the solvers that print it.
+pub fn tables_legend() -> String {
+    let mut sections: Vec<(Vec<&str>, String)> = Vec::new();
+    for kind in SolverKind::ALL {
+        let legend = kind.table().legend();
+        match sections.iter_mut().find(|(_, l)| *l == legend) {
+            Some((names, _)) => names.push(kind.name()),
+            None => sections.push((vec![kind.name()], legend)),
+        }
+    }
+    sections
+        .iter()
+        .map(|(names, legend)| format!("Columns of the iteration table of {}:\n{legend}", names.join(", ")))
+        .collect::<Vec<_>>()
+        .join("\n\n")
+}
