@@ -1,7 +1,10 @@
 //! Random command lines: every invocation ends with exit code 0 (converged), 1 (another
-//! status) or 2 (invalid input, with a message and nothing run), never with a panic.
+//! status) or 2 (invalid input, with a message and nothing run), never with a panic, and
+//! within a time limit.
 
-use std::process::Command;
+use std::io::Read;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
 
 use proptest::prelude::*;
 
@@ -45,10 +48,23 @@ fn solve_args() -> impl Strategy<Value = Vec<String>> {
         Just("--rollout"),
         Just("--step-acceptance"),
         Just("--merit"),
-        Just("--solver"),
     ];
-    (problem, proptest::collection::vec((option, value()), 0..4)).prop_map(|(p, opts)| {
+    // Every solver, and names that are none.
+    let solver = proptest::option::of(prop_oneof![
+        Just("proxddp"),
+        Just("ddp"),
+        Just("fddp"),
+        Just("box-ddp"),
+        Just("box-fddp"),
+        Just("FDDP"),
+        Just("box"),
+        Just(""),
+    ]);
+    (problem, solver, proptest::collection::vec((option, value()), 0..4)).prop_map(|(p, solver, opts)| {
         let mut args = vec!["solve".to_string(), p.to_string()];
+        if let Some(s) = solver {
+            args.push(format!("--solver={s}"));
+        }
         for (o, v) in opts {
             args.push(format!("{o}={v}"));
         }
@@ -96,15 +112,57 @@ fn riccati_args() -> impl Strategy<Value = Vec<String>> {
     })
 }
 
+/// The longest an invocation may take: far beyond any run that stops (a second at
+/// most), so that only one that never stops reaches it.
+const TIME_LIMIT: Duration = Duration::from_secs(120);
+
+/// Reads a pipe to its end on another thread (so that a long output cannot block the
+/// child while it is waited for).
+fn drain(mut r: impl Read + Send + 'static) -> std::thread::JoinHandle<String> {
+    std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = r.read_to_string(&mut s);
+        s
+    })
+}
+
+/// Runs the binary with `args`; its exit code, standard output and standard error, or
+/// `None` (the process killed) if it has not finished within `limit`.
+fn run_with_limit(args: &[String], limit: Duration) -> Option<(Option<i32>, String, String)> {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_gharial"))
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the binary runs");
+    let out = drain(child.stdout.take().expect("piped"));
+    let err = drain(child.stderr.take().expect("piped"));
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for the binary") {
+            break Some(status);
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let (out, err) = (out.join().expect("stdout reader"), err.join().expect("stderr reader"));
+    status.map(|s| (s.code(), out, err))
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: CASES, failure_persistence: None, ..ProptestConfig::default() })]
 
     #[test]
     fn random_command_lines_end_with_a_documented_exit_code(args in prop_oneof![solve_args(), riccati_args()]) {
-        let o = Command::new(env!("CARGO_BIN_EXE_gharial")).args(&args).output().expect("the binary runs");
-        let (out, err) = (String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr));
+        let o = run_with_limit(&args, TIME_LIMIT);
+        prop_assert!(o.is_some(), "{args:?}: still running after {TIME_LIMIT:?}");
+        let (code, out, err) = o.unwrap();
         prop_assert!(!err.contains("panicked"), "{args:?}: {err}");
-        match o.status.code() {
+        match code {
             Some(0) => prop_assert!(args[0] != "solve" || out.contains("status    converged"), "{args:?}: {out}"),
             Some(1) => prop_assert!(out.contains("status "), "{args:?}: {out}"),
             Some(2) => {
