@@ -76,13 +76,8 @@ pub fn kkt_residuals(
     lambdas: &[Vec<f64>],
     nus: &[Vec<f64>],
 ) -> Result<KktResiduals> {
-    crate::solvers::InitialGuess {
-        xs,
-        us,
-        lambdas: Some(lambdas),
-        nus: Some(nus),
-    }
-    .check(problem)?;
+    problem.check_trajectory(xs, us)?;
+    problem.check_multipliers(Some(lambdas), Some(nus))?;
     let n = problem.horizon();
     check_dim("lambdas (N + 1)", n + 1, lambdas.len())?;
     let mut data = ProblemData::new(problem, 1)?;

@@ -367,6 +367,41 @@ impl Problem {
         }
         Ok(())
     }
+
+    /// Checks the sizes and finiteness of multipliers, laid out as in
+    /// [`crate::solvers::Solution`] (`None`: absent).
+    ///
+    /// # Errors
+    /// Names the first offending entry.
+    pub fn check_multipliers(&self, lambdas: Option<&[Vec<f64>]>, nus: Option<&[Vec<f64>]>) -> Result<()> {
+        let n = self.horizon();
+        if let Some(l) = lambdas {
+            check_dim("number of co-states lambdas (N + 1)", n + 1, l.len())?;
+            check_dim("lambdas[0] size (initial constraint rows)", self.nc0(), l[0].len())?;
+            for t in 0..n {
+                check_dim(
+                    format_args!("lambdas[{}] size", t + 1),
+                    self.space(t + 1).ndx(),
+                    l[t + 1].len(),
+                )?;
+            }
+            for (t, v) in l.iter().enumerate() {
+                check_finite(format_args!("lambdas[{t}]"), v)?;
+            }
+        }
+        if let Some(v) = nus {
+            check_dim("number of path multipliers nus (N + 1)", n + 1, v.len())?;
+            for (t, s) in self.stages().iter().enumerate() {
+                check_dim(format_args!("nus[{t}] size"), s.nc(), v[t].len())?;
+            }
+            let ncn: usize = self.terminal_constraints().iter().map(|c| c.nr()).sum();
+            check_dim(format_args!("nus[{n}] size (terminal constraints)"), ncn, v[n].len())?;
+            for (t, s) in v.iter().enumerate() {
+                check_finite(format_args!("nus[{t}]"), s)?;
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Checks a fixed initial state: size, finiteness, and that it lies on the manifold.

@@ -19,7 +19,7 @@ use std::time::Duration;
 
 use faer::{Col, Mat};
 
-use crate::error::{Result, check_dim, check_finite};
+use crate::error::Result;
 use crate::problem::Problem;
 
 /// Which Hessian of the Lagrangian builds the Newton (or DDP) system.
@@ -240,33 +240,7 @@ impl<'a> InitialGuess<'a> {
     /// Names the first offending entry.
     pub fn check(&self, problem: &Problem) -> Result<()> {
         problem.check_trajectory(self.xs, self.us)?;
-        let n = problem.horizon();
-        if let Some(l) = self.lambdas {
-            check_dim("number of co-states lambdas (N + 1)", n + 1, l.len())?;
-            check_dim("lambdas[0] size (initial constraint rows)", problem.nc0(), l[0].len())?;
-            for t in 0..n {
-                check_dim(
-                    format_args!("lambdas[{}] size", t + 1),
-                    problem.space(t + 1).ndx(),
-                    l[t + 1].len(),
-                )?;
-            }
-            for (t, v) in l.iter().enumerate() {
-                check_finite(format_args!("lambdas[{t}]"), v)?;
-            }
-        }
-        if let Some(v) = self.nus {
-            check_dim("number of path multipliers nus (N + 1)", n + 1, v.len())?;
-            for (t, s) in problem.stages().iter().enumerate() {
-                check_dim(format_args!("nus[{t}] size"), s.nc(), v[t].len())?;
-            }
-            let ncn: usize = problem.terminal_constraints().iter().map(|c| c.nr()).sum();
-            check_dim(format_args!("nus[{n}] size (terminal constraints)"), ncn, v[n].len())?;
-            for (t, s) in v.iter().enumerate() {
-                check_finite(format_args!("nus[{t}]"), s)?;
-            }
-        }
-        Ok(())
+        problem.check_multipliers(self.lambdas, self.nus)
     }
 }
 
