@@ -264,3 +264,21 @@ fn warm_start_callbacks_and_the_solver_trait() {
     assert_eq!(DdpVariant::from_name("box-fddp"), Some(DdpVariant::BoxFddp));
     assert_eq!(DdpVariant::from_name("proxddp"), None);
 }
+
+/// A tolerance below the round-off floor of the cost stops the solve as stalled
+/// instead of iterating to the limit.
+#[test]
+fn an_unreachable_tolerance_stalls_instead_of_iterating_forever() {
+    let lq = random_lq(4, 2, 20, 12);
+    let p = ocp(&lq, None, None);
+    let (_, us) = zero_guess(&p);
+    let xs = rollout(&p, &us);
+    for tol in [1e-20, 1e-300] {
+        let mut opts = DdpOptions::new(DdpVariant::Fddp);
+        opts.tol = tol;
+        opts.max_iters = 100_000;
+        let sol = solve(&p, opts, &xs, &us);
+        assert_eq!(sol.status, Status::Stalled, "tol {tol:e}");
+        assert!(sol.iterations <= 3, "tol {tol:e}: {} iterations", sol.iterations);
+    }
+}

@@ -51,6 +51,10 @@ use crate::solvers::log::{Column, Format, Table};
 use crate::solvers::skeleton::{Signature, push_record, write_gains};
 use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 
+/// The solve stalls when the expected decrease of the full step is at most this many
+/// roundings of the cost (`ε (1 + |J|)`), above the tolerance.
+const ROUNDOFF_STOP: f64 = 16.0;
+
 /// The DDP family's iteration table.
 pub const TABLE: Table = Table(COLUMNS);
 
@@ -296,6 +300,11 @@ impl Loop {
             } else {
                 Status::Stalled
             });
+        }
+        // The full step cannot change the cost by more than its rounding: a tolerance
+        // below that floor is out of reach.
+        if ws.feasible && self.m.stop <= ROUNDOFF_STOP * f64::EPSILON * (1.0 + ws.cost.abs()) {
+            return Some(Status::Stalled);
         }
         if opts.max_time.is_some_and(|b| start.elapsed() >= b) {
             return Some(Status::TimeBudget);
