@@ -306,24 +306,22 @@ pub fn build(variant: AcrobotVariant) -> Result<Example> {
         xs0,
         us0,
         dt: Some(DT),
-        proxddp: ProxDdpOptions {
-            rollout: Rollout::Nonlinear,
-            ..if variant == AcrobotVariant::Bounds {
-                ProxDdpOptions {
-                    mu_init: 1e-1,
-                    step_acceptance: StepAcceptance::NonmonotoneLinesearch,
-                    merit: Merit::Primal,
-                    max_iters: 600,
-                    ..Default::default()
-                }
-            } else {
-                ProxDdpOptions {
-                    mu_init: 1e-3,
-                    max_iters: 300,
-                    ..Default::default()
-                }
-            }
-        },
+        proxddp: (if variant == AcrobotVariant::Bounds {
+            ProxDdpOptions::default().with(|o| {
+                o.mu_init = 1e-1;
+                o.step_acceptance = StepAcceptance::NonmonotoneLinesearch;
+                o.merit = Merit::Primal;
+                o.max_iters = 600;
+            })
+        } else {
+            ProxDdpOptions::default().with(|o| {
+                o.mu_init = 1e-3;
+                o.max_iters = 300;
+            })
+        })
+        .with(|o| {
+            o.rollout = Rollout::Nonlinear;
+        }),
         description,
     })
 }

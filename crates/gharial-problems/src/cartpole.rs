@@ -236,15 +236,14 @@ pub fn build() -> Result<Example> {
         xs0,
         us0,
         dt: Some(DT),
-        proxddp: ProxDdpOptions {
-            mu_init: 1e-5,
-            dyn_al_scale: 1.0,
-            rollout: Rollout::Nonlinear,
-            step_acceptance: StepAcceptance::NonmonotoneLinesearch,
-            merit: Merit::Primal,
-            max_iters: 3000,
-            ..Default::default()
-        },
+        proxddp: ProxDdpOptions::default().with(|o| {
+            o.mu_init = 1e-5;
+            o.dyn_al_scale = 1.0;
+            o.rollout = Rollout::Nonlinear;
+            o.step_acceptance = StepAcceptance::NonmonotoneLinesearch;
+            o.merit = Merit::Primal;
+            o.max_iters = 3000;
+        }),
         description: "Cart-pole swing-up (ProxDDP paper Fig. 5): semi-implicit Euler, dt = 10 ms, T = 5 s, \
                       |F| <= 6, terminal tip position (0, 1) in the y-z plane.",
     })

@@ -128,13 +128,12 @@ pub fn paper(variant: LqrVariant) -> Result<Example> {
         xs0,
         us0,
         dt: None,
-        proxddp: ProxDdpOptions {
-            mu_init: 1e-6,
-            rollout: Rollout::Nonlinear,
-            max_iters: 100,
-            active_set_iters: if bounds { 10 } else { 0 },
-            ..Default::default()
-        },
+        proxddp: ProxDdpOptions::default().with(|o| {
+            o.mu_init = 1e-6;
+            o.rollout = Rollout::Nonlinear;
+            o.max_iters = 100;
+            o.active_set_iters = if bounds { 10 } else { 0 };
+        }),
         description,
     })
 }
@@ -214,12 +213,11 @@ pub fn clqr_seeded(seed: u64) -> Result<Example> {
         xs0: vec![x0; n + 1],
         us0: vec![vec![0.0; nu]; n],
         dt: None,
-        proxddp: ProxDdpOptions {
-            mu_init: 1e-6,
-            rollout: Rollout::Linear,
-            max_iters: 200,
-            ..Default::default()
-        },
+        proxddp: ProxDdpOptions::default().with(|o| {
+            o.mu_init = 1e-6;
+            o.rollout = Rollout::Linear;
+            o.max_iters = 200;
+        }),
         description: "Random seeded 4-state / 2-control LQR (SplitMix64 seed 3, Box-Muller normals), N = 100, \
                       |u|_inf <= 0.3, terminal cost 10 Q; initial guess x = x0 (infeasible), u = 0.",
     })

@@ -258,12 +258,11 @@ fn example(
         xs0,
         us0,
         dt: Some(DT),
-        proxddp: ProxDdpOptions {
-            mu_init,
-            rollout,
-            max_iters: 500,
-            ..Default::default()
-        },
+        proxddp: ProxDdpOptions::default().with(|o| {
+            o.mu_init = mu_init;
+            o.rollout = rollout;
+            o.max_iters = 500;
+        }),
         description,
     })
 }

@@ -182,12 +182,11 @@ pub fn build(params: &PeersLqrParams, variant: PeersVariant) -> Result<Example> 
         xs0,
         us0,
         dt: None,
-        proxddp: ProxDdpOptions {
-            mu_init: 1e-5,
-            rollout: Rollout::Linear,
-            max_iters: 500,
-            ..Default::default()
-        },
+        proxddp: ProxDdpOptions::default().with(|o| {
+            o.mu_init = 1e-5;
+            o.rollout = Rollout::Linear;
+            o.max_iters = 500;
+        }),
         description,
     })
 }

@@ -187,13 +187,12 @@ pub fn build() -> Result<Example> {
         xs0,
         us0,
         dt: Some(DT),
-        proxddp: ProxDdpOptions {
-            mu_init: 1.0,
-            rollout: Rollout::Nonlinear,
-            max_iters: 300,
-            active_set_iters: 10,
-            ..Default::default()
-        },
+        proxddp: ProxDdpOptions::default().with(|o| {
+            o.mu_init = 1.0;
+            o.rollout = Rollout::Nonlinear;
+            o.max_iters = 300;
+            o.active_set_iters = 10;
+        }),
         description: "Pendulum swing-up on SO(2) x R (ProxDDP paper Fig. 4): semi-implicit Euler, dt = 10 ms, \
                       N = 200, |tau| <= 20, terminal tip position (0, 1), no terminal cost.",
     })

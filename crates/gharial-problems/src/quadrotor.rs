@@ -354,12 +354,11 @@ pub fn build(variant: QuadrotorVariant) -> Result<Example> {
         xs0,
         us0,
         dt: Some(DT),
-        proxddp: ProxDdpOptions {
-            mu_init,
-            rollout: rollout_kind,
-            max_iters: 300,
-            ..Default::default()
-        },
+        proxddp: ProxDdpOptions::default().with(|o| {
+            o.mu_init = mu_init;
+            o.rollout = rollout_kind;
+            o.max_iters = 300;
+        }),
         description,
     })
 }

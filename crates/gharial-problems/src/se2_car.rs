@@ -128,12 +128,11 @@ pub fn build() -> Result<Example> {
         xs0,
         us0,
         dt: Some(DT),
-        proxddp: ProxDdpOptions {
-            mu_init: 1e-2,
-            rollout: Rollout::Linear,
-            max_iters: 100,
-            ..Default::default()
-        },
+        proxddp: ProxDdpOptions::default().with(|o| {
+            o.mu_init = 1e-2;
+            o.rollout = Rollout::Linear;
+            o.max_iters = 100;
+        }),
         description: "Kinematic car on SE(2) (body velocity (v, 0, omega)), explicit Euler, N = 40, dt = 0.05, \
                       quadratic costs towards the identity pose; unconstrained.",
     })

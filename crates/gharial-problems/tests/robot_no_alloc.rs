@@ -28,13 +28,12 @@ static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
 fn assert_no_allocation(name: &str, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>], mu_init: f64) {
     for rollout in [Rollout::Linear, Rollout::Nonlinear] {
         for step_acceptance in [StepAcceptance::Filter, StepAcceptance::NonmonotoneLinesearch] {
-            let opts = ProxDdpOptions {
-                mu_init,
-                rollout,
-                step_acceptance,
-                max_iters: 8,
-                ..Default::default()
-            };
+            let opts = ProxDdpOptions::default().with(|o| {
+                o.mu_init = mu_init;
+                o.rollout = rollout;
+                o.step_acceptance = step_acceptance;
+                o.max_iters = 8;
+            });
             let mut solver = ProxDdp::new(opts);
             solver.setup(problem).unwrap();
             let mut iterations = 0;

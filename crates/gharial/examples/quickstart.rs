@@ -64,10 +64,9 @@ fn main() -> Result<()> {
     // Solve from a dynamically infeasible guess: every state at x0, zero forces.
     let xs0 = vec![vec![1.0, -0.5, 0.0, 0.0]; horizon + 1];
     let us0 = vec![vec![0.0; 2]; horizon];
-    let mut solver = ProxDdp::new(ProxDdpOptions {
-        log: gharial::solvers::log::LogSink::Stderr,
-        ..Default::default()
-    });
+    let mut solver = ProxDdp::new(ProxDdpOptions::default().with(|o| {
+        o.log = gharial::solvers::log::LogSink::Stderr;
+    }));
     solver.setup(&problem)?;
     let sol = solver.solve(&problem, InitialGuess::primal(&xs0, &us0))?;
     println!(

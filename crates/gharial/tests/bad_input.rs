@@ -126,10 +126,9 @@ fn small_problem(n: usize) -> (Problem, Vec<Vec<f64>>, Vec<Vec<f64>>) {
 fn unbounded_iteration_limits_reserve_bounded_memory() {
     let (p, xs, us) = small_problem(10);
     for max_iters in [usize::MAX, 1 << 40] {
-        let mut solver = ProxDdp::new(ProxDdpOptions {
-            max_iters,
-            ..Default::default()
-        });
+        let mut solver = ProxDdp::new(ProxDdpOptions::default().with(|o| {
+            o.max_iters = max_iters;
+        }));
         solver.setup(&p).expect("setup with an unbounded iteration limit");
         let sol = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap();
         assert_eq!(sol.status, Status::Converged);
@@ -154,11 +153,7 @@ proptest! {
         nonmonotone_eta in prop_oneof![Just(-0.5), Just(2.0), 0.0..1.0f64],
     ) {
         let (p, xs, us) = small_problem(8);
-        let opts = ProxDdpOptions {
-            tol, mu_init, mu_update_factor, preg_increase, max_iters, num_threads: threads, nonmonotone_eta,
-            mu_lower_bound: 1e-12,
-            ..Default::default()
-        };
+        let opts = ProxDdpOptions::default().with(|o| { o.tol = tol; o.mu_init = mu_init; o.mu_update_factor = mu_update_factor; o.preg_increase = preg_increase; o.max_iters = max_iters; o.num_threads = threads; o.nonmonotone_eta = nonmonotone_eta; o.mu_lower_bound = 1e-12; });
         let valid = opts.validate();
         let mut solver = ProxDdp::new(opts);
         match solver.setup(&p) {
@@ -256,10 +251,9 @@ impl gharial::dynamics::ExplicitDynamics for Hold {
 fn infinite_and_huge_bounds_print_compactly() {
     let e = BoxConstraint::new(&[f64::MAX], &[-f64::MAX]).err().unwrap().to_string();
     assert!(e.contains("1.7976931348623157e308") && e.len() < 200, "{e}");
-    let e = ProxDdp::new(ProxDdpOptions {
-        tol: -f64::MAX,
-        ..Default::default()
-    })
+    let e = ProxDdp::new(ProxDdpOptions::default().with(|o| {
+        o.tol = -f64::MAX;
+    }))
     .setup(&small_problem(2).0)
     .err()
     .unwrap()

@@ -39,12 +39,11 @@ fn equality_constrained_lq_reaches_the_dense_kkt_solution() {
                 // feedback part grows like 1/mu: with mu = 1e-6 its accuracy floor is
                 // about eps |x| / mu, a few 1e-9 here.
                 let tol = if rollout == Rollout::Linear { 1e-10 } else { 1e-8 };
-                let opts = ProxDdpOptions {
-                    rollout,
-                    tol,
-                    mu_init: 1e-6,
-                    ..Default::default()
-                };
+                let opts = ProxDdpOptions::default().with(|o| {
+                    o.rollout = rollout;
+                    o.tol = tol;
+                    o.mu_init = 1e-6;
+                });
                 let sol = solve(&p, opts, &xs, &us);
                 assert_eq!(
                     sol.status,
@@ -85,11 +84,10 @@ fn a_large_initial_penalty_still_reaches_the_dense_kkt_solution() {
     let reference = dense::solve(&exact_lq(&lq, Some(&target))).unwrap();
     for mu_init in [1.0, 10.0] {
         let (xs, us) = zero_guess(&p);
-        let opts = ProxDdpOptions {
-            mu_init,
-            tol: 1e-9,
-            ..Default::default()
-        };
+        let opts = ProxDdpOptions::default().with(|o| {
+            o.mu_init = mu_init;
+            o.tol = 1e-9;
+        });
         let sol = solve(&p, opts, &xs, &us);
         assert_eq!(sol.status, Status::Converged, "mu_init {mu_init}");
         assert!(sol.iterations < 60, "mu_init {mu_init}: {} iterations", sol.iterations);
@@ -111,11 +109,10 @@ fn box_constrained_lq_satisfies_the_kkt_conditions_for_every_step_acceptance() {
     ] {
         for rollout in [Rollout::Linear, Rollout::Nonlinear] {
             let (xs, us) = zero_guess(&p);
-            let opts = ProxDdpOptions {
-                rollout,
-                step_acceptance: acc,
-                ..Default::default()
-            };
+            let opts = ProxDdpOptions::default().with(|o| {
+                o.rollout = rollout;
+                o.step_acceptance = acc;
+            });
             let sol = solve(&p, opts, &xs, &us);
             assert_eq!(sol.status, Status::Converged, "{acc:?} {rollout:?}");
             let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
@@ -154,11 +151,10 @@ fn box_constrained_lq_has_the_optimal_cost_of_an_independent_qp_solver() {
             let (xs, us) = zero_guess(&p);
             // The nonlinear rollout's round-off floor is about eps |x| / mu (see above).
             let tol = if rollout == Rollout::Linear { 1e-9 } else { 1e-8 };
-            let opts = ProxDdpOptions {
-                rollout,
-                tol,
-                ..Default::default()
-            };
+            let opts = ProxDdpOptions::default().with(|o| {
+                o.rollout = rollout;
+                o.tol = tol;
+            });
             let sol = solve(&p, opts, &xs, &us);
             assert_eq!(sol.status, Status::Converged, "seed {seed} {rollout:?}");
             let rel = (sol.cost - reference).abs() / reference.abs().max(1.0);
@@ -185,11 +181,10 @@ fn active_set_prediction_reaches_the_box_constrained_optimum_in_fewer_iterations
         let p = ocp(&case.lq, Some(case.umax), None);
         let (xs, us) = zero_guess(&p);
         let iterations = [0, 10].map(|active_set_iters| {
-            let opts = ProxDdpOptions {
-                active_set_iters,
-                tol: 1e-9,
-                ..Default::default()
-            };
+            let opts = ProxDdpOptions::default().with(|o| {
+                o.active_set_iters = active_set_iters;
+                o.tol = 1e-9;
+            });
             let sol = solve(&p, opts, &xs, &us);
             assert_eq!(sol.status, Status::Converged, "seed {seed} K {active_set_iters}");
             let rel = (sol.cost - reference).abs() / reference.abs().max(1.0);
@@ -225,10 +220,9 @@ fn dynamically_infeasible_state_guess_converges() {
     for rollout in [Rollout::Linear, Rollout::Nonlinear] {
         let sol = solve(
             &p,
-            ProxDdpOptions {
-                rollout,
-                ..Default::default()
-            },
+            ProxDdpOptions::default().with(|o| {
+                o.rollout = rollout;
+            }),
             &xs,
             &us,
         );
@@ -259,12 +253,11 @@ fn general_initial_constraint_matches_the_dense_kkt_solution() {
     let reference = dense::solve(&exact).unwrap();
     for rollout in [Rollout::Linear, Rollout::Nonlinear] {
         let (xs, us) = zero_guess(&p);
-        let opts = ProxDdpOptions {
-            rollout,
-            tol: 1e-9,
-            mu_init: 1e-6,
-            ..Default::default()
-        };
+        let opts = ProxDdpOptions::default().with(|o| {
+            o.rollout = rollout;
+            o.tol = 1e-9;
+            o.mu_init = 1e-6;
+        });
         let sol = solve(&p, opts, &xs, &us);
         assert_eq!(sol.status, Status::Converged, "{rollout:?}");
         assert!(max_diff(&sol.xs, &reference.xs) < 1e-7, "{rollout:?}");
@@ -298,12 +291,11 @@ fn implicit_dynamics_match_the_dense_kkt_solution() {
     let reference = dense::solve(&exact).unwrap();
     for rollout in [Rollout::Linear, Rollout::Nonlinear] {
         let (xs, us) = zero_guess(&p);
-        let opts = ProxDdpOptions {
-            rollout,
-            tol: 1e-9,
-            mu_init: 1e-6,
-            ..Default::default()
-        };
+        let opts = ProxDdpOptions::default().with(|o| {
+            o.rollout = rollout;
+            o.tol = 1e-9;
+            o.mu_init = 1e-6;
+        });
         let sol = solve(&p, opts, &xs, &us);
         assert_eq!(sol.status, Status::Converged, "{rollout:?}");
         assert!(max_diff(&sol.xs, &reference.xs) < 1e-7, "{rollout:?}");
@@ -321,11 +313,10 @@ fn constraint_and_dynamics_scalings_do_not_change_the_solution() {
         let (xs, us) = zero_guess(&base);
         solve(
             &base,
-            ProxDdpOptions {
-                tol: 1e-9,
-                dyn_al_scale: 1.0,
-                ..Default::default()
-            },
+            ProxDdpOptions::default().with(|o| {
+                o.tol = 1e-9;
+                o.dyn_al_scale = 1.0;
+            }),
             &xs,
             &us,
         )
@@ -344,11 +335,10 @@ fn constraint_and_dynamics_scalings_do_not_change_the_solution() {
     q.add_terminal_constraint(base.terminal_constraints()[0].clone().with_scale(0.1))
         .unwrap();
     let (xs, us) = zero_guess(&q);
-    let opts = ProxDdpOptions {
-        tol: 1e-9,
-        dyn_al_scale: 1e-3,
-        ..Default::default()
-    };
+    let opts = ProxDdpOptions::default().with(|o| {
+        o.tol = 1e-9;
+        o.dyn_al_scale = 1e-3;
+    });
     let sol = solve(&q, opts, &xs, &us);
     assert_eq!(sol.status, Status::Converged);
     let dx: f64 = sol
@@ -373,38 +363,33 @@ fn invalid_options_and_inputs_give_errors() {
     let (xs, us) = zero_guess(&p);
     for (opts, name) in [
         (
-            ProxDdpOptions {
-                tol: 0.0,
-                ..Default::default()
-            },
+            ProxDdpOptions::default().with(|o| {
+                o.tol = 0.0;
+            }),
             "tol",
         ),
         (
-            ProxDdpOptions {
-                mu_init: f64::NAN,
-                ..Default::default()
-            },
+            ProxDdpOptions::default().with(|o| {
+                o.mu_init = f64::NAN;
+            }),
             "mu_init",
         ),
         (
-            ProxDdpOptions {
-                mu_update_factor: 1.5,
-                ..Default::default()
-            },
+            ProxDdpOptions::default().with(|o| {
+                o.mu_update_factor = 1.5;
+            }),
             "mu_update_factor",
         ),
         (
-            ProxDdpOptions {
-                max_iters: 0,
-                ..Default::default()
-            },
+            ProxDdpOptions::default().with(|o| {
+                o.max_iters = 0;
+            }),
             "max_iters",
         ),
         (
-            ProxDdpOptions {
-                num_threads: 0,
-                ..Default::default()
-            },
+            ProxDdpOptions::default().with(|o| {
+                o.num_threads = 0;
+            }),
             "num_threads",
         ),
     ] {
@@ -431,10 +416,9 @@ fn time_budget_and_callbacks_stop_the_solve_with_a_usable_iterate() {
     let lq = random_lq(4, 2, 30, 81);
     let p = ocp(&lq, Some(0.2), None);
     let (xs, us) = zero_guess(&p);
-    let opts = ProxDdpOptions {
-        max_time: Some(std::time::Duration::ZERO),
-        ..Default::default()
-    };
+    let opts = ProxDdpOptions::default().with(|o| {
+        o.max_time = Some(std::time::Duration::ZERO);
+    });
     let sol = solve(&p, opts, &xs, &us);
     assert_eq!(sol.status, Status::TimeBudget);
     assert!(sol.xs.iter().flatten().all(|v| v.is_finite()));
@@ -468,10 +452,9 @@ fn diverging_problems_return_a_status_and_finite_values() {
     let (xs, us) = zero_guess(&p);
     let sol = solve(
         &p,
-        ProxDdpOptions {
-            max_iters: 30,
-            ..Default::default()
-        },
+        ProxDdpOptions::default().with(|o| {
+            o.max_iters = 30;
+        }),
         &xs,
         &us,
     );
@@ -558,11 +541,10 @@ fn exact_and_gauss_newton_hessians_reach_the_same_kkt_point() {
     let (xs, us) = zero_guess(&p);
     let mut sols = Vec::new();
     for hessian in [HessianApprox::Exact, HessianApprox::GaussNewton] {
-        let opts = ProxDdpOptions {
-            hessian,
-            tol: 1e-8,
-            ..Default::default()
-        };
+        let opts = ProxDdpOptions::default().with(|o| {
+            o.hessian = hessian;
+            o.tol = 1e-8;
+        });
         let sol = solve(&p, opts, &xs, &us);
         assert_eq!(sol.status, Status::Converged, "{hessian:?}");
         let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
@@ -644,13 +626,12 @@ fn swing_up_with_a_stiff_dynamics_penalty_converges_without_exploding_iterates()
     // (before it did, the nonlinear rollout wandered and hit the iteration limit).
     let (p, xs, us) = swing_up(100, 0.02, 1e-3);
     for rollout in [Rollout::Nonlinear, Rollout::Linear] {
-        let opts = ProxDdpOptions {
-            mu_init: 1e-3,
-            dyn_al_scale: 1e-3,
-            rollout,
-            max_iters: 200,
-            ..Default::default()
-        };
+        let opts = ProxDdpOptions::default().with(|o| {
+            o.mu_init = 1e-3;
+            o.dyn_al_scale = 1e-3;
+            o.rollout = rollout;
+            o.max_iters = 200;
+        });
         let sol = solve(&p, opts, &xs, &us);
         let worst = sol
             .history

@@ -166,14 +166,13 @@ fn proxddp_solve_does_not_allocate_after_setup() {
                     (HessianApprox::Exact, 0),
                     (HessianApprox::GaussNewton, 10),
                 ] {
-                    let opts = ProxDdpOptions {
-                        rollout,
-                        step_acceptance,
-                        hessian,
-                        active_set_iters,
-                        max_iters: 20,
-                        ..Default::default()
-                    };
+                    let opts = ProxDdpOptions::default().with(|o| {
+                        o.rollout = rollout;
+                        o.step_acceptance = step_acceptance;
+                        o.hessian = hessian;
+                        o.active_set_iters = active_set_iters;
+                        o.max_iters = 20;
+                    });
                     let mut solver = ProxDdp::new(opts);
                     solver.setup(&p).unwrap();
                     let mut iterations = 0;

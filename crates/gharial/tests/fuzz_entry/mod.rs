@@ -139,25 +139,24 @@ pub fn path_constraint(
 
 /// Solver options chosen by the bytes (invalid ones included).
 pub fn options(b: &mut Bytes) -> ProxDdpOptions {
-    let mut o = ProxDdpOptions {
-        max_iters: 1 + b.upto(40),
-        max_al_iters: 1 + b.upto(20),
-        rollout: if b.flag() { Rollout::Nonlinear } else { Rollout::Linear },
-        step_acceptance: [
+    let mut o = ProxDdpOptions::default().with(|o| {
+        o.max_iters = 1 + b.upto(40);
+        o.max_al_iters = 1 + b.upto(20);
+        o.rollout = if b.flag() { Rollout::Nonlinear } else { Rollout::Linear };
+        o.step_acceptance = [
             StepAcceptance::Filter,
             StepAcceptance::Linesearch,
             StepAcceptance::NonmonotoneLinesearch,
-        ][b.upto(2)],
-        merit: if b.flag() { Merit::Primal } else { Merit::PrimalDual },
-        hessian: if b.flag() {
+        ][b.upto(2)];
+        o.merit = if b.flag() { Merit::Primal } else { Merit::PrimalDual };
+        o.hessian = if b.flag() {
             HessianApprox::Exact
         } else {
             HessianApprox::GaussNewton
-        },
-        active_set_iters: b.upto(3),
-        num_threads: 1 + b.upto(2),
-        ..Default::default()
-    };
+        };
+        o.active_set_iters = b.upto(3);
+        o.num_threads = 1 + b.upto(2);
+    });
     if b.flag() {
         o.tol = b.real().abs();
         o.mu_init = b.real().abs();

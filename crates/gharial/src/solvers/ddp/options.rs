@@ -153,6 +153,13 @@ impl Default for DdpOptions {
 }
 
 impl DdpOptions {
+    /// These options changed by `f` (the struct is `#[non_exhaustive]`, so that new
+    /// options do not break users: `DdpOptions::default().with(|o| o.tol = 1e-8)`).
+    pub fn with(mut self, f: impl FnOnce(&mut Self)) -> Self {
+        f(&mut self);
+        self
+    }
+
     /// Default options of `variant`.
     pub fn new(variant: DdpVariant) -> Self {
         Self {

@@ -45,6 +45,7 @@ pub use crate::solvers::HessianApprox;
 
 /// Options of [`super::ProxDdp`].
 #[derive(Debug, Clone)]
+#[non_exhaustive]
 pub struct ProxDdpOptions {
     /// Target tolerance on the primal (53) and dual (52) residuals (default `1e-6`).
     pub tol: f64,
@@ -183,6 +184,13 @@ impl Default for ProxDdpOptions {
 }
 
 impl ProxDdpOptions {
+    /// These options changed by `f` (the struct is `#[non_exhaustive]`, so that new
+    /// options do not break users: `ProxDdpOptions::default().with(|o| o.tol = 1e-8)`).
+    pub fn with(mut self, f: impl FnOnce(&mut Self)) -> Self {
+        f(&mut self);
+        self
+    }
+
     /// Checks every option's range.
     ///
     /// # Errors
