@@ -7,6 +7,7 @@
 //! iteration fewer (the step it skips is the one whose expected decrease is below the
 //! tolerance).
 
+use gharial::solvers::Solver;
 use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::{InitialGuess, Solution, Status};
 

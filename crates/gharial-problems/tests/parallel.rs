@@ -1,6 +1,7 @@
 //! ProxDDP with two threads (the parallel Riccati solver for linear rollouts, stage-wise
 //! evaluation on a pool) against one thread, on long horizons.
 
+use gharial::solvers::Solver;
 use gharial::solvers::proxddp::{ProxDdp, Rollout};
 use gharial::solvers::{InitialGuess, Solution, Status};
 use gharial_problems::peers::{PeersLqrParams, PeersVariant};

@@ -4,6 +4,7 @@
 //! optima with KKT residuals recomputed independently.
 
 use gharial::problem::kkt_residuals;
+use gharial::solvers::Solver;
 use gharial::solvers::proxddp::ProxDdp;
 use gharial::solvers::{InitialGuess, Status};
 

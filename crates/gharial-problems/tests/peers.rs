@@ -2,6 +2,7 @@
 //! reaches the harness's reference optimal costs.
 
 use gharial::problem::kkt_residuals;
+use gharial::solvers::Solver;
 use gharial::solvers::proxddp::{ProxDdp, Rollout};
 use gharial::solvers::{InitialGuess, Status};
 use gharial_problems::peers::{self, PeersLqrParams, PeersVariant};

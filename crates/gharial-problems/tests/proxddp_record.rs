@@ -6,6 +6,7 @@
 
 use Rollout::{Linear, Nonlinear};
 use gharial::solvers::InitialGuess;
+use gharial::solvers::Solver;
 use gharial::solvers::proxddp::{ProxDdp, Rollout};
 
 /// `(problem, rollout, iterations, AL iterations, cost, primal residual, dual residual,

@@ -13,6 +13,7 @@ use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, SemiImplicitEuler};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::InitialGuess;
+use gharial::solvers::Solver;
 use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::spaces::Manifold;

@@ -5,6 +5,7 @@
 //! below the tolerance.
 
 use gharial::problem::kkt_residuals;
+use gharial::solvers::Solver;
 use gharial::solvers::proxddp::{ProxDdp, Rollout};
 use gharial::solvers::{InitialGuess, Solution, Status};
 use gharial_problems::Example;

@@ -13,6 +13,7 @@ use faer::linalg::solvers::Solve;
 use gharial::Error;
 use gharial::dynamics::{ExplicitDynamics, ExplicitRungeKutta, Ode, OdeData, SemiImplicitEuler};
 use gharial::functions::check::{CheckOptions, check_explicit_dynamics, check_ode, rel_error};
+use gharial::solvers::Solver;
 use gharial::spaces::Manifold;
 use gharial_multibody::{
     ContactData, ContactType, Model, ReferenceFrame, aba, constraint_dynamics, crba, generalized_gravity, integrate,

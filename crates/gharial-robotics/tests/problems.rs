@@ -10,6 +10,7 @@ use gharial::costs::QuadraticStateCost;
 use gharial::dynamics::{Dynamics, SemiImplicitEuler};
 use gharial::problem::{Problem, StageModel};
 use gharial::solvers::InitialGuess;
+use gharial::solvers::Solver;
 use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions};
 use gharial::spaces::Manifold;
 use gharial_robotics::{Actuation, MultibodyFreeFwdDynamics, MultibodyPhaseSpace};

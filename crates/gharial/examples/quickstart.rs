@@ -14,6 +14,7 @@ use gharial::dynamics::{Dynamics, LinearDiscreteDynamics};
 use gharial::functions::ControlError;
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::InitialGuess;
+use gharial::solvers::Solver;
 use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions};
 use gharial::spaces::{Manifold, VectorSpace};
 

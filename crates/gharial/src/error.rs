@@ -45,6 +45,21 @@ pub enum Error {
     InvalidModel(String),
 }
 
+/// Checks that option `name` is positive and finite.
+///
+/// # Errors
+/// [`Error::InvalidOption`] naming the option and its value.
+pub fn check_positive(name: &str, v: f64) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::option(
+            name,
+            format!("must be positive and finite, got {}", Num(v)),
+        ))
+    }
+}
+
 /// Result type of the library.
 pub type Result<T> = std::result::Result<T, Error>;
 

@@ -16,6 +16,7 @@ use gharial::costs::{QuadraticCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, LinearDiscreteDynamics};
 use gharial::functions::ControlError;
 use gharial::problem::{Problem, StageConstraint, StageModel};
+use gharial::solvers::Solver;
 use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions};
 use gharial::solvers::{HISTORY_LIMIT, InitialGuess, Status};
 use gharial::spaces::{CartesianProduct, Manifold, SE3, SO2, VectorSpace};

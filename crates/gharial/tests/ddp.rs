@@ -10,7 +10,6 @@ use std::sync::Arc;
 use faer::{Col, Mat};
 use gharial::constraints::{BoxConstraint, NegativeOrthant};
 use gharial::costs::QuadraticCost;
-use gharial::dynamics::{Dynamics, ImplicitEuler, LinearOde};
 use gharial::functions::{StateError, Unary};
 use gharial::lq::dense;
 use gharial::problem::{Problem, StageConstraint, StageModel, kkt_residuals};
@@ -69,22 +68,8 @@ fn one_step_solves_an_unconstrained_lq_exactly() {
 /// rollouts solve for the next state by Newton-Raphson.
 #[test]
 fn implicit_dynamics_reach_the_dense_kkt_solution() {
-    let (nx, nu, n, dt) = (3, 2, 20, 0.1);
-    let lq = random_lq(nx, nu, n, 51);
-    let ac = Mat::from_fn(nx, nx, |i, j| lq.a[(i, j)] - if i == j { 1.0 } else { 0.0 });
-    let ode = Arc::new(LinearOde::new(ac.as_ref(), lq.b.as_ref(), &lq.c).unwrap());
-    let dynamics = Dynamics::Implicit(Arc::new(ImplicitEuler::new(ode, dt).unwrap()));
-    let cost = Arc::new(QuadraticCost::new(lq.q.as_ref(), lq.s.as_ref(), lq.r.as_ref(), &lq.qv, &lq.rv).unwrap());
-    let stage = StageModel::new(cost, dynamics).unwrap();
-    let term = Arc::new(QuadraticCost::terminal(lq.qf.as_ref(), &lq.qfv).unwrap());
-    let p = Problem::new(&lq.x0, vec![stage; n], term).unwrap();
-    let mut exact = exact_lq(&lq, None);
-    for k in exact.knots.iter_mut().take(n) {
-        k.A = Mat::identity(nx, nx);
-        k.B = Mat::from_fn(nx, nu, |i, j| dt * lq.b[(i, j)]);
-        k.E = Mat::from_fn(nx, nx, |i, j| dt * ac[(i, j)] - if i == j { 1.0 } else { 0.0 });
-        k.f = Col::from_fn(nx, |i| dt * lq.c[i]);
-    }
+    let lq = random_lq(3, 2, 20, 51);
+    let (p, exact) = implicit_euler_ocp(&lq, 0.1);
     let reference = dense::solve(&exact).unwrap();
     let (xs, us) = zero_guess(&p);
     for variant in [DdpVariant::Ddp, DdpVariant::Fddp] {

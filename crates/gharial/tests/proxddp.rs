@@ -14,6 +14,7 @@ use gharial::dynamics::{Dynamics, LinearDiscreteDynamics};
 use gharial::functions::{StateError, Unary};
 use gharial::lq::{dense, random::SplitMix64};
 use gharial::problem::{Problem, StageConstraint, StageModel, kkt_residuals};
+use gharial::solvers::Solver;
 use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::solvers::{InitialGuess, Status};
 use gharial::spaces::{Manifold, VectorSpace};
@@ -268,26 +269,8 @@ fn general_initial_constraint_matches_the_dense_kkt_solution() {
 
 #[test]
 fn implicit_dynamics_match_the_dense_kkt_solution() {
-    // Implicit Euler of ẋ = Ac x + Bc u + cc: f = dt (Ac y + Bc u + cc) - (y - x), so the
-    // exact LQ has A = I, B = dt Bc, E = dt Ac - I, f = dt cc.
-    use gharial::dynamics::{ImplicitEuler, LinearOde};
-    let (nx, nu, n, dt) = (3, 2, 20, 0.1);
-    let mut lq = random_lq(nx, nu, n, 51);
-    let ac = Mat::from_fn(nx, nx, |i, j| lq.a[(i, j)] - if i == j { 1.0 } else { 0.0 });
-    let ode = Arc::new(LinearOde::new(ac.as_ref(), lq.b.as_ref(), &lq.c).unwrap());
-    let dynamics = Dynamics::Implicit(Arc::new(ImplicitEuler::new(ode, dt).unwrap()));
-    let cost = Arc::new(QuadraticCost::new(lq.q.as_ref(), lq.s.as_ref(), lq.r.as_ref(), &lq.qv, &lq.rv).unwrap());
-    let stage = StageModel::new(cost, dynamics).unwrap();
-    let term = Arc::new(QuadraticCost::terminal(lq.qf.as_ref(), &lq.qfv).unwrap());
-    let p = Problem::new(&lq.x0, vec![stage; n], term).unwrap();
-    let mut exact = exact_lq(&lq, None);
-    for k in exact.knots.iter_mut().take(n) {
-        k.A = Mat::identity(nx, nx);
-        k.B = Mat::from_fn(nx, nu, |i, j| dt * lq.b[(i, j)]);
-        k.E = Mat::from_fn(nx, nx, |i, j| dt * ac[(i, j)] - if i == j { 1.0 } else { 0.0 });
-        k.f = Col::from_fn(nx, |i| dt * lq.c[i]);
-    }
-    lq.n = n;
+    let lq = random_lq(3, 2, 20, 51);
+    let (p, exact) = implicit_euler_ocp(&lq, 0.1);
     let reference = dense::solve(&exact).unwrap();
     for rollout in [Rollout::Linear, Rollout::Nonlinear] {
         let (xs, us) = zero_guess(&p);

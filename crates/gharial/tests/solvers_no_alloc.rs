@@ -15,6 +15,7 @@ use gharial::dynamics::{Dynamics, ExplicitRungeKutta, ImplicitEuler, Ode, OdeDat
 use gharial::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::InitialGuess;
+use gharial::solvers::Solver;
 use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::proxddp::{HessianApprox, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::spaces::{Manifold, VectorSpace};

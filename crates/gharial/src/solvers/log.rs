@@ -35,6 +35,24 @@ pub struct Column {
     pub meaning: &'static str,
 }
 
+/// The iteration count, a column of every solver's table.
+pub const ITER: Column = Column {
+    name: "iter",
+    width: 5,
+    format: Format::Count,
+    value: |r| r.iter as f64,
+    meaning: "iterations (steps tried) before this row",
+};
+
+/// The cost at the start of the step, a column of every solver's table.
+pub const COST: Column = Column {
+    name: "cost",
+    width: 13,
+    format: Format::Sci(6),
+    value: |r| r.cost,
+    meaning: "total cost at the start of the step",
+};
+
 /// An iteration table: header and rows of a solver's declared columns.
 #[derive(Debug, Clone, Copy)]
 pub struct Table(pub &'static [Column]);
@@ -143,13 +161,7 @@ mod tests {
     use super::*;
 
     const COLUMNS: &[Column] = &[
-        Column {
-            name: "iter",
-            width: 5,
-            format: Format::Count,
-            value: |r| r.iter as f64,
-            meaning: "iterations",
-        },
+        ITER,
         Column {
             name: "cost",
             width: 10,

@@ -280,6 +280,29 @@ pub trait Solver: Send {
     /// The solution of the last solve.
     fn solution(&self) -> &Solution;
 
+    /// Solves `problem` from `guess` without a callback (see [`Solver::solve_with`]).
+    /// Algorithmic outcomes (convergence, iteration limit, line-search failure, ...) are
+    /// reported in [`Solution::status`].
+    ///
+    /// # Errors
+    /// As [`Solver::solve_with`].
+    fn solve(&mut self, problem: &Problem, guess: InitialGuess<'_>) -> Result<&Solution> {
+        self.solve_with(problem, guess, None)
+    }
+
+    /// As [`Solver::solve`], calling `callback` after every iteration.
+    ///
+    /// # Errors
+    /// As [`Solver::solve_with`].
+    fn solve_with_callback(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        callback: &mut dyn Callback,
+    ) -> Result<&Solution> {
+        self.solve_with(problem, guess, Some(callback))
+    }
+
     /// The solver's iteration table (the columns of [`Solution::history`] it fills).
     fn table(&self) -> log::Table;
 }

@@ -16,6 +16,7 @@ use gharial::costs::QuadraticCost;
 use gharial::dynamics::{Dynamics, LinearDiscreteDynamics};
 use gharial::functions::{ControlError, StateError};
 use gharial::problem::{Problem, StageConstraint, StageModel};
+use gharial::solvers::Solver;
 use gharial::solvers::proxddp::{HessianApprox, Merit, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::solvers::{InitialGuess, Status};
 use gharial::spaces::{Manifold, VectorSpace};

@@ -216,3 +216,26 @@ pub fn qp_reference_cases() -> Vec<QpCase> {
         })
         .collect()
 }
+
+/// The implicit-Euler discretisation of `ẋ = Ac x + Bc u + cc` with `Ac = A - I`,
+/// `Bc = B`, `cc = c` of `lq`, and its exact LQ: `f = dt (Ac y + Bc u + cc) - (y - x)`, so
+/// `A = I`, `B = dt Bc`, `E = dt Ac - I`, `f = dt cc`.
+pub fn implicit_euler_ocp(lq: &Lq, dt: f64) -> (Problem, LqProblem) {
+    use gharial::dynamics::{ImplicitEuler, LinearOde};
+    let (nx, nu, n) = (lq.nx, lq.nu, lq.n);
+    let ac = Mat::from_fn(nx, nx, |i, j| lq.a[(i, j)] - if i == j { 1.0 } else { 0.0 });
+    let ode = Arc::new(LinearOde::new(ac.as_ref(), lq.b.as_ref(), &lq.c).unwrap());
+    let dynamics = Dynamics::Implicit(Arc::new(ImplicitEuler::new(ode, dt).unwrap()));
+    let cost = Arc::new(QuadraticCost::new(lq.q.as_ref(), lq.s.as_ref(), lq.r.as_ref(), &lq.qv, &lq.rv).unwrap());
+    let stage = StageModel::new(cost, dynamics).unwrap();
+    let term = Arc::new(QuadraticCost::terminal(lq.qf.as_ref(), &lq.qfv).unwrap());
+    let p = Problem::new(&lq.x0, vec![stage; n], term).unwrap();
+    let mut exact = exact_lq(lq, None);
+    for k in exact.knots.iter_mut().take(n) {
+        k.A = Mat::identity(nx, nx);
+        k.B = Mat::from_fn(nx, nu, |i, j| dt * lq.b[(i, j)]);
+        k.E = Mat::from_fn(nx, nx, |i, j| dt * ac[(i, j)] - if i == j { 1.0 } else { 0.0 });
+        k.f = Col::from_fn(nx, |i| dt * lq.c[i]);
+    }
+    (p, exact)
+}

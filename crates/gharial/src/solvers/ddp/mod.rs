@@ -47,7 +47,7 @@ use workspace::{Expected, Workspace};
 use crate::error::Result;
 use crate::lq::LqError;
 use crate::problem::Problem;
-use crate::solvers::log::{Column, Format, Table};
+use crate::solvers::log::{COST, Column, Format, ITER, Table};
 use crate::solvers::skeleton::{Signature, push_record, write_gains};
 use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 
@@ -59,13 +59,7 @@ const ROUNDOFF_STOP: f64 = 16.0;
 pub const TABLE: Table = Table(COLUMNS);
 
 const COLUMNS: &[Column] = &[
-    Column {
-        name: "iter",
-        width: 5,
-        format: Format::Count,
-        value: |r| r.iter as f64,
-        meaning: "iterations before this row",
-    },
+    ITER,
     Column {
         name: "alpha",
         width: 9,
@@ -73,13 +67,7 @@ const COLUMNS: &[Column] = &[
         value: |r| r.alpha,
         meaning: "step length (the last one tried when no step was accepted)",
     },
-    Column {
-        name: "cost",
-        width: 13,
-        format: Format::Sci(6),
-        value: |r| r.cost,
-        meaning: "total cost at the start of the step",
-    },
+    COST,
     Column {
         name: "stop",
         width: 10,
@@ -191,35 +179,6 @@ impl Ddp {
         self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
         self.signature = Signature::of(problem);
         Ok(())
-    }
-
-    /// The solution of the last solve.
-    pub fn solution(&self) -> &Solution {
-        &self.solution
-    }
-
-    /// Solves `problem` from `guess` (states need not satisfy the dynamics: FDDP keeps
-    /// the gaps and closes them, DDP rolls out from `x_0`).
-    ///
-    /// # Errors
-    /// If `setup` was not called for a problem of these dimensions, the guess has a wrong
-    /// size or a non-finite value, or the control bounds of a stage are empty.
-    /// Algorithmic outcomes are reported in [`Solution::status`].
-    pub fn solve(&mut self, problem: &Problem, guess: InitialGuess<'_>) -> Result<&Solution> {
-        self.run(problem, guess, None)
-    }
-
-    /// As [`Ddp::solve`], calling `callback` after every iteration.
-    ///
-    /// # Errors
-    /// As [`Ddp::solve`].
-    pub fn solve_with_callback(
-        &mut self,
-        problem: &Problem,
-        guess: InitialGuess<'_>,
-        callback: &mut dyn Callback,
-    ) -> Result<&Solution> {
-        self.run(problem, guess, Some(callback))
     }
 
     fn run(

@@ -26,7 +26,7 @@ use workspace::Workspace;
 use crate::error::Result;
 use crate::problem::Problem;
 use crate::solvers::filter::Filter;
-use crate::solvers::log::{Column, Format, Table};
+use crate::solvers::log::{COST, Column, Format, ITER, Table};
 use crate::solvers::skeleton::Signature;
 use crate::solvers::{Callback, InitialGuess, Solution};
 
@@ -35,13 +35,7 @@ pub const TABLE: Table = Table(COLUMNS);
 
 /// The columns of ProxDDP's iteration table.
 const COLUMNS: &[Column] = &[
-    Column {
-        name: "iter",
-        width: 5,
-        format: Format::Count,
-        value: |r| r.iter as f64,
-        meaning: "Newton steps taken before this row",
-    },
+    ITER,
     Column {
         name: "alpha",
         width: 9,
@@ -77,13 +71,7 @@ const COLUMNS: &[Column] = &[
         value: |r| r.preg,
         meaning: "primal regularisation added to the Newton system (0 when none was needed)",
     },
-    Column {
-        name: "cost",
-        width: 13,
-        format: Format::Sci(6),
-        value: |r| r.cost,
-        meaning: "total cost at the start of the step",
-    },
+    COST,
     Column {
         name: "dphi0",
         width: 10,
@@ -168,34 +156,6 @@ impl ProxDdp {
         self.signature = Signature::of(problem);
         self.filter = Filter::new(self.options.max_iters.saturating_add(1), 1e-5, 1e-5);
         Ok(())
-    }
-
-    /// The solution of the last solve.
-    pub fn solution(&self) -> &Solution {
-        &self.solution
-    }
-
-    /// Solves `problem` from `guess`.
-    ///
-    /// # Errors
-    /// If `setup` was not called for a problem of these dimensions, or the guess has a
-    /// wrong size or a non-finite value. Algorithmic outcomes (convergence, iteration
-    /// limit, line-search failure, ...) are reported in [`Solution::status`].
-    pub fn solve(&mut self, problem: &Problem, guess: InitialGuess<'_>) -> Result<&Solution> {
-        self.run(problem, guess, None)
-    }
-
-    /// As [`ProxDdp::solve`], calling `callback` after every iteration.
-    ///
-    /// # Errors
-    /// As [`ProxDdp::solve`].
-    pub fn solve_with_callback(
-        &mut self,
-        problem: &Problem,
-        guess: InitialGuess<'_>,
-        callback: &mut dyn Callback,
-    ) -> Result<&Solution> {
-        self.run(problem, guess, Some(callback))
     }
 
     fn run(

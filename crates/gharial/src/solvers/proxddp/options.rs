@@ -196,16 +196,7 @@ impl ProxDdpOptions {
     /// # Errors
     /// Names the offending option and its valid range.
     pub fn validate(&self) -> Result<()> {
-        let pos = |name: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(Error::option(
-                    name,
-                    format!("must be positive and finite, got {}", crate::error::Num(v)),
-                ))
-            }
-        };
+        let pos = crate::error::check_positive;
         pos("tol", self.tol)?;
         pos("mu_init", self.mu_init)?;
         pos("mu_lower_bound", self.mu_lower_bound)?;
