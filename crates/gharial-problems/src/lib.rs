@@ -7,7 +7,7 @@
 //! them).
 //!
 //! ```
-//! use gharial::solvers::InitialGuess;
+//! use gharial::solvers::{InitialGuess, Solver};
 //! use gharial::solvers::proxddp::ProxDdp;
 //!
 //! let ex = gharial_problems::build("lqr-bounds-term").unwrap();
