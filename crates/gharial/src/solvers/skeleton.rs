@@ -53,6 +53,34 @@ impl Signature {
     }
 }
 
+/// One constraint in the walk over all constraints of a problem: knot `t` (`t = N` for
+/// the terminal constraints), index `k` among the knot's constraints, and its rows in the
+/// knot's stacked constraint vector (and multipliers).
+#[derive(Debug, Clone)]
+pub(crate) struct ConstraintEntry {
+    pub t: usize,
+    pub k: usize,
+    pub rows: std::ops::Range<usize>,
+}
+
+/// Every path and terminal constraint of `problem`, knot by knot, in order (allocates;
+/// for `setup`): a walk over all constraints is one loop over this index.
+pub(crate) fn constraint_index(problem: &Problem) -> Vec<ConstraintEntry> {
+    let mut index = Vec::new();
+    for t in 0..=problem.horizon() {
+        let mut off = 0;
+        for (k, c) in problem.constraints(t).iter().enumerate() {
+            index.push(ConstraintEntry {
+                t,
+                k,
+                rows: off..off + c.nr(),
+            });
+            off += c.nr();
+        }
+    }
+    index
+}
+
 /// An LQ problem with the knot dimensions of `problem`; `constraint_rows` says whether
 /// the knots carry the rows of the path and terminal constraints (ProxDDP) or none (the
 /// DDP family).

@@ -12,7 +12,7 @@ use crate::linalg::{matvec, matvec_t, norm_inf, slice, slice_mut};
 use crate::lq::{LqProblem, LqSolution, LqSolver, RiccatiOptions};
 use crate::problem::{DynamicsData, ImplicitSolve, Problem, ProblemData};
 use crate::solvers::InitialGuess;
-use crate::solvers::skeleton::copy_stage_model;
+use crate::solvers::skeleton::{ConstraintEntry, constraint_index, copy_stage_model};
 
 /// The active-set prediction stops when the step solves the piecewise-linear constraint
 /// rows of its subproblem to this fraction of the change `J δz` it makes in the
@@ -124,6 +124,8 @@ pub(super) struct Workspace {
     /// dynamics Jacobians that the models declare constant), so that `build_lq` need
     /// not copy them again.
     knot_constants: bool,
+    /// Every path and terminal constraint, in knot order: one walk over all of them.
+    cons: Vec<ConstraintEntry>,
     pub lq: LqProblem,
     pub step: LqSolution,
     pub riccati: LqSolver,
@@ -181,6 +183,7 @@ impl Workspace {
             tbuf: vecs(&ndxs),
             min_scale,
             knot_constants: false,
+            cons: constraint_index(problem),
             lq,
             step,
             riccati,
@@ -296,24 +299,20 @@ impl Workspace {
         }
         // Constraints: z = h + mu_i ν_e, ν⁺ = (z - proj_C(z)) / mu_i; the primal measure
         // (53) is |[h + mu ν_e]_- - h| = mu_i |ν_e - ν⁺|.
-        for t in 0..=n {
-            let cs = problem.constraints(t);
-            let datas = self.data.constraint_data(t);
-            let mut off = 0;
-            for (c, d) in cs.iter().zip(datas) {
-                let nr = c.nr();
-                let mu_i = c.scale * mu;
-                let h = d.value();
-                let z = &mut self.zbuf[t][off..off + nr];
-                shifted_value(z, h, &self.nus_e[t][off..off + nr], mu_i);
-                let np = &mut self.nus_p[t][off..off + nr];
-                c.set.normal_cone_project(z, mu_i, np);
-                for i in 0..nr {
-                    np[i] /= mu_i;
-                    prim = prim.max((mu_i * (self.nus_e[t][off + i] - np[i])).abs());
-                    inner = inner.max((mu_i * (np[i] - self.cur.nus[t][off + i])).abs());
-                }
-                off += nr;
+        for e in &self.cons {
+            let (t, off) = (e.t, e.rows.start);
+            let (c, d) = (&problem.constraints(t)[e.k], &self.data.constraint_data(t)[e.k]);
+            let nr = c.nr();
+            let mu_i = c.scale * mu;
+            let h = d.value();
+            let z = &mut self.zbuf[t][off..off + nr];
+            shifted_value(z, h, &self.nus_e[t][off..off + nr], mu_i);
+            let np = &mut self.nus_p[t][off..off + nr];
+            c.set.normal_cone_project(z, mu_i, np);
+            for i in 0..nr {
+                np[i] /= mu_i;
+                prim = prim.max((mu_i * (self.nus_e[t][off + i] - np[i])).abs());
+                inner = inner.max((mu_i * (np[i] - self.cur.nus[t][off + i])).abs());
             }
         }
         self.data
@@ -334,21 +333,18 @@ impl Workspace {
     /// `max |h - proj_C(h + ν)|` over all constraints at the current point.
     fn complementarity(&mut self, problem: &Problem) -> f64 {
         let mut comp: f64 = 0.0;
-        for t in 0..=problem.horizon() {
-            let datas = self.data.constraint_data(t);
-            let mut off = 0;
-            for (c, d) in problem.constraints(t).iter().zip(datas) {
-                let (h, nr) = (d.value(), c.nr());
-                let w = &mut self.wbuf[t][off..off + nr];
-                for i in 0..nr {
-                    w[i] = h[i] + self.cur.nus[t][off + i];
-                }
-                let p = &mut self.pbuf[t][off..off + nr];
-                c.set.project(w, 1.0, p);
-                for i in 0..nr {
-                    comp = comp.max((h[i] - p[i]).abs());
-                }
-                off += nr;
+        for e in &self.cons {
+            let (t, off) = (e.t, e.rows.start);
+            let (c, d) = (&problem.constraints(t)[e.k], &self.data.constraint_data(t)[e.k]);
+            let (h, nr) = (d.value(), c.nr());
+            let w = &mut self.wbuf[t][off..off + nr];
+            for i in 0..nr {
+                w[i] = h[i] + self.cur.nus[t][off + i];
+            }
+            let p = &mut self.pbuf[t][off..off + nr];
+            c.set.project(w, 1.0, p);
+            for i in 0..nr {
+                comp = comp.max((h[i] - p[i]).abs());
             }
         }
         comp
@@ -421,33 +417,29 @@ impl Workspace {
     /// linearised value at the full step `δz`, whose `J δz` is in `lin_cons` (see
     /// [`Workspace::predict_active_set`]).
     fn effective_multipliers(&mut self, problem: &Problem, mu: f64, predicted: bool) {
-        for t in 0..=problem.horizon() {
-            let cs = problem.constraints(t);
-            let datas = self.data.constraint_data(t);
-            let mut off = 0;
-            for (c, d) in cs.iter().zip(datas) {
-                let nr = c.nr();
-                let mu_i = c.scale * mu;
-                let h = d.value();
-                let z = &mut self.zbuf[t][off..off + nr];
-                shifted_value(z, h, &self.nus_e[t][off..off + nr], mu_i);
-                if predicted {
-                    for (zi, bi) in z.iter_mut().zip(&self.lin_cons[t][off..off + nr]) {
-                        *zi += bi;
-                    }
+        for e in &self.cons {
+            let (t, off) = (e.t, e.rows.start);
+            let (c, d) = (&problem.constraints(t)[e.k], &self.data.constraint_data(t)[e.k]);
+            let nr = c.nr();
+            let mu_i = c.scale * mu;
+            let h = d.value();
+            let z = &mut self.zbuf[t][off..off + nr];
+            shifted_value(z, h, &self.nus_e[t][off..off + nr], mu_i);
+            if predicted {
+                for (zi, bi) in z.iter_mut().zip(&self.lin_cons[t][off..off + nr]) {
+                    *zi += bi;
                 }
-                let nh = &mut self.nus_hat[t][off..off + nr];
-                c.set.normal_cone_project(z, mu_i, nh);
-                let w = &mut self.wbuf[t][off..off + nr];
-                for i in 0..nr {
-                    nh[i] /= mu_i;
-                    w[i] = nh[i] - self.cur.nus[t][off + i];
-                }
-                c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
-                for i in 0..nr {
-                    self.nus_g[t][off + i] = nh[i] - w[i];
-                }
-                off += nr;
+            }
+            let nh = &mut self.nus_hat[t][off..off + nr];
+            c.set.normal_cone_project(z, mu_i, nh);
+            let w = &mut self.wbuf[t][off..off + nr];
+            for i in 0..nr {
+                nh[i] /= mu_i;
+                w[i] = nh[i] - self.cur.nus[t][off + i];
+            }
+            c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
+            for i in 0..nr {
+                self.nus_g[t][off + i] = nh[i] - w[i];
             }
         }
     }
@@ -459,40 +451,37 @@ impl Workspace {
     /// current point).
     fn constraint_rows(&mut self, problem: &Problem, mu: f64, predicted: bool) {
         let n = problem.horizon();
-        for t in 0..=n {
+        for e in &self.cons {
+            let (t, off) = (e.t, e.rows.start);
             let knot = &mut self.lq.knots[t];
-            let cs = problem.constraints(t);
-            let datas = self.data.constraint_data(t);
-            let mut off = 0;
-            for (k, (c, d)) in cs.iter().zip(datas).enumerate() {
-                let nr = c.nr();
-                let mu_i = c.scale * mu;
-                let z = &self.zbuf[t][off..off + nr];
-                let mut crows = knot.C.as_mut().subrows_mut(off, nr);
-                if t < n && self.data.stages[t].constraint_jx_is_zero(k) {
-                    crows.fill(0.0);
-                } else {
-                    crate::linalg::copy(crows.rb_mut(), d.jx.as_ref());
-                    c.set.apply_normal_cone_jacobian(z, mu_i, crows);
-                }
-                if knot.nu > 0 {
-                    let mut drows = knot.D.as_mut().subrows_mut(off, nr);
-                    crate::linalg::copy(drows.rb_mut(), d.ju.as_ref());
-                    c.set.apply_normal_cone_jacobian(z, mu_i, drows);
-                }
+            let k = e.k;
+            let (c, d) = (&problem.constraints(t)[k], &self.data.constraint_data(t)[k]);
+            let nr = c.nr();
+            let mu_i = c.scale * mu;
+            let z = &self.zbuf[t][off..off + nr];
+            let mut crows = knot.C.as_mut().subrows_mut(off, nr);
+            if t < n && self.data.stages[t].constraint_jx_is_zero(k) {
+                crows.fill(0.0);
+            } else {
+                crate::linalg::copy(crows.rb_mut(), d.jx.as_ref());
+                c.set.apply_normal_cone_jacobian(z, mu_i, crows);
+            }
+            if knot.nu > 0 {
+                let mut drows = knot.D.as_mut().subrows_mut(off, nr);
+                crate::linalg::copy(drows.rb_mut(), d.ju.as_ref());
+                c.set.apply_normal_cone_jacobian(z, mu_i, drows);
+            }
+            for i in 0..nr {
+                knot.d[off + i] = mu_i * (self.nus_hat[t][off + i] - self.cur.nus[t][off + i]);
+                knot.mu_c[off + i] = mu_i;
+            }
+            if predicted {
+                let w = &mut self.wbuf[t][off..off + nr];
+                w.copy_from_slice(&self.lin_cons[t][off..off + nr]);
+                c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
                 for i in 0..nr {
-                    knot.d[off + i] = mu_i * (self.nus_hat[t][off + i] - self.cur.nus[t][off + i]);
-                    knot.mu_c[off + i] = mu_i;
+                    knot.d[off + i] -= w[i];
                 }
-                if predicted {
-                    let w = &mut self.wbuf[t][off..off + nr];
-                    w.copy_from_slice(&self.lin_cons[t][off..off + nr]);
-                    c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
-                    for i in 0..nr {
-                        knot.d[off + i] -= w[i];
-                    }
-                }
-                off += nr;
             }
         }
     }
@@ -502,21 +491,19 @@ impl Workspace {
     fn constraint_step(&mut self, problem: &Problem) {
         let n = problem.horizon();
         let st = &self.step;
-        for t in 0..=n {
-            let datas = self.data.constraint_data(t);
-            let mut off = 0;
-            for (k, cd) in datas.iter().enumerate() {
-                let nr = cd.value.nrows();
-                let b = &mut self.lin_cons[t][off..off + nr];
-                if t < n && self.data.stages[t].constraint_jx_is_zero(k) {
-                    b.fill(0.0);
-                } else {
-                    matvec(b, Accum::Replace, cd.jx.as_ref(), slice(&st.xs[t]), 1.0);
-                }
-                if t < n {
-                    matvec(b, Accum::Add, cd.ju.as_ref(), slice(&st.us[t]), 1.0);
-                }
-                off += nr;
+        for e in &self.cons {
+            let (t, off) = (e.t, e.rows.start);
+            let k = e.k;
+            let cd = &self.data.constraint_data(t)[k];
+            let nr = cd.value.nrows();
+            let b = &mut self.lin_cons[t][off..off + nr];
+            if t < n && self.data.stages[t].constraint_jx_is_zero(k) {
+                b.fill(0.0);
+            } else {
+                matvec(b, Accum::Replace, cd.jx.as_ref(), slice(&st.xs[t]), 1.0);
+            }
+            if t < n {
+                matvec(b, Accum::Add, cd.ju.as_ref(), slice(&st.us[t]), 1.0);
             }
         }
     }
@@ -540,29 +527,25 @@ impl Workspace {
         self.constraint_step(problem);
         let mut res: f64 = 0.0;
         let mut scale: f64 = 0.0;
-        for t in 0..=problem.horizon() {
-            let cs = problem.constraints(t);
-            let datas = self.data.constraint_data(t);
+        for e in &self.cons {
+            let (t, off) = (e.t, e.rows.start);
             let dnu = slice(&self.step.nus[t]);
-            let mut off = 0;
-            for (c, d) in cs.iter().zip(datas) {
-                let nr = c.nr();
-                let mu_i = c.scale * mu;
-                let h = d.value();
-                let b = &self.lin_cons[t][off..off + nr];
-                let z = &mut self.zbuf[t][off..off + nr];
-                shifted_value(z, h, &self.nus_e[t][off..off + nr], mu_i);
-                for (zi, bi) in z.iter_mut().zip(b) {
-                    *zi += bi;
-                }
-                let w = &mut self.wbuf[t][off..off + nr];
-                c.set.normal_cone_project(z, mu_i, w);
-                for i in 0..nr {
-                    let nu_next = mu_i * (self.cur.nus[t][off + i] + dnu[off + i]);
-                    res = res.max((w[i] - nu_next).abs());
-                    scale = scale.max(b[i].abs());
-                }
-                off += nr;
+            let (c, d) = (&problem.constraints(t)[e.k], &self.data.constraint_data(t)[e.k]);
+            let nr = c.nr();
+            let mu_i = c.scale * mu;
+            let h = d.value();
+            let b = &self.lin_cons[t][off..off + nr];
+            let z = &mut self.zbuf[t][off..off + nr];
+            shifted_value(z, h, &self.nus_e[t][off..off + nr], mu_i);
+            for (zi, bi) in z.iter_mut().zip(b) {
+                *zi += bi;
+            }
+            let w = &mut self.wbuf[t][off..off + nr];
+            c.set.normal_cone_project(z, mu_i, w);
+            for i in 0..nr {
+                let nu_next = mu_i * (self.cur.nus[t][off + i] + dnu[off + i]);
+                res = res.max((w[i] - nu_next).abs());
+                scale = scale.max(b[i].abs());
             }
         }
         if res <= ACTIVE_SET_TOL * scale {
@@ -583,22 +566,21 @@ impl Workspace {
         // The gradient of the knots is the Lagrangian's at ν_g: q += h_xᵀ Δν_g,
         // r += h_uᵀ Δν_g.
         let n = problem.horizon();
-        for t in 0..=n {
-            for (a, b) in self.dnus_g[t].iter_mut().zip(&self.nus_g[t]) {
+        for (d, g) in self.dnus_g.iter_mut().zip(&self.nus_g) {
+            for (a, b) in d.iter_mut().zip(g) {
                 *a = b - *a;
             }
+        }
+        for e in &self.cons {
+            let (t, k) = (e.t, e.k);
             let knot = &mut self.lq.knots[t];
-            let mut off = 0;
-            for (k, cd) in self.data.constraint_data(t).iter().enumerate() {
-                let nr = cd.value.nrows();
-                let dn = &self.dnus_g[t][off..off + nr];
-                if !(t < n && self.data.stages[t].constraint_jx_is_zero(k)) {
-                    matvec_t(slice_mut(&mut knot.q), Accum::Add, cd.jx.as_ref(), dn, 1.0);
-                }
-                if t < n {
-                    matvec_t(slice_mut(&mut knot.r), Accum::Add, cd.ju.as_ref(), dn, 1.0);
-                }
-                off += nr;
+            let cd = &self.data.constraint_data(t)[k];
+            let dn = &self.dnus_g[t][e.rows.clone()];
+            if !(t < n && self.data.stages[t].constraint_jx_is_zero(k)) {
+                matvec_t(slice_mut(&mut knot.q), Accum::Add, cd.jx.as_ref(), dn, 1.0);
+            }
+            if t < n {
+                matvec_t(slice_mut(&mut knot.r), Accum::Add, cd.ju.as_ref(), dn, 1.0);
             }
         }
         self.constraint_rows(problem, mu, predicted);
@@ -760,7 +742,6 @@ impl Workspace {
         alpha: f64,
         with_curv: bool,
     ) -> (f64, f64) {
-        let n = problem.horizon();
         let st = &self.step;
         let mut d = 0.0;
         let mut dd = 0.0;
@@ -768,61 +749,57 @@ impl Workspace {
         // 2 e(w) + (mu/4)|ν(α)|² (primal-dual (17)) or e(w) (primal (35)), e the Moreau
         // envelope of the set, whose gradient is N(w) / mu with N the normal-cone
         // projection.
-        for t in 0..=n {
-            let cs = problem.constraints(t);
-            let datas = self.data.constraint_data(t);
-            let mut off = 0;
-            for (c, cd) in cs.iter().zip(datas) {
-                let nr = c.nr();
-                let mu_i = c.scale * mu;
-                let h = &cd.value()[..nr];
-                let b = &self.lin_cons[t][off..off + nr];
-                let z = &mut self.zbuf[t][off..off + nr];
-                let w = &mut self.wbuf[t][off..off + nr];
-                let nu_e = &self.nus_e[t][off..off + nr];
-                match merit {
-                    Merit::PrimalDual => {
-                        let nu_c = &self.cur.nus[t][off..off + nr];
-                        let dnu = &slice(&st.nus[t])[off..off + nr];
-                        for i in 0..nr {
-                            let nu_a = nu_c[i] + alpha * dnu[i];
-                            z[i] = h[i] + alpha * b[i] + mu_i * (nu_e[i] - 0.5 * nu_a);
-                        }
-                        c.set.normal_cone_project(z, mu_i, w);
-                        for i in 0..nr {
-                            let nu_a = nu_c[i] + alpha * dnu[i];
-                            d += 2.0 / mu_i * w[i] * (b[i] - 0.5 * mu_i * dnu[i]) + 0.5 * mu_i * nu_a * dnu[i];
-                        }
-                        if with_curv {
-                            // z' = b - (mu/2) δν, reusing w for J_N z'.
-                            for i in 0..nr {
-                                w[i] = b[i] - 0.5 * mu_i * dnu[i];
-                            }
-                            c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
-                            for i in 0..nr {
-                                dd += 2.0 / mu_i * w[i] * (b[i] - 0.5 * mu_i * dnu[i]) + 0.5 * mu_i * dnu[i] * dnu[i];
-                            }
-                        }
+        for e in &self.cons {
+            let (t, off) = (e.t, e.rows.start);
+            let (c, cd) = (&problem.constraints(t)[e.k], &self.data.constraint_data(t)[e.k]);
+            let nr = c.nr();
+            let mu_i = c.scale * mu;
+            let h = &cd.value()[..nr];
+            let b = &self.lin_cons[t][off..off + nr];
+            let z = &mut self.zbuf[t][off..off + nr];
+            let w = &mut self.wbuf[t][off..off + nr];
+            let nu_e = &self.nus_e[t][off..off + nr];
+            match merit {
+                Merit::PrimalDual => {
+                    let nu_c = &self.cur.nus[t][off..off + nr];
+                    let dnu = &slice(&st.nus[t])[off..off + nr];
+                    for i in 0..nr {
+                        let nu_a = nu_c[i] + alpha * dnu[i];
+                        z[i] = h[i] + alpha * b[i] + mu_i * (nu_e[i] - 0.5 * nu_a);
                     }
-                    Merit::Primal => {
+                    c.set.normal_cone_project(z, mu_i, w);
+                    for i in 0..nr {
+                        let nu_a = nu_c[i] + alpha * dnu[i];
+                        d += 2.0 / mu_i * w[i] * (b[i] - 0.5 * mu_i * dnu[i]) + 0.5 * mu_i * nu_a * dnu[i];
+                    }
+                    if with_curv {
+                        // z' = b - (mu/2) δν, reusing w for J_N z'.
                         for i in 0..nr {
-                            z[i] = h[i] + alpha * b[i] + mu_i * nu_e[i];
+                            w[i] = b[i] - 0.5 * mu_i * dnu[i];
                         }
-                        c.set.normal_cone_project(z, mu_i, w);
+                        c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
                         for i in 0..nr {
-                            d += w[i] * b[i] / mu_i;
-                        }
-                        if with_curv {
-                            // z' = b.
-                            w.copy_from_slice(b);
-                            c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
-                            for i in 0..nr {
-                                dd += w[i] * b[i] / mu_i;
-                            }
+                            dd += 2.0 / mu_i * w[i] * (b[i] - 0.5 * mu_i * dnu[i]) + 0.5 * mu_i * dnu[i] * dnu[i];
                         }
                     }
                 }
-                off += nr;
+                Merit::Primal => {
+                    for i in 0..nr {
+                        z[i] = h[i] + alpha * b[i] + mu_i * nu_e[i];
+                    }
+                    c.set.normal_cone_project(z, mu_i, w);
+                    for i in 0..nr {
+                        d += w[i] * b[i] / mu_i;
+                    }
+                    if with_curv {
+                        // z' = b.
+                        w.copy_from_slice(b);
+                        c.set.apply_normal_cone_jacobian_vec(z, mu_i, w);
+                        for i in 0..nr {
+                            dd += w[i] * b[i] / mu_i;
+                        }
+                    }
+                }
             }
         }
         (d, dd)
@@ -939,47 +916,43 @@ impl Workspace {
                 theta = theta.max(f[i].abs());
             }
         }
-        for t in 0..=n {
-            let cs = problem.constraints(t);
-            let datas = self.data.constraint_data(t);
-            let mut off = 0;
-            for (c, cd) in cs.iter().zip(datas) {
-                let nr = c.nr();
-                let mu_i = c.scale * mu;
-                let h = &cd.value()[..nr];
-                theta = theta.max(c.set.violation(h));
-                let z = &mut self.zbuf[t][off..off + nr];
-                let w = &mut self.wbuf[t][off..off + nr];
-                let nu_e = &self.nus_e[t][off..off + nr];
-                match merit {
-                    Merit::PrimalDual => {
-                        // 2 e(w) + (mu/4)|ν|² with e the Moreau envelope of the set:
-                        // 2 g(proj(w)) + |N(w)|² / mu.
-                        let nu_t = &self.trial.nus[t][off..off + nr];
-                        for i in 0..nr {
-                            z[i] = h[i] + mu_i * (nu_e[i] - 0.5 * nu_t[i]);
-                        }
-                        c.set.project(z, mu_i, w);
-                        m += 2.0 * c.set.penalty(w);
-                        for i in 0..nr {
-                            let r = z[i] - w[i];
-                            let v = nu_t[i];
-                            m += r * r / mu_i + 0.25 * mu_i * v * v;
-                        }
+        for e in &self.cons {
+            let (t, off) = (e.t, e.rows.start);
+            let (c, cd) = (&problem.constraints(t)[e.k], &self.data.constraint_data(t)[e.k]);
+            let nr = c.nr();
+            let mu_i = c.scale * mu;
+            let h = &cd.value()[..nr];
+            theta = theta.max(c.set.violation(h));
+            let z = &mut self.zbuf[t][off..off + nr];
+            let w = &mut self.wbuf[t][off..off + nr];
+            let nu_e = &self.nus_e[t][off..off + nr];
+            match merit {
+                Merit::PrimalDual => {
+                    // 2 e(w) + (mu/4)|ν|² with e the Moreau envelope of the set:
+                    // 2 g(proj(w)) + |N(w)|² / mu.
+                    let nu_t = &self.trial.nus[t][off..off + nr];
+                    for i in 0..nr {
+                        z[i] = h[i] + mu_i * (nu_e[i] - 0.5 * nu_t[i]);
                     }
-                    Merit::Primal => {
-                        for i in 0..nr {
-                            z[i] = h[i] + mu_i * nu_e[i];
-                        }
-                        c.set.project(z, mu_i, w);
-                        m += c.set.penalty(w);
-                        for i in 0..nr {
-                            let r = z[i] - w[i];
-                            m += 0.5 * r * r / mu_i;
-                        }
+                    c.set.project(z, mu_i, w);
+                    m += 2.0 * c.set.penalty(w);
+                    for i in 0..nr {
+                        let r = z[i] - w[i];
+                        let v = nu_t[i];
+                        m += r * r / mu_i + 0.25 * mu_i * v * v;
                     }
                 }
-                off += nr;
+                Merit::Primal => {
+                    for i in 0..nr {
+                        z[i] = h[i] + mu_i * nu_e[i];
+                    }
+                    c.set.project(z, mu_i, w);
+                    m += c.set.penalty(w);
+                    for i in 0..nr {
+                        let r = z[i] - w[i];
+                        m += 0.5 * r * r / mu_i;
+                    }
+                }
             }
         }
         (m, theta)
