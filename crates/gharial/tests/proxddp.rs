@@ -699,3 +699,38 @@ fn reused_solver_matches_a_fresh_one_when_models_or_weights_change() {
     assert!(kkt.max() < 1e-6, "{kkt:?}");
     assert_ne!(before.us, after.us);
 }
+
+/// On an unconstrained LQ one ProxDDP iteration is the exact KKT point: without
+/// constraints the Newton step treats the dynamics without the proximal term
+/// (`DynamicsStep::Auto`); the proximal step of the paper leaves a residual of the order
+/// of `mu_d |λ|`.
+#[test]
+fn one_iteration_solves_an_unconstrained_lq_exactly() {
+    use gharial::solvers::proxddp::DynamicsStep;
+    for (seed, (nx, nu, n)) in [(21, (3, 2, 10)), (22, (6, 3, 40)), (23, (8, 4, 100))] {
+        let lq = random_lq(nx, nu, n, seed);
+        let p = ocp(&lq, None, None);
+        let reference = dense::solve(&exact_lq(&lq, None)).unwrap();
+        for rollout in [Rollout::Linear, Rollout::Nonlinear] {
+            let (xs, us) = zero_guess(&p);
+            let sol = solve(&p, ProxDdpOptions::default().with(|o| o.rollout = rollout), &xs, &us);
+            let what = format!("seed {seed} {rollout:?}");
+            assert_eq!(sol.status, Status::Converged, "{what}");
+            assert_eq!(sol.iterations, 1, "{what}");
+            assert!(sol.prim_err < 1e-13, "{what}: dynamics residual {:e}", sol.prim_err);
+            assert!(max_diff(&sol.xs, &reference.xs) < 1e-10, "{what}");
+            assert!(max_diff(&sol.us, &reference.us) < 1e-10, "{what}");
+            let proximal = ProxDdpOptions::default().with(|o| {
+                o.rollout = rollout;
+                o.dynamics_step = DynamicsStep::Proximal;
+            });
+            let prox = solve(&p, proximal, &xs, &us);
+            assert_eq!(prox.status, Status::Converged, "{what}");
+            assert!(
+                prox.prim_err > 1e3 * sol.prim_err.max(1e-16),
+                "{what}: {:e}",
+                prox.prim_err
+            );
+        }
+    }
+}

@@ -19,7 +19,7 @@ mod options;
 mod run;
 mod workspace;
 
-pub use options::{ACTIVE_SET_ITERS_MAX, HessianApprox, Merit, ProxDdpOptions, Rollout, StepAcceptance};
+pub use options::{ACTIVE_SET_ITERS_MAX, DynamicsStep, HessianApprox, Merit, ProxDdpOptions, Rollout, StepAcceptance};
 
 use workspace::Workspace;
 

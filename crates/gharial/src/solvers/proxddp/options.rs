@@ -43,6 +43,24 @@ pub enum Merit {
 
 pub use crate::solvers::HessianApprox;
 
+/// How the Newton step treats the dynamics `f(x, u, y) = 0`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DynamicsStep {
+    /// [`Exact`](Self::Exact) on problems without path or terminal constraints,
+    /// [`Proximal`](Self::Proximal) otherwise (the default).
+    #[default]
+    Auto,
+    /// The proximal step of the paper, (42): the dynamics rows carry the dual
+    /// regularisation `mu_d = dyn_al_scale · mu`, so a step leaves a residual
+    /// `mu_d (λ⁺ - λ_e)` even on linear dynamics.
+    Proximal,
+    /// The dynamics rows without regularisation (the LQ solve does not need it: `df/dy`
+    /// is invertible): a step satisfies the linearised dynamics exactly, so one iteration
+    /// solves an unconstrained LQ problem to round-off. With constraints the step no
+    /// longer matches the proximal merit's model, which slows some problems down.
+    Exact,
+}
+
 /// Options of [`super::ProxDdp`].
 #[derive(Debug, Clone)]
 #[non_exhaustive]
@@ -89,6 +107,8 @@ pub struct ProxDdpOptions {
     pub merit: Merit,
     /// Hessian approximation (default Gauss-Newton).
     pub hessian: HessianApprox,
+    /// How the Newton step treats the dynamics (default [`DynamicsStep::Auto`]).
+    pub dynamics_step: DynamicsStep,
     /// Line-search options.
     pub linesearch: LinesearchOptions,
     /// Averaging weight of the nonmonotone line search (default 0.85).
@@ -164,6 +184,7 @@ impl Default for ProxDdpOptions {
             step_acceptance: StepAcceptance::Filter,
             merit: Merit::PrimalDual,
             hessian: HessianApprox::GaussNewton,
+            dynamics_step: DynamicsStep::Auto,
             linesearch: LinesearchOptions::default(),
             nonmonotone_eta: 0.85,
             preg_min: 1e-9,

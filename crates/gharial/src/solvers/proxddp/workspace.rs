@@ -5,7 +5,7 @@
 use faer::Accum;
 use faer::prelude::ReborrowMut;
 
-use super::options::{HessianApprox, Merit, ProxDdpOptions, Rollout};
+use super::options::{DynamicsStep, HessianApprox, Merit, ProxDdpOptions, Rollout};
 use crate::dynamics::Dynamics;
 use crate::error::Result;
 use crate::linalg::{matvec, matvec_t, norm_inf, slice, slice_mut};
@@ -126,6 +126,8 @@ pub(super) struct Workspace {
     knot_constants: bool,
     /// Every path and terminal constraint, in knot order: one walk over all of them.
     cons: Vec<ConstraintEntry>,
+    /// Whether the Newton step treats the dynamics exactly ([`DynamicsStep`]).
+    exact_dynamics: bool,
     pub lq: LqProblem,
     pub step: LqSolution,
     pub riccati: LqSolver,
@@ -184,6 +186,11 @@ impl Workspace {
             min_scale,
             knot_constants: false,
             cons: constraint_index(problem),
+            exact_dynamics: match opts.dynamics_step {
+                DynamicsStep::Exact => true,
+                DynamicsStep::Proximal => false,
+                DynamicsStep::Auto => (0..=n).all(|t| problem.constraints(t).is_empty()),
+            },
             lq,
             step,
             riccati,
@@ -360,12 +367,17 @@ impl Workspace {
             self.data
                 .compute_second_order(problem, &self.cur.xs, &self.cur.us, &self.lams_p, &self.nus_p);
         }
-        // Initial condition (65).
+        // Initial condition (65); without the proximal term, the residual itself.
         crate::linalg::copy(self.lq.G0.as_mut(), self.data.init.jx.as_ref());
+        let exact = self.exact_dynamics;
         for i in 0..self.lq.g0.nrows() {
-            self.lq.g0[i] = mu_d * (self.lams_p[0][i] - self.cur.lams[0][i]);
+            self.lq.g0[i] = if exact {
+                self.data.init.value()[i]
+            } else {
+                mu_d * (self.lams_p[0][i] - self.cur.lams[0][i])
+            };
         }
-        self.lq.mu0 = mu_d;
+        self.lq.mu0 = if exact { 0.0 } else { mu_d };
         // The Riccati recursion determines the step to about ε / mu relative (module docs
         // of `crate::lq`, "Accuracy"); one refinement step restores ε but costs about a
         // third of the forward and backward passes. Refine only when ε / mu could reach
@@ -394,9 +406,13 @@ impl Workspace {
                 );
                 slice_mut(&mut knot.r).copy_from_slice(&self.gu[t]);
                 for i in 0..knot.nx_next {
-                    knot.f[i] = mu_d * (self.lams_p[t + 1][i] - self.cur.lams[t + 1][i]);
+                    knot.f[i] = if exact {
+                        sd.dyn_value()[i]
+                    } else {
+                        mu_d * (self.lams_p[t + 1][i] - self.cur.lams[t + 1][i])
+                    };
                 }
-                knot.mu_dyn = mu_d;
+                knot.mu_dyn = if exact { 0.0 } else { mu_d };
             } else if !(keep_hessian && problem.terminal_cost().hessian_is_constant()) {
                 crate::linalg::copy(knot.Q.as_mut(), self.data.terminal_cost.lxx.as_ref());
             }
@@ -1066,7 +1082,12 @@ impl Workspace {
         let s = &mut self.tbuf[t + 1];
         let g = &self.lq.knots[t].f;
         for i in 0..s.len() {
-            s[i] = mu_d * (self.trial.lams[t + 1][i] - self.lams_e[t + 1][i]) + (1.0 - alpha) * g[i];
+            let proximal = if self.exact_dynamics {
+                0.0
+            } else {
+                mu_d * (self.trial.lams[t + 1][i] - self.lams_e[t + 1][i])
+            };
+            s[i] = proximal + (1.0 - alpha) * g[i];
         }
         let stage_model = &problem.stages()[t];
         let (xs_lo, xs_hi) = self.trial.xs.split_at_mut(t + 1);
