@@ -2,6 +2,9 @@
 
 use std::sync::Arc;
 
+use faer::MatMut;
+use faer::prelude::ReborrowMut;
+
 use super::{Cost, CostData};
 use crate::functions::Workspace;
 use crate::functions::util::{add_scaled, downcast};
@@ -31,6 +34,33 @@ impl std::fmt::Debug for CostStack {
             .field("names", &self.names)
             .field("weights", &self.weights.to_vec())
             .finish_non_exhaustive()
+    }
+}
+
+/// The stack's workspace: the components' data, and the weighted sum of the Hessians of
+/// its leading components with constant Hessians.
+struct StackWorkspace {
+    datas: Vec<CostData>,
+    prefix: CostData,
+    /// The weights the prefix sum was formed with (NaN: not formed yet).
+    prefix_weights: Vec<f64>,
+}
+
+impl CostStack {
+    /// `(lxx, lxu, luu) += Σ w_k ∇²ℓ_k` over the components `range` (in order; weight 0
+    /// skipped).
+    fn add_hessians(&self, datas: &[CostData], range: std::ops::Range<usize>, out: [MatMut<'_, f64>; 3]) {
+        let [mut lxx, mut lxu, mut luu] = out;
+        for k in range {
+            let w = self.weights.get(k);
+            if w == 0.0 {
+                continue;
+            }
+            let d = &datas[k];
+            add_scaled(lxx.rb_mut(), w, d.lxx.as_ref());
+            add_scaled(lxu.rb_mut(), w, d.lxu.as_ref());
+            add_scaled(luu.rb_mut(), w, d.luu.as_ref());
+        }
     }
 }
 
@@ -142,10 +172,15 @@ impl Cost for CostStack {
     }
     fn create_workspace(&self) -> Workspace {
         let datas: Vec<CostData> = self.costs.iter().map(|c| c.create_data()).collect();
-        Box::new(datas)
+        let prefix = CostData::new(self.ndx, self.nu, crate::functions::no_workspace());
+        Box::new(StackWorkspace {
+            datas,
+            prefix,
+            prefix_weights: vec![f64::NAN; self.costs.len()],
+        })
     }
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-        let datas: &mut Vec<CostData> = downcast(&mut data.ws);
+        let datas = &mut downcast::<StackWorkspace>(&mut data.ws).datas;
         let mut value = 0.0;
         for (k, (c, d)) in self.costs.iter().zip(datas.iter_mut()).enumerate() {
             c.evaluate(x, u, d);
@@ -160,15 +195,16 @@ impl Cost for CostStack {
         self.derivatives_reusing(x, u, data, false);
     }
     /// Components with a constant Hessian compute only their gradient once their data
-    /// hold it (`reuse`); the stack still sums every Hessian, its weights may change.
+    /// hold it (`reuse`), and the weighted sum of the Hessians of the leading such
+    /// components is kept from the first call while their weights stay the same (formed
+    /// in the same order, so the result is the same to the bit); the Hessians of the other
+    /// components are added at every call.
     fn derivatives_reusing(&self, x: &[f64], u: &[f64], data: &mut CostData, reuse: bool) {
-        let datas: &mut Vec<CostData> = downcast(&mut data.ws);
+        let ws = downcast::<StackWorkspace>(&mut data.ws);
+        let constant_prefix = self.costs.iter().take_while(|c| c.hessian_is_constant()).count();
         data.lx.fill(0.0);
         data.lu.fill(0.0);
-        data.lxx.fill(0.0);
-        data.lxu.fill(0.0);
-        data.luu.fill(0.0);
-        for (k, (c, d)) in self.costs.iter().zip(datas.iter_mut()).enumerate() {
+        for (k, (c, d)) in self.costs.iter().zip(ws.datas.iter_mut()).enumerate() {
             let w = self.weights.get(k);
             if w == 0.0 {
                 continue;
@@ -176,10 +212,28 @@ impl Cost for CostStack {
             c.derivatives_reusing(x, u, d, reuse);
             add_scaled(data.lx.as_mat_mut(), w, d.lx.as_mat());
             add_scaled(data.lu.as_mat_mut(), w, d.lu.as_mat());
-            add_scaled(data.lxx.as_mut(), w, d.lxx.as_ref());
-            add_scaled(data.lxu.as_mut(), w, d.lxu.as_ref());
-            add_scaled(data.luu.as_mut(), w, d.luu.as_ref());
         }
+        // Weights may change between calls (through `&self`): the sum is formed again then.
+        let same_weights = (0..constant_prefix).all(|k| ws.prefix_weights[k] == self.weights.get(k));
+        if !(reuse && same_weights) {
+            let p = &mut ws.prefix;
+            p.lxx.fill(0.0);
+            p.lxu.fill(0.0);
+            p.luu.fill(0.0);
+            self.add_hessians(
+                &ws.datas,
+                0..constant_prefix,
+                [p.lxx.as_mut(), p.lxu.as_mut(), p.luu.as_mut()],
+            );
+            for k in 0..constant_prefix {
+                ws.prefix_weights[k] = self.weights.get(k);
+            }
+        }
+        crate::linalg::copy(data.lxx.as_mut(), ws.prefix.lxx.as_ref());
+        crate::linalg::copy(data.lxu.as_mut(), ws.prefix.lxu.as_ref());
+        crate::linalg::copy(data.luu.as_mut(), ws.prefix.luu.as_ref());
+        let out = [data.lxx.as_mut(), data.lxu.as_mut(), data.luu.as_mut()];
+        self.add_hessians(&ws.datas, constant_prefix..self.costs.len(), out);
     }
 }
 
