@@ -22,6 +22,7 @@ pub mod error;
 pub mod functions;
 pub mod linalg;
 pub mod lq;
+pub mod mpc;
 pub mod param;
 pub mod problem;
 pub mod solvers;

@@ -2,7 +2,9 @@
 //! for every rollout and step acceptance, with and without the active-set prediction, on a
 //! nonlinear problem with path and terminal constraints; the DDP family on the same
 //! problem without constraints (box variants: with its control bounds), from a guess that
-//! violates the dynamics, with explicit and implicit dynamics.
+//! violates the dynamics, with explicit and implicit dynamics; receding-horizon cycles
+//! (solve, shift through stages with other constraints, feedback policy) after
+//! `Mpc::new`.
 
 #[path = "support/counting_alloc.rs"]
 mod counting_alloc;
@@ -13,6 +15,7 @@ use gharial::constraints::{BoxConstraint, EqualityConstraintSet, NegativeOrthant
 use gharial::costs::{QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, ExplicitRungeKutta, ImplicitEuler, Ode, OdeData};
 use gharial::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary};
+use gharial::mpc::{Mpc, MpcOptions};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::InitialGuess;
 use gharial::solvers::Solver;
@@ -188,6 +191,59 @@ fn proxddp_solve_does_not_allocate_after_setup() {
                     );
                 }
             }
+        }
+    }
+}
+
+/// A horizon mixing stages with 0, 1 and 3 constraint rows, and a queue of them.
+fn mixed_horizon(implicit: bool, box_only: bool) -> (Problem, Vec<StageModel>) {
+    let kinds: Vec<usize> = if box_only { vec![0, 1] } else { vec![0, 1, 2] };
+    let models: Vec<StageModel> = kinds
+        .iter()
+        .map(|&k| problem(implicit, k).stages()[0].clone())
+        .collect();
+    let pick = |i: usize| models[(i * 7 + i / 3) % models.len()].clone();
+    let free = problem(implicit, 0);
+    let p = Problem::new(&[0.0, 0.0], (0..30).map(pick).collect(), free.terminal_cost().clone()).unwrap();
+    (p, (0..11).map(|i| pick(i + 5)).collect())
+}
+
+/// Allocations of `cycles` receding-horizon cycles after `Mpc::new` (and a warm-up
+/// cycle).
+fn mpc_allocations<S: Solver>(mut mpc: Mpc<S>, cycles: usize) -> usize {
+    let mut x = vec![0.0, 0.0];
+    let mut u = vec![0.0];
+    let mut cycle = |mpc: &mut Mpc<S>, x: &mut Vec<f64>| {
+        let sol = mpc.solve(x).unwrap();
+        x.copy_from_slice(&sol.xs[1]);
+        mpc.shift().unwrap();
+        mpc.control(x, &mut u).unwrap();
+    };
+    cycle(&mut mpc, &mut x);
+    counting_alloc::local_allocations_during(|| {
+        for _ in 0..cycles {
+            cycle(&mut mpc, &mut x);
+        }
+    })
+}
+
+#[test]
+fn mpc_cycles_do_not_allocate_after_construction() {
+    for implicit in [false, true] {
+        let (p, queue) = mixed_horizon(implicit, false);
+        let (xs, us) = guess(&p);
+        // Serial: a thread pool's job queue takes a block from the heap every few dozen
+        // jobs handed to it (README, "Parallel stages").
+        let solver = ProxDdp::new(ProxDdpOptions::default());
+        let opts = MpcOptions::default().with(|o| o.max_iters = 3);
+        let mpc = Mpc::new(p.clone(), solver, queue.clone(), InitialGuess::primal(&xs, &us), opts).unwrap();
+        assert_eq!(mpc_allocations(mpc, 200), 0, "proxddp implicit {implicit}");
+        let (p, queue) = mixed_horizon(implicit, true);
+        for variant in [DdpVariant::BoxFddp, DdpVariant::BoxDdp] {
+            let solver = Ddp::new(DdpOptions::new(variant));
+            let opts = MpcOptions::default().with(|o| o.max_iters = 3);
+            let mpc = Mpc::new(p.clone(), solver, queue.clone(), InitialGuess::primal(&xs, &us), opts).unwrap();
+            assert_eq!(mpc_allocations(mpc, 200), 0, "{} implicit {implicit}", variant.name());
         }
     }
 }

@@ -93,7 +93,9 @@ impl StageData {
         self.constraint_jx_zero[k]
     }
 
-    fn new(stage: &StageModel) -> Self {
+    /// The data of `stage`, allocated once (for receding horizons: the data of a stage
+    /// that will enter the horizon, see [`ProblemData::shift`]).
+    pub fn new(stage: &StageModel) -> Self {
         let (s, sn) = (stage.space(), stage.space_next());
         let (ndx, ndx2, nu) = (s.ndx(), sn.ndx(), stage.nu());
         let dynamics = match &stage.dynamics {
@@ -528,6 +530,19 @@ impl ProblemData {
                 .jdifference(x0, &xs[0], Arg::Second, self.init.jx.as_mut()),
             InitialCondition::Constraint(f) => f.jacobian(&xs[0], &mut self.init),
         }
+    }
+
+    /// Receding horizon, after [`Problem::shift`]: moves the stage data one knot earlier
+    /// and makes `incoming` (the data of the stage that entered, [`StageData::new`]) the
+    /// last; `incoming` receives the data of the stage that left. Without `incoming`
+    /// (after [`Problem::rotate`]) the data of stage 0 becomes the last. The constant
+    /// derivative blocks are written again by the next derivative pass.
+    pub fn shift(&mut self, incoming: Option<&mut StageData>) {
+        match incoming {
+            Some(d) => super::shift_in(&mut self.stages, d),
+            None => self.stages.rotate_left(1),
+        }
+        self.constants_written = false;
     }
 
     /// Makes the next [`ProblemData::compute_derivatives`] write every block again,

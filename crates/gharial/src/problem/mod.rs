@@ -303,6 +303,59 @@ impl Problem {
         &mut self.stages
     }
 
+    /// Receding horizon: moves every stage one knot earlier and makes `incoming` the
+    /// last stage; `incoming` receives the stage that left the horizon (stage 0), so that
+    /// the models cycle without allocation. The initial state is unchanged (see
+    /// [`Problem::set_x0`]).
+    ///
+    /// # Errors
+    /// If `incoming` differs from stage 0 in its state or control sizes, or its state
+    /// spaces do not fit at the end of the horizon (next to the last stage and the
+    /// terminal cost); the problem is then unchanged.
+    pub fn shift(&mut self, incoming: &mut StageModel) -> Result<()> {
+        self.check_incoming(incoming)?;
+        shift_in(&mut self.stages, incoming);
+        Ok(())
+    }
+
+    /// Checks that `incoming` can follow the last stage and replace stage 0.
+    fn check_incoming(&self, incoming: &StageModel) -> Result<()> {
+        let first = &self.stages[0];
+        let last = self.stages[self.stages.len() - 1].space_next();
+        let dims = [
+            ("state size nx", first.space().nx(), incoming.space().nx()),
+            ("state tangent size ndx", first.space().ndx(), incoming.space().ndx()),
+            ("control size nu", first.nu(), incoming.nu()),
+            (
+                "state size nx at the end of the horizon",
+                last.nx(),
+                incoming.space().nx(),
+            ),
+            (
+                "state tangent size ndx at the end of the horizon",
+                last.ndx(),
+                incoming.space().ndx(),
+            ),
+            ("next-state size nx", last.nx(), incoming.space_next().nx()),
+            ("next-state tangent size ndx", last.ndx(), incoming.space_next().ndx()),
+        ];
+        for (what, expected, got) in dims {
+            check_dim(format_args!("shift: incoming stage {what}"), expected, got)?;
+        }
+        Ok(())
+    }
+
+    /// Receding horizon without a queue: moves every stage one knot earlier and makes
+    /// stage 0 the last (a time-invariant or periodic horizon).
+    ///
+    /// # Errors
+    /// As [`Problem::shift`] with stage 0 as the incoming stage.
+    pub fn rotate(&mut self) -> Result<()> {
+        self.check_incoming(&self.stages[0])?;
+        self.stages.rotate_left(1);
+        Ok(())
+    }
+
     /// Horizon length `N` (number of stages).
     pub fn horizon(&self) -> usize {
         self.stages.len()
@@ -402,6 +455,14 @@ impl Problem {
         }
         Ok(())
     }
+}
+
+/// Moves every item one place earlier and swaps the last with `incoming` (which receives
+/// the first): the receding-horizon shift of stages and of their data.
+pub(crate) fn shift_in<T>(items: &mut [T], incoming: &mut T) {
+    items.rotate_left(1);
+    let n = items.len();
+    std::mem::swap(&mut items[n - 1], incoming);
 }
 
 /// Checks a fixed initial state: size, finiteness, and that it lies on the manifold.

@@ -305,4 +305,61 @@ pub trait Solver: Send {
 
     /// The solver's iteration table (the columns of [`Solution::history`] it fills).
     fn table(&self) -> log::Table;
+
+    /// Sets the iteration limit and the wall-time budget of each solve (the per-cycle
+    /// budget of receding-horizon control); call before `setup`, which sizes the
+    /// iteration history for `max_iters`.
+    fn set_limits(&mut self, max_iters: usize, max_time: Option<Duration>);
+
+    /// As `setup`, and prepares the receding horizon of [`crate::mpc`]: the workspace
+    /// also holds the data of the stages of `queue`, which enter the horizon in turn
+    /// through [`Solver::shift`].
+    ///
+    /// # Errors
+    /// As `setup`, and if a stage of the horizon or the queue has other state or control
+    /// sizes than stage 0, or a queued stage is one the solver cannot handle.
+    fn setup_receding(&mut self, problem: &Problem, queue: &[crate::problem::StageModel]) -> Result<()>;
+
+    /// Moves the workspace one knot along after [`Problem::shift`] took the stage
+    /// `queue[slot]` of [`Solver::setup_receding`] into the horizon (and put the stage
+    /// that left into `queue[slot]`), or after [`Problem::rotate`] for `slot = None`,
+    /// without allocating. The solution's path multipliers move with their stages; the
+    /// new last stage's are zero.
+    ///
+    /// # Errors
+    /// If `setup_receding` was not called or `slot` is out of range.
+    fn shift(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()>;
+}
+
+/// A boxed solver is a solver (a solver chosen by name at run time).
+impl<S: Solver + ?Sized> Solver for Box<S> {
+    fn name(&self) -> &'static str {
+        (**self).name()
+    }
+    fn setup(&mut self, problem: &Problem) -> Result<()> {
+        (**self).setup(problem)
+    }
+    fn solve_with(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        callback: Option<&mut dyn Callback>,
+    ) -> Result<&Solution> {
+        (**self).solve_with(problem, guess, callback)
+    }
+    fn solution(&self) -> &Solution {
+        (**self).solution()
+    }
+    fn table(&self) -> log::Table {
+        (**self).table()
+    }
+    fn set_limits(&mut self, max_iters: usize, max_time: Option<Duration>) {
+        (**self).set_limits(max_iters, max_time)
+    }
+    fn setup_receding(&mut self, problem: &Problem, queue: &[crate::problem::StageModel]) -> Result<()> {
+        (**self).setup_receding(problem, queue)
+    }
+    fn shift(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
+        (**self).shift(problem, slot)
+    }
 }

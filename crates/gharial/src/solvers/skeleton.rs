@@ -9,7 +9,7 @@ use super::{IterationRecord, Solution};
 use crate::error::{Error, Result};
 use crate::linalg::slice_mut;
 use crate::lq::{LqKnot, LqProblem, RiccatiStage};
-use crate::problem::{Problem, StageData};
+use crate::problem::{Problem, StageData, StageModel};
 
 /// Dimensions `(nx, ndx, nu, nc)` of every knot, then `(nc0, 0, 0, 0)`: what `setup`
 /// allocated for.
@@ -36,6 +36,14 @@ impl Signature {
     /// The signature of `problem` (allocates; for `setup`).
     pub(crate) fn of(problem: &Problem) -> Self {
         Self(knot_dims(problem).collect())
+    }
+
+    /// Rewrites the signature for `problem` in place (after a receding-horizon shift,
+    /// which keeps the number of knots).
+    pub(crate) fn refresh(&mut self, problem: &Problem) {
+        for (a, b) in self.0.iter_mut().zip(knot_dims(problem)) {
+            *a = b;
+        }
     }
 
     /// Checks, without allocating, that `problem` has the dimensions `setup` saw;
@@ -67,6 +75,14 @@ pub(crate) struct ConstraintEntry {
 /// for `setup`): a walk over all constraints is one loop over this index.
 pub(crate) fn constraint_index(problem: &Problem) -> Vec<ConstraintEntry> {
     let mut index = Vec::new();
+    fill_constraint_index(problem, &mut index);
+    index
+}
+
+/// Rewrites `index` as [`constraint_index`] (without allocating when its capacity
+/// suffices, as after [`Receding::reserve_index`]).
+pub(crate) fn fill_constraint_index(problem: &Problem, index: &mut Vec<ConstraintEntry>) {
+    index.clear();
     for t in 0..=problem.horizon() {
         let mut off = 0;
         for (k, c) in problem.constraints(t).iter().enumerate() {
@@ -78,23 +94,98 @@ pub(crate) fn constraint_index(problem: &Problem) -> Vec<ConstraintEntry> {
             off += c.nr();
         }
     }
-    index
+}
+
+/// What a solver prepares for a receding horizon ([`crate::mpc`]): the largest stage
+/// among the horizon and the stages queued to enter it. Every running knot's buffers of
+/// constraint size are reserved for `max_nc` rows, so that shifts resize them in place.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Receding {
+    /// Most stacked constraint rows of one stage.
+    pub max_nc: usize,
+    /// Most constraints of one stage.
+    pub max_constraints: usize,
+}
+
+impl Receding {
+    /// Checks that the horizon and `queue` can cycle (every stage with the state and
+    /// control sizes of stage 0, on both sides) and measures them.
+    ///
+    /// # Errors
+    /// Names the first stage whose sizes differ.
+    pub(crate) fn of(problem: &Problem, queue: &[StageModel]) -> Result<Self> {
+        let s0 = &problem.stages()[0];
+        let dims = |s: &StageModel| {
+            let (a, b) = (s.space(), s.space_next());
+            (a.nx(), a.ndx(), s.nu(), b.nx(), b.ndx())
+        };
+        let (nx, ndx, nu, _, _) = dims(s0);
+        let want = (nx, ndx, nu, nx, ndx);
+        let stages = problem.stages().iter().map(|s| ("stage", s));
+        let mut max = Self {
+            max_nc: 0,
+            max_constraints: 0,
+        };
+        for (i, (kind, s)) in stages.chain(queue.iter().map(|s| ("queued stage", s))).enumerate() {
+            if dims(s) != want {
+                let i = if kind == "stage" { i } else { i - problem.horizon() };
+                return Err(Error::InvalidModel(format!(
+                    "receding horizon: {kind} {i} has sizes (nx, ndx, nu, next nx, next ndx) = {:?}, \
+                     stage 0 {want:?}: every stage must have the same",
+                    dims(s)
+                )));
+            }
+            max.max_nc = max.max_nc.max(s.nc());
+            max.max_constraints = max.max_constraints.max(s.constraints().len());
+        }
+        Ok(max)
+    }
+
+    /// Reserves `index` for every shift of a horizon of `n` stages.
+    pub(crate) fn reserve_index(&self, problem: &Problem, index: &mut Vec<ConstraintEntry>) {
+        let n = problem.horizon();
+        let total = n * self.max_constraints + problem.terminal_constraints().len();
+        index.reserve_exact(total.saturating_sub(index.len()));
+    }
+
+    /// Reserves the running entries (`0..n`) of per-knot rows for `max_nc` rows.
+    pub(crate) fn reserve_rows(&self, rows: &mut [Vec<f64>], n: usize) {
+        for r in &mut rows[..n] {
+            r.reserve_exact(self.max_nc.saturating_sub(r.len()));
+        }
+    }
+}
+
+/// After a shift of a horizon of `n` stages: the running entries of per-knot rows move
+/// one knot earlier and the last gets `nc_tail` zero rows (in place within the capacity
+/// of [`Receding::reserve_rows`]); the terminal entry stays.
+pub(crate) fn shift_rows(rows: &mut [Vec<f64>], n: usize, nc_tail: usize) {
+    rows[..n].rotate_left(1);
+    let tail = &mut rows[n - 1];
+    tail.clear();
+    tail.resize(nc_tail, 0.0);
 }
 
 /// An LQ problem with the knot dimensions of `problem`; `constraint_rows` says whether
 /// the knots carry the rows of the path and terminal constraints (ProxDDP) or none (the
-/// DDP family).
-pub(crate) fn lq_for(problem: &Problem, constraint_rows: bool) -> LqProblem {
+/// DDP family). With `padded_nc`, every running knot has that many constraint rows, the
+/// ones beyond its stage's inert ([`pad_constraint_rows`]): a receding horizon then
+/// changes the stages' constraints without changing the LQ problem's dimensions.
+pub(crate) fn lq_for(problem: &Problem, constraint_rows: bool, padded_nc: Option<usize>) -> LqProblem {
     let n = problem.horizon();
     let knots = (0..=n)
         .map(|t| {
-            let nc = if constraint_rows {
-                problem.constraints(t).iter().map(|c| c.nr()).sum()
-            } else {
-                0
+            let nc = match (constraint_rows, padded_nc) {
+                (false, _) => 0,
+                (true, Some(pad)) if t < n => pad,
+                (true, _) => problem.constraints(t).iter().map(|c| c.nr()).sum(),
             };
             let nx_next = if t < n { problem.space(t + 1).ndx() } else { 0 };
-            LqKnot::new(problem.space(t).ndx(), problem.nu(t), nc, nx_next)
+            let mut knot = LqKnot::new(problem.space(t).ndx(), problem.nu(t), nc, nx_next);
+            if constraint_rows {
+                pad_constraint_rows(&mut knot, problem.constraints(t).iter().map(|c| c.nr()).sum());
+            }
+            knot
         })
         .collect();
     let (nc0, ndx0) = (problem.nc0(), problem.space(0).ndx());
@@ -103,6 +194,18 @@ pub(crate) fn lq_for(problem: &Problem, constraint_rows: bool) -> LqProblem {
         G0: Mat::zeros(nc0, ndx0),
         g0: faer::Col::zeros(nc0),
         mu0: 0.0,
+    }
+}
+
+/// Makes the constraint rows `from..` of `knot` inert: zero Jacobians and offset, unit
+/// dual regularisation, so that their multipliers are zero and nothing else changes.
+pub(crate) fn pad_constraint_rows(knot: &mut LqKnot, from: usize) {
+    let rows = knot.nc - from;
+    knot.C.as_mut().subrows_mut(from, rows).fill(0.0);
+    knot.D.as_mut().subrows_mut(from, rows).fill(0.0);
+    for i in from..knot.nc {
+        knot.d[i] = 0.0;
+        knot.mu_c[i] = 1.0;
     }
 }
 

@@ -8,7 +8,7 @@
 //! solve, so that sets and references moved between solves (MPC) are followed.
 
 use crate::error::{Error, Result};
-use crate::problem::{Problem, ProblemData};
+use crate::problem::{Problem, ProblemData, StageModel};
 
 /// A constraint row that bounds one control: `lo ≤ s u_j + c ≤ hi`.
 #[derive(Debug, Clone, Copy)]
@@ -32,6 +32,8 @@ struct BoundRow {
 #[derive(Debug)]
 pub(super) struct ControlBounds {
     rows: Vec<Vec<BoundRow>>,
+    /// The bound rows of the stages queued to enter a receding horizon.
+    spare: Vec<Vec<BoundRow>>,
     /// Lower bounds per stage (`-∞` where none).
     pub lb: Vec<Vec<f64>>,
     /// Upper bounds per stage (`+∞` where none).
@@ -41,62 +43,73 @@ pub(super) struct ControlBounds {
     assigned: Vec<bool>,
 }
 
+/// The bound rows of `stage` (`what` names it in errors), or the first constraint that
+/// is not a control bound; raises `max_nr` to the largest constraint's rows.
+fn stage_rows(stage: &StageModel, what: &str, solver: &str, max_nr: &mut usize) -> Result<Vec<BoundRow>> {
+    let mut stage_rows = Vec::new();
+    let mut stacked = 0;
+    let mut x = vec![0.0; stage.space().nx()];
+    stage.space().neutral(&mut x);
+    let u = vec![0.0; stage.nu()];
+    for (k, c) in stage.constraints().iter().enumerate() {
+        let nr = c.nr();
+        *max_nr = (*max_nr).max(nr);
+        let not_a_bound = |why: &str| {
+            Error::InvalidModel(format!(
+                "{solver} handles bounds on the controls only: constraint `{}` of {what} {why} \
+                 (use proxddp for general constraints)",
+                c.name
+            ))
+        };
+        if !c.func.jacobians_are_constant() {
+            return Err(not_a_bound("does not declare constant Jacobians"));
+        }
+        let mut lo = vec![0.0; nr];
+        let mut hi = vec![0.0; nr];
+        if !c.set.box_bounds(&mut lo, &mut hi) {
+            return Err(not_a_bound("has a set that is not a box"));
+        }
+        let mut d = c.func.create_data();
+        c.func.jacobians(&x, &u, &mut d);
+        if crate::linalg::norm_max(d.jx.as_ref()) != 0.0 {
+            return Err(not_a_bound("depends on the state"));
+        }
+        for i in 0..nr {
+            let nonzero: Vec<usize> = (0..stage.nu()).filter(|&j| d.ju[(i, j)] != 0.0).collect();
+            let [j] = nonzero[..] else {
+                return Err(not_a_bound(&format!(
+                    "has row {i} on {} controls, not one",
+                    nonzero.len()
+                )));
+            };
+            stage_rows.push(BoundRow {
+                constraint: k,
+                row: i,
+                stacked: stacked + i,
+                control: j,
+                scale: d.ju[(i, j)],
+                lo: f64::NEG_INFINITY,
+                hi: f64::INFINITY,
+            });
+        }
+        stacked += nr;
+    }
+    Ok(stage_rows)
+}
+
 impl ControlBounds {
-    /// Recognises every path constraint of `problem` as a control bound, or names the
-    /// first that is not one. `solver` names the caller in the error.
-    pub fn new(problem: &Problem, solver: &str) -> Result<Self> {
-        let mut rows = Vec::with_capacity(problem.horizon());
+    /// Recognises every path constraint of `problem` and of the stages `queue`d to enter
+    /// its horizon as a control bound, or names the first that is not one. `solver` names
+    /// the caller in the error.
+    pub fn new(problem: &Problem, queue: &[StageModel], solver: &str) -> Result<Self> {
         let mut max_nr = 0;
+        let mut rows = Vec::with_capacity(problem.horizon());
         for (t, stage) in problem.stages().iter().enumerate() {
-            let mut stage_rows = Vec::new();
-            let mut stacked = 0;
-            let mut x = vec![0.0; stage.space().nx()];
-            stage.space().neutral(&mut x);
-            let u = vec![0.0; stage.nu()];
-            for (k, c) in stage.constraints().iter().enumerate() {
-                let nr = c.nr();
-                max_nr = max_nr.max(nr);
-                let not_a_bound = |why: &str| {
-                    Error::InvalidModel(format!(
-                        "{solver} handles bounds on the controls only: constraint `{}` of stage {t} {why} \
-                         (use proxddp for general constraints)",
-                        c.name
-                    ))
-                };
-                if !c.func.jacobians_are_constant() {
-                    return Err(not_a_bound("does not declare constant Jacobians"));
-                }
-                let mut lo = vec![0.0; nr];
-                let mut hi = vec![0.0; nr];
-                if !c.set.box_bounds(&mut lo, &mut hi) {
-                    return Err(not_a_bound("has a set that is not a box"));
-                }
-                let mut d = c.func.create_data();
-                c.func.jacobians(&x, &u, &mut d);
-                if crate::linalg::norm_max(d.jx.as_ref()) != 0.0 {
-                    return Err(not_a_bound("depends on the state"));
-                }
-                for i in 0..nr {
-                    let nonzero: Vec<usize> = (0..stage.nu()).filter(|&j| d.ju[(i, j)] != 0.0).collect();
-                    let [j] = nonzero[..] else {
-                        return Err(not_a_bound(&format!(
-                            "has row {i} on {} controls, not one",
-                            nonzero.len()
-                        )));
-                    };
-                    stage_rows.push(BoundRow {
-                        constraint: k,
-                        row: i,
-                        stacked: stacked + i,
-                        control: j,
-                        scale: d.ju[(i, j)],
-                        lo: f64::NEG_INFINITY,
-                        hi: f64::INFINITY,
-                    });
-                }
-                stacked += nr;
-            }
-            rows.push(stage_rows);
+            rows.push(stage_rows(stage, &format!("stage {t}"), solver, &mut max_nr)?);
+        }
+        let mut spare = Vec::with_capacity(queue.len());
+        for (i, stage) in queue.iter().enumerate() {
+            spare.push(stage_rows(stage, &format!("queued stage {i}"), solver, &mut max_nr)?);
         }
         if !problem.terminal_constraints().is_empty() {
             return Err(Error::InvalidModel(format!(
@@ -107,12 +120,23 @@ impl ControlBounds {
         let n = problem.horizon();
         Ok(Self {
             rows,
+            spare,
             lb: (0..n).map(|t| vec![f64::NEG_INFINITY; problem.nu(t)]).collect(),
             ub: (0..n).map(|t| vec![f64::INFINITY; problem.nu(t)]).collect(),
             set_lo: vec![0.0; max_nr],
             set_hi: vec![0.0; max_nr],
             assigned: vec![false; (0..n).map(|t| problem.nu(t)).max().unwrap_or(0)],
         })
+    }
+
+    /// Receding horizon, after [`Problem::shift`] took the queued stage `slot` (`slot`
+    /// checked by the caller; `None`: after [`Problem::rotate`]): the bound rows follow
+    /// their stages.
+    pub fn shift(&mut self, slot: Option<usize>) {
+        match slot {
+            Some(s) => crate::problem::shift_in(&mut self.rows, &mut self.spare[s]),
+            None => self.rows.rotate_left(1),
+        }
     }
 
     /// Whether stage `t` has a bound.

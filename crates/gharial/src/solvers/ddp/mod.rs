@@ -44,11 +44,11 @@ use std::time::Instant;
 
 use workspace::{Expected, Workspace};
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::lq::LqError;
-use crate::problem::Problem;
+use crate::problem::{Problem, StageModel};
 use crate::solvers::log::{COST, Column, Format, ITER, Table};
-use crate::solvers::skeleton::{Signature, push_record, write_gains};
+use crate::solvers::skeleton::{Receding, Signature, push_record, shift_rows, write_gains};
 use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 
 /// The solve stalls when the expected decrease of the full step is at most this many
@@ -173,11 +173,33 @@ impl Ddp {
     /// handle (any for DDP and FDDP, anything but control bounds for the box variants) or
     /// no fixed initial state.
     pub fn setup(&mut self, problem: &Problem) -> Result<()> {
+        self.setup_with(problem, None)
+    }
+
+    fn setup_with(&mut self, problem: &Problem, queue: Option<&[StageModel]>) -> Result<()> {
         self.options.validate()?;
         self.signature = Signature::default();
-        self.ws = Some(Box::new(Workspace::new(problem, &self.options)?));
+        self.ws = Some(Box::new(Workspace::new(problem, &self.options, queue)?));
         self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
+        if let Some(q) = queue {
+            let n = problem.horizon();
+            Receding::of(problem, q)?.reserve_rows(&mut self.solution.nus, n);
+        }
         self.signature = Signature::of(problem);
+        Ok(())
+    }
+
+    /// See [`Solver::shift`](crate::solvers::Solver::shift).
+    fn shift_workspace(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
+        let name = self.options.variant.name();
+        let ws = self
+            .ws
+            .as_mut()
+            .ok_or_else(|| Error::InvalidModel(format!("{name}::shift called before setup_receding")))?;
+        ws.shift(slot)?;
+        let n = problem.horizon();
+        shift_rows(&mut self.solution.nus, n, problem.stages()[n - 1].nc());
+        self.signature.refresh(problem);
         Ok(())
     }
 
@@ -423,5 +445,15 @@ impl crate::solvers::Solver for Ddp {
     }
     fn table(&self) -> Table {
         TABLE
+    }
+    fn set_limits(&mut self, max_iters: usize, max_time: Option<std::time::Duration>) {
+        self.options.max_iters = max_iters;
+        self.options.max_time = max_time;
+    }
+    fn setup_receding(&mut self, problem: &Problem, queue: &[StageModel]) -> Result<()> {
+        self.setup_with(problem, Some(queue))
+    }
+    fn shift(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
+        self.shift_workspace(problem, slot)
     }
 }

@@ -9,10 +9,10 @@ use super::options::{DdpOptions, DdpVariant};
 use crate::error::{Error, Result};
 use crate::linalg::{dot, matvec, norm_inf, slice, slice_mut};
 use crate::lq::{LqError, LqProblem, LqSolution, RiccatiSolver, RiccatiStage};
-use crate::problem::{InitialCondition, Problem, ProblemData};
+use crate::problem::{InitialCondition, Problem, ProblemData, StageData, StageModel};
 use crate::solvers::HessianApprox;
 use crate::solvers::boxqp::{BoxQp, BoxQpOptions};
-use crate::solvers::skeleton::{copy_stage_model, copy_trajectory, lq_for};
+use crate::solvers::skeleton::{Receding, copy_stage_model, copy_trajectory, lq_for};
 
 /// The terms of the expected improvement of FDDP (Mastalli et al. 2020, (19)-(20)) that do
 /// not depend on the trial: `Δ_g` and `Δ_q` (crocoddyl's `dg`, `dq`).
@@ -64,10 +64,39 @@ pub(super) struct Workspace {
     pub cost: f64,
     /// Whether an iteration of this solve has ended (the box QP is used from the second).
     iterated: bool,
+    /// Receding horizon: the data of the queued stages, slot by slot.
+    spare: Vec<StageData>,
+}
+
+/// Refuses constraints (DDP and FDDP handle none), in the horizon or the queue.
+fn check_unconstrained(problem: &Problem, queue: &[StageModel], name: &str) -> Result<()> {
+    let queued = queue.iter().enumerate().map(|(i, s)| (format!("queued stage {i}"), s));
+    let mut stages = problem
+        .stages()
+        .iter()
+        .enumerate()
+        .map(|(t, s)| (format!("stage {t}"), s))
+        .chain(queued);
+    if let Some((what, s)) = stages.find(|(_, s)| s.nc() > 0) {
+        return Err(Error::InvalidModel(format!(
+            "{name} does not handle constraints: {what} has constraint `{}` (use box-ddp or \
+             box-fddp for bounds on the controls, proxddp for general constraints)",
+            s.constraints()[0].name
+        )));
+    }
+    if let Some(c) = problem.terminal_constraints().first() {
+        return Err(Error::InvalidModel(format!(
+            "{name} does not handle constraints: terminal constraint `{}` (use proxddp)",
+            c.name
+        )));
+    }
+    Ok(())
 }
 
 impl Workspace {
-    pub fn new(problem: &Problem, opts: &DdpOptions) -> Result<Self> {
+    /// The workspace of `problem`; with `queue`, also for a receding horizon through
+    /// the stages queued to enter it ([`Workspace::shift`]).
+    pub fn new(problem: &Problem, opts: &DdpOptions, queue: Option<&[StageModel]>) -> Result<Self> {
         let variant = opts.variant;
         let name = variant.name();
         let InitialCondition::Fixed(x0) = problem.initial_condition() else {
@@ -75,23 +104,14 @@ impl Workspace {
                 "{name} needs a fixed initial state x_0 (the problem has a general initial constraint)"
             )));
         };
+        if let Some(q) = queue {
+            Receding::of(problem, q)?;
+        }
+        let queue = queue.unwrap_or(&[]);
         let bounds = if variant.control_bounds() {
-            Some(ControlBounds::new(problem, name)?)
+            Some(ControlBounds::new(problem, queue, name)?)
         } else {
-            let constrained = problem.stages().iter().position(|s| s.nc() > 0);
-            if let Some(t) = constrained {
-                return Err(Error::InvalidModel(format!(
-                    "{name} does not handle constraints: stage {t} has constraint `{}` (use box-ddp or \
-                     box-fddp for bounds on the controls, proxddp for general constraints)",
-                    problem.stages()[t].constraints()[0].name
-                )));
-            }
-            if let Some(c) = problem.terminal_constraints().first() {
-                return Err(Error::InvalidModel(format!(
-                    "{name} does not handle constraints: terminal constraint `{}` (use proxddp)",
-                    c.name
-                )));
-            }
+            check_unconstrained(problem, queue, name)?;
             None
         };
         if opts.hessian == HessianApprox::Exact {
@@ -105,7 +125,7 @@ impl Workspace {
         let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
         let vecs = |sizes: &[usize]| sizes.iter().map(|&k| vec![0.0; k]).collect::<Vec<_>>();
         let nus: Vec<usize> = (0..n).map(|t| problem.nu(t)).collect();
-        let lq = lq_for(problem, false);
+        let lq = lq_for(problem, false, None);
         let riccati = RiccatiSolver::new(&lq)?;
         let lq_sol = LqSolution::new(&lq);
         Ok(Self {
@@ -136,7 +156,29 @@ impl Workspace {
             wu: vec![0.0; nus.iter().copied().max().unwrap_or(0)],
             cost: 0.0,
             iterated: false,
+            spare: queue.iter().map(StageData::new).collect(),
         })
+    }
+
+    /// Receding horizon, after [`Problem::shift`] took the queued stage `slot`: the
+    /// stage data and control bounds move one knot earlier (those of the stage that left
+    /// go to `slot`). Allocates nothing.
+    ///
+    /// # Errors
+    /// If `slot` is out of range of the queue given to [`Workspace::new`].
+    pub fn shift(&mut self, slot: Option<usize>) -> Result<()> {
+        if slot.is_some_and(|s| s >= self.spare.len()) {
+            return Err(Error::InvalidModel(format!(
+                "{}::shift: slot {slot:?} of a queue of {} stages (was setup_receding called?)",
+                self.variant.name(),
+                self.spare.len()
+            )));
+        }
+        self.data.shift(slot.map(|s| &mut self.spare[s]));
+        if let Some(b) = &mut self.bounds {
+            b.shift(slot);
+        }
+        Ok(())
     }
 
     /// Loads a guess, evaluates it with first derivatives and reads its gaps and control

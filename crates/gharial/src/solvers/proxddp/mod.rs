@@ -24,10 +24,10 @@ pub use options::{ACTIVE_SET_ITERS_MAX, DynamicsStep, HessianApprox, Merit, Prox
 use workspace::Workspace;
 
 use crate::error::Result;
-use crate::problem::Problem;
+use crate::problem::{Problem, StageModel};
 use crate::solvers::filter::Filter;
 use crate::solvers::log::{COST, Column, Format, ITER, Table};
-use crate::solvers::skeleton::Signature;
+use crate::solvers::skeleton::{Receding, Signature, shift_rows};
 use crate::solvers::{Callback, InitialGuess, Solution};
 
 /// ProxDDP's iteration table.
@@ -150,11 +150,33 @@ impl ProxDdp {
     /// # Errors
     /// If an option is out of range.
     pub fn setup(&mut self, problem: &Problem) -> Result<()> {
+        self.setup_with(problem, None)
+    }
+
+    fn setup_with(&mut self, problem: &Problem, queue: Option<&[StageModel]>) -> Result<()> {
         self.options.validate()?;
-        self.ws = Some(Box::new(Workspace::new(problem, &self.options)?));
+        self.signature = Signature::default();
+        self.ws = Some(Box::new(Workspace::new(problem, &self.options, queue)?));
         self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
+        if let Some(q) = queue {
+            let n = problem.horizon();
+            Receding::of(problem, q)?.reserve_rows(&mut self.solution.nus, n);
+        }
         self.signature = Signature::of(problem);
         self.filter = Filter::new(self.options.max_iters.saturating_add(1), 1e-5, 1e-5);
+        Ok(())
+    }
+
+    /// See [`Solver::shift`](crate::solvers::Solver::shift).
+    fn shift_workspace(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
+        let ws = self
+            .ws
+            .as_mut()
+            .ok_or_else(|| crate::error::Error::InvalidModel("ProxDdp::shift called before setup_receding".into()))?;
+        ws.shift(problem, slot)?;
+        let n = problem.horizon();
+        shift_rows(&mut self.solution.nus, n, problem.stages()[n - 1].nc());
+        self.signature.refresh(problem);
         Ok(())
     }
 
@@ -197,5 +219,15 @@ impl crate::solvers::Solver for ProxDdp {
     }
     fn table(&self) -> Table {
         TABLE
+    }
+    fn set_limits(&mut self, max_iters: usize, max_time: Option<std::time::Duration>) {
+        self.options.max_iters = max_iters;
+        self.options.max_time = max_time;
+    }
+    fn setup_receding(&mut self, problem: &Problem, queue: &[StageModel]) -> Result<()> {
+        self.setup_with(problem, Some(queue))
+    }
+    fn shift(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
+        self.shift_workspace(problem, slot)
     }
 }

@@ -7,12 +7,15 @@ use faer::prelude::ReborrowMut;
 
 use super::options::{DynamicsStep, HessianApprox, Merit, ProxDdpOptions, Rollout};
 use crate::dynamics::Dynamics;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::linalg::{matvec, matvec_t, norm_inf, slice, slice_mut};
 use crate::lq::{LqProblem, LqSolution, LqSolver, RiccatiOptions};
-use crate::problem::{DynamicsData, ImplicitSolve, Problem, ProblemData};
+use crate::problem::{DynamicsData, ImplicitSolve, Problem, ProblemData, StageData, StageModel};
 use crate::solvers::InitialGuess;
-use crate::solvers::skeleton::{ConstraintEntry, constraint_index, copy_stage_model};
+use crate::solvers::skeleton::{
+    ConstraintEntry, Receding, constraint_index, copy_stage_model, fill_constraint_index, pad_constraint_rows,
+    shift_rows,
+};
 
 /// The active-set prediction stops when the step solves the piecewise-linear constraint
 /// rows of its subproblem to this fraction of the change `J δz` it makes in the
@@ -132,10 +135,18 @@ pub(super) struct Workspace {
     pub step: LqSolution,
     pub riccati: LqSolver,
     pub data: ProblemData,
+    /// Receding horizon: the data of the queued stages (slot by slot), and the capacity
+    /// reserved for them.
+    spare: Vec<StageData>,
+    receding: Option<Receding>,
 }
 
 impl Workspace {
-    pub fn new(problem: &Problem, opts: &ProxDdpOptions) -> Result<Self> {
+    /// The workspace of `problem`; with `queue`, also for a receding horizon through
+    /// the stages queued to enter it ([`Workspace::shift`]).
+    pub fn new(problem: &Problem, opts: &ProxDdpOptions, queue: Option<&[StageModel]>) -> Result<Self> {
+        let receding = queue.map(|q| Receding::of(problem, q)).transpose()?;
+        let queue = queue.unwrap_or(&[]);
         let n = problem.horizon();
         let cur = Point::new(problem);
         let ncs: Vec<usize> = (0..=n)
@@ -143,7 +154,7 @@ impl Workspace {
             .collect();
         let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
         let nc0 = problem.nc0();
-        let lq = crate::solvers::skeleton::lq_for(problem, true);
+        let lq = crate::solvers::skeleton::lq_for(problem, true, receding.map(|r| r.max_nc));
         let riccati = LqSolver::new(
             &lq,
             RiccatiOptions {
@@ -153,12 +164,12 @@ impl Workspace {
             opts.num_threads,
         )?;
         let step = LqSolution::new(&lq);
-        let min_scale = (0..=n)
-            .flat_map(|t| problem.constraints(t).iter().map(|c| c.scale))
-            .fold(1.0_f64, f64::min);
+        let queued = queue.iter().flat_map(|s| s.constraints());
+        let constraints = (0..=n).flat_map(|t| problem.constraints(t)).chain(queued);
+        let min_scale = constraints.map(|c| c.scale).fold(1.0_f64, f64::min);
         let vecs = |sizes: &[usize]| sizes.iter().map(|&k| vec![0.0; k]).collect::<Vec<_>>();
         let nus_sizes: Vec<usize> = ncs.clone();
-        Ok(Self {
+        let mut ws = Self {
             trial: cur.clone(),
             best: cur.clone(),
             watch: cur.clone(),
@@ -189,14 +200,73 @@ impl Workspace {
             exact_dynamics: match opts.dynamics_step {
                 DynamicsStep::Exact => true,
                 DynamicsStep::Proximal => false,
-                DynamicsStep::Auto => (0..=n).all(|t| problem.constraints(t).is_empty()),
+                DynamicsStep::Auto => {
+                    (0..=n).all(|t| problem.constraints(t).is_empty())
+                        && queue.iter().all(|s| s.constraints().is_empty())
+                }
             },
             lq,
             step,
             riccati,
             data: ProblemData::new(problem, opts.num_threads)?,
             cur,
-        })
+            spare: queue.iter().map(StageData::new).collect(),
+            receding,
+        };
+        if let Some(r) = receding {
+            r.reserve_index(problem, &mut ws.cons);
+            for rows in ws.stage_rows() {
+                r.reserve_rows(rows, n);
+            }
+        }
+        Ok(ws)
+    }
+
+    /// Every per-knot buffer of constraint size: one list for reserving and shifting.
+    fn stage_rows(&mut self) -> [&mut Vec<Vec<f64>>; 13] {
+        [
+            &mut self.cur.nus,
+            &mut self.trial.nus,
+            &mut self.best.nus,
+            &mut self.watch.nus,
+            &mut self.nus_e,
+            &mut self.nus_p,
+            &mut self.nus_g,
+            &mut self.nus_hat,
+            &mut self.dnus_g,
+            &mut self.zbuf,
+            &mut self.wbuf,
+            &mut self.pbuf,
+            &mut self.lin_cons,
+        ]
+    }
+
+    /// Receding horizon, after [`Problem::shift`] took the queued stage `slot`: the
+    /// stage data and the buffers of constraint size move one knot earlier (the data of
+    /// the stage that left goes to `slot`), the constraint index and the inert rows of
+    /// the padded LQ knots follow the new stages. Allocates nothing.
+    ///
+    /// # Errors
+    /// If the workspace was not made for a receding horizon or `slot` is out of range.
+    pub fn shift(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
+        if self.receding.is_none() || slot.is_some_and(|s| s >= self.spare.len()) {
+            return Err(Error::InvalidModel(format!(
+                "ProxDdp::shift: slot {slot:?} of a queue of {} stages (was setup_receding called?)",
+                self.spare.len()
+            )));
+        }
+        self.data.shift(slot.map(|s| &mut self.spare[s]));
+        let n = problem.horizon();
+        let nc_tail = problem.stages()[n - 1].nc();
+        for rows in self.stage_rows() {
+            shift_rows(rows, n, nc_tail);
+        }
+        fill_constraint_index(problem, &mut self.cons);
+        for (t, knot) in self.lq.knots[..n].iter_mut().enumerate() {
+            pad_constraint_rows(knot, problem.stages()[t].nc());
+        }
+        self.knot_constants = false;
+        Ok(())
     }
 
     /// Loads a guess; missing multipliers are zero. `λ_e`, `ν_e` start at the guess.
@@ -1237,7 +1307,7 @@ mod tests {
                 } else {
                     Merit::Primal
                 };
-                let mut ws = Workspace::new(&p, &ProxDdpOptions::default()).unwrap();
+                let mut ws = Workspace::new(&p, &ProxDdpOptions::default(), None).unwrap();
                 let cur = &mut ws.cur;
                 for v in cur
                     .xs
