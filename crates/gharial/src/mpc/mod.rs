@@ -24,8 +24,12 @@
 //! }
 //! ```
 
+pub mod simulate;
+
 use std::sync::Arc;
 use std::time::Duration;
+
+pub use simulate::{ClosedLoop, CycleRecord, Push, Record, simulate};
 
 use faer::Mat;
 

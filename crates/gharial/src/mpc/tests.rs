@@ -7,7 +7,7 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-use super::{Mpc, MpcOptions};
+use super::{ClosedLoop, Mpc, MpcOptions, Push, simulate};
 use crate::constraints::{BoxConstraint, NegativeOrthant};
 use crate::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
 use crate::dynamics::{Dynamics, ExplicitRungeKutta, LinearDiscreteDynamics, Ode, OdeData};
@@ -402,4 +402,122 @@ fn bad_input_is_refused_with_an_error() {
     let q = Problem::new(&x, vec![stage(1, 1.0); 4], terminal()).unwrap();
     s.setup(&q).unwrap();
     assert!(Solver::shift(&mut s, &q, Some(0)).is_err());
+}
+
+/// The plant of [`lq_problem`] with `A` scaled by `1 + mismatch` in its coupling terms.
+fn lq_plant(mismatch: f64) -> LinearDiscreteDynamics {
+    let a = faer::mat![[1.0, 0.1 * (1.0 + mismatch)], [-0.2 * (1.0 + mismatch), 0.95]];
+    let b = faer::mat![[0.0], [0.1]];
+    LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &[0.0, 0.01]).unwrap()
+}
+
+#[test]
+fn closed_loop_with_the_exact_model_follows_each_plan_and_pushes_kick_the_state() {
+    let x = [0.4, -0.3];
+    let p = lq_problem(&x);
+    let (xs, us) = zero_guess(&p);
+    let mpc_of = |p: &Problem| {
+        Mpc::new(
+            p.clone(),
+            tight_proxddp(),
+            vec![],
+            InitialGuess::primal(&xs, &us),
+            MpcOptions::default(),
+        )
+        .unwrap()
+    };
+    let mut mpc = mpc_of(&p);
+    let plant = lq_plant(0.0);
+    let mut shifts = Vec::new();
+    let rec = simulate(&mut mpc, &plant, &x, &ClosedLoop::new(30, 1), |c, id| {
+        shifts.push((c, id));
+        Ok(())
+    })
+    .unwrap();
+    assert_eq!(rec.cycles.len(), 30);
+    assert_eq!(shifts.len(), 29);
+    assert!(
+        shifts.iter().all(|&(c, id)| id == (c - 1) % 12),
+        "the stage that left re-enters"
+    );
+    // Each plan's first transition is the plant's step: replay the cycles one by one.
+    let mut replay = mpc_of(&p);
+    for k in 0..30 {
+        let plan = replay.solve(&rec.xs[k]).unwrap();
+        assert!(plan.status.converged());
+        assert!(max_diff(&plan.xs[1..2], &rec.xs[k + 1..k + 2]) < 1e-12, "step {k}");
+        assert!((plan.us[0][0] - rec.us[k][0]).abs() < 1e-12, "step {k}");
+        replay.shift().unwrap();
+    }
+    // A push moves the state by dx before the step; the policy reacts with K dx.
+    let mut pushed = ClosedLoop::new(30, 2);
+    pushed.pushes.push(Push {
+        step: 5,
+        dx: vec![0.0, 0.5],
+    });
+    let mut mpc = mpc_of(&p);
+    let kicked = simulate(&mut mpc, &plant, &x, &pushed, |_, _| Ok(())).unwrap();
+    let mut mpc = mpc_of(&p);
+    let calm = simulate(&mut mpc, &plant, &x, &ClosedLoop::new(30, 2), |_, _| Ok(())).unwrap();
+    // The record holds the state after the push, at which the control was computed.
+    assert!(max_diff(&kicked.xs[..5], &calm.xs[..5]) < 1e-14);
+    assert!((kicked.xs[5][1] - calm.xs[5][1] - 0.5).abs() < 1e-14);
+    // Between cycles the policy is linear: the push changes u by K_0 dx exactly (every
+    // cycle solves the same rotated stages, so K_0 is the last cycle's).
+    let du = kicked.us[5][0] - calm.us[5][0];
+    let k0 = mpc.policy().k0[(0, 1)];
+    assert!(
+        du.abs() > 1e-3 && (du - 0.5 * k0).abs() < 1e-9,
+        "{du} vs K dx {}",
+        0.5 * k0
+    );
+    let dv = kicked.xs[6][1] - calm.xs[6][1];
+    assert!((dv - 0.5 * 0.95 - 0.1 * du).abs() < 1e-12, "{dv}");
+}
+
+#[test]
+fn closed_loop_regulates_a_mismatched_plant_and_refuses_bad_input() {
+    let x = [0.4, -0.3];
+    let p = lq_problem(&x);
+    let (xs, us) = zero_guess(&p);
+    let mut mpc = Mpc::new(
+        p.clone(),
+        tight_proxddp(),
+        vec![],
+        InitialGuess::primal(&xs, &us),
+        MpcOptions::default(),
+    )
+    .unwrap();
+    let rec = simulate(&mut mpc, &lq_plant(0.2), &x, &ClosedLoop::new(400, 1), |_, _| Ok(())).unwrap();
+    let mut exact = Mpc::new(
+        p.clone(),
+        tight_proxddp(),
+        vec![],
+        InitialGuess::primal(&xs, &us),
+        MpcOptions::default(),
+    )
+    .unwrap();
+    let nominal = simulate(&mut exact, &lq_plant(0.0), &x, &ClosedLoop::new(400, 1), |_, _| Ok(())).unwrap();
+    // Both loops settle (the horizon is time invariant), the mismatched one near the
+    // nominal steady state, from a start far from it.
+    let (last, goal) = (&rec.xs[400], &nominal.xs[400]);
+    assert!(max_diff(&rec.xs[399..400], &rec.xs[400..]) < 1e-9, "{last:?}");
+    assert!(max_diff(&nominal.xs[399..400], &nominal.xs[400..]) < 1e-9, "{goal:?}");
+    assert!(
+        (last[0] - goal[0]).abs() < 0.1 && (last[0] - goal[0]).abs() > 1e-6,
+        "{last:?} vs {goal:?}"
+    );
+    assert!((x[0] - goal[0]).abs() > 0.09);
+    assert!(simulate(&mut mpc, &lq_plant(0.0), &[0.0], &ClosedLoop::new(4, 1), |_, _| Ok(())).is_err());
+    assert!(simulate(&mut mpc, &lq_plant(0.0), &x, &ClosedLoop::new(4, 0), |_, _| Ok(())).is_err());
+    let mut bad = ClosedLoop::new(4, 1);
+    bad.pushes.push(Push {
+        step: 1,
+        dx: vec![f64::NAN, 0.0],
+    });
+    assert!(simulate(&mut mpc, &lq_plant(0.0), &x, &bad, |_, _| Ok(())).is_err());
+    let e = simulate(&mut mpc, &lq_plant(0.0), &x, &ClosedLoop::new(4, 1), |_, _| {
+        Err(crate::Error::InvalidModel("stop".into()))
+    });
+    assert!(e.is_err());
 }
