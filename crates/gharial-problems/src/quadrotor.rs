@@ -109,15 +109,35 @@ pub struct QuadrotorOde {
     pub gravity: f64,
 }
 
-impl Default for QuadrotorOde {
-    fn default() -> Self {
-        Self {
-            mass: 1.477,
-            inertia: [0.01152, 0.01152, 0.0218],
+/// The Hector quadrotor's URDF (example-robot-data; licence in the multibody crate's
+/// test data).
+const HECTOR_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/quadrotor_base.urdf");
+
+impl QuadrotorOde {
+    /// The Hector quadrotor: mass and inertia of the base link of its URDF, the rotor
+    /// geometry of the module documentation.
+    ///
+    /// # Errors
+    /// If the URDF's base inertia is not at the base origin or not diagonal (the ODE
+    /// assumes both).
+    pub fn hector() -> Result<Self> {
+        let model = gharial_multibody::Model::from_urdf_str(HECTOR_URDF, gharial_multibody::RootJoint::FreeFlyer)
+            .map_err(|e| gharial::Error::InvalidModel(format!("Hector quadrotor URDF: {e}")))?;
+        let body = model.inertias()[1];
+        let i = &body.rotational;
+        let off_diagonal = [i[(0, 1)], i[(0, 2)], i[(1, 2)]];
+        if body.first_moment.norm() != 0.0 || off_diagonal.iter().any(|v| *v != 0.0) {
+            return Err(gharial::Error::InvalidModel(
+                "Hector quadrotor URDF: the base inertia must be diagonal about the base origin".into(),
+            ));
+        }
+        Ok(Self {
+            mass: body.mass,
+            inertia: [i[(0, 0)], i[(1, 1)], i[(2, 2)]],
             arm: 0.1525,
             yaw_ratio: 1e-6 / 6.6e-5,
             gravity: 9.81,
-        }
+        })
     }
 }
 
@@ -240,7 +260,7 @@ fn weights(position: f64) -> Vec<f64> {
 pub fn build(variant: QuadrotorVariant) -> Result<Example> {
     let space = space();
     let nu = 4;
-    let ode = QuadrotorOde::default();
+    let ode = QuadrotorOde::hector()?;
     let hover = ode.hover_thrust();
     let ode = Arc::new(AutoDiff::ode(space.clone(), ode)?);
     let dynamics = Dynamics::Explicit(Arc::new(ExplicitRungeKutta::euler(ode, DT)?));

@@ -248,7 +248,7 @@ fn acrobot_energy_changes_at_the_rate_of_the_elbow_power() {
 
 #[test]
 fn quadrotor_energy_changes_at_the_rate_of_the_rotor_power() {
-    let q = QuadrotorOde::default();
+    let q = QuadrotorOde::hector().unwrap();
     let ode = gharial::functions::autodiff::AutoDiff::ode(gharial_problems::quadrotor::space(), q).unwrap();
     assert_power_balance(
         "quadrotor",
@@ -270,4 +270,13 @@ fn quadrotor_energy_changes_at_the_rate_of_the_rotor_power() {
             thrust * x[9] + tau[0] * x[10] + tau[1] * x[11] + tau[2] * x[12]
         },
     );
+}
+
+#[test]
+fn the_quadrotor_takes_mass_and_inertia_from_the_hector_urdf() {
+    // The numbers of quadrotor_base.urdf's base_link <inertial>.
+    let q = QuadrotorOde::hector().unwrap();
+    assert_eq!(q.mass, 1.477);
+    assert_eq!(q.inertia, [0.01152, 0.01152, 0.0218]);
+    assert!((q.hover_thrust() - 1.477 * 9.81 / 4.0).abs() < 1e-15);
 }
