@@ -29,6 +29,7 @@
 //! | `peers-lqr`, `peers-lqr-box`, `peers-lqr-box-term` | [`peers`] | R⁸ | 100 | — |
 //! | `ur5`, `ur5-box` | [`peer_robots`] | UR5 phase space (R¹²) | 100 | 10 ms |
 //! | `double-pendulum`, `double-pendulum-box`, `double-pendulum-box-term` | [`peer_robots`] | R⁴ | 100 | 10 ms |
+//! | `ur5-circle`, `ur5-circle-joint-bound`, `ur5-circle-half-space` | [`ur5_circle`] | UR5 phase space (R¹²) | 10 | 50 ms |
 //!
 //! Every module documents its model, its numbers and the results measured with
 //! ProxDDP.
@@ -41,6 +42,7 @@ pub mod peers;
 pub mod pendulum;
 pub mod quadrotor;
 pub mod se2_car;
+pub mod ur5_circle;
 
 use gharial::problem::{Problem, ProblemData};
 use gharial::solvers::proxddp::ProxDdpOptions;
@@ -166,6 +168,18 @@ static CATALOGUE: &[ProblemInfo] = &[
         name: "double-pendulum-box-term",
         summary: "peer-harness double-pendulum swing-up with torque limits and x_N = 0",
     },
+    ProblemInfo {
+        name: "ur5-circle",
+        summary: "UR5 end-effector circle tracking (stagewise-SQP paper's MPC task), first horizon: N = 10, dt = 50 ms",
+    },
+    ProblemInfo {
+        name: "ur5-circle-joint-bound",
+        summary: "UR5 circle tracking with the first joint bounded |q1| <= 0.05 rad",
+    },
+    ProblemInfo {
+        name: "ur5-circle-half-space",
+        summary: "UR5 circle tracking with the tool in a half-space y <= y_max that cuts the circle",
+    },
 ];
 
 /// Every problem [`build`] knows, in catalogue order.
@@ -200,6 +214,9 @@ pub fn build(name: &str) -> Result<Example> {
         "double-pendulum" => peer_robots::double_pendulum(peer_robots::PendulumVariant::SwingUp),
         "double-pendulum-box" => peer_robots::double_pendulum(peer_robots::PendulumVariant::Box),
         "double-pendulum-box-term" => peer_robots::double_pendulum(peer_robots::PendulumVariant::BoxTerminal),
+        "ur5-circle" => ur5_circle::build(ur5_circle::CircleVariant::Free),
+        "ur5-circle-joint-bound" => ur5_circle::build(ur5_circle::CircleVariant::JointBound),
+        "ur5-circle-half-space" => ur5_circle::build(ur5_circle::CircleVariant::HalfSpace),
         _ => Err(Error::InvalidModel(format!(
             "unknown problem `{name}`; valid names: {}",
             CATALOGUE.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")
