@@ -13,6 +13,7 @@ macro_rules! out {
 
 mod bench;
 mod bench_solve;
+mod simulate;
 mod solve;
 mod solver_choice;
 
@@ -31,6 +32,9 @@ enum Command {
     List,
     /// Solve a built-in problem: iteration table, summary, optional JSON output.
     Solve(solve::SolveArgs),
+    /// Run a receding-horizon scenario in closed loop: cycle times, iterations,
+    /// statuses, the scenario's metrics, optional JSON output.
+    Simulate(simulate::SimulateArgs),
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -195,6 +199,7 @@ fn main() {
     match cli.command {
         Command::List => solve::list(),
         Command::Solve(args) => std::process::exit(solve::run(&args)),
+        Command::Simulate(args) => std::process::exit(simulate::run(&args)),
         Command::Bench {
             which: BenchCommand::Solve(args),
         } => std::process::exit(bench_solve::examples(&args)),

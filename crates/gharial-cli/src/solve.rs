@@ -39,6 +39,11 @@ pub fn list() {
     for p in gharial_problems::catalogue() {
         out!("  {:<20} {}", p.name, p.summary);
     }
+    out!();
+    out!("closed-loop scenarios (gharial simulate):");
+    for (name, summary) in gharial_problems::mpc::SCENARIOS {
+        out!("  {name:<28} {summary}");
+    }
 }
 
 /// Runs `gharial solve`; returns the process exit code.

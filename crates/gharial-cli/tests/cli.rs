@@ -473,3 +473,66 @@ fn read_traj(text: &str) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     }
     (xs, us)
 }
+
+#[test]
+fn simulate_writes_a_closed_loop_that_the_plant_replays() {
+    let path = std::env::temp_dir().join(format!("gharial-cli-sim-{}.json", std::process::id()));
+    let path_str = path.to_str().expect("UTF-8 temp path");
+    for solver in ["proxddp", "fddp"] {
+        let args = [
+            "simulate",
+            "ur5-circle-mpc",
+            "--duration",
+            "0.5",
+            "--max-iters",
+            "2",
+            "--solver",
+            solver,
+            "--output",
+            path_str,
+        ];
+        let o = gharial(&args);
+        assert!(o.status.success(), "{solver}: {}", stderr(&o));
+        let text = stdout(&o);
+        assert!(
+            text.contains("cycle time (ms)") && text.contains("mean tool error"),
+            "{text}"
+        );
+        let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
+        assert_eq!((xs.len(), us.len()), (501, 500));
+        let cycles = doc["cycles"].as_array().unwrap();
+        assert_eq!(cycles.len(), 10);
+        assert!(cycles.iter().all(|c| c["iterations"].as_u64().unwrap() <= 2));
+        let mean = doc["metrics"]["mean tool error"]["value"].as_f64().unwrap();
+        assert!(mean.is_finite() && mean < 0.05, "{solver}: {mean}");
+        // The record is the plant's own trajectory under the recorded controls.
+        let sc = gharial_problems::mpc::scenario("ur5-circle-mpc").unwrap();
+        assert_eq!(&xs[0][..], sc.example.problem.x0().unwrap());
+        let mut data = sc.plant.create_data();
+        for k in (0..500).step_by(37) {
+            sc.plant.forward(&xs[k], &us[k], &mut data);
+            let d = (0..12)
+                .map(|i| (data.xnext[i] - xs[k + 1][i]).abs())
+                .fold(0.0, f64::max);
+            assert!(d < 1e-12, "{solver}: step {k}: {d:e}");
+        }
+    }
+    std::fs::remove_file(&path).ok();
+    for (args, what) in [
+        (vec!["simulate", "nope"], "unknown MPC scenario"),
+        (vec!["simulate", "ur5-circle-mpc", "--duration", "1e9"], "at most 5000"),
+        (
+            vec!["simulate", "ur5-circle-mpc", "--output", "/nonexistent/dir/x.json"],
+            "cannot write",
+        ),
+        (
+            vec!["simulate", "ur5-circle-mpc", "--solver", "fddp", "--mu-init", "0.1"],
+            "does not take",
+        ),
+    ] {
+        let o = gharial(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}");
+        assert!(stderr(&o).contains(what), "{args:?}: {}", stderr(&o));
+    }
+}

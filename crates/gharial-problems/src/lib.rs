@@ -37,6 +37,7 @@
 pub mod acrobot;
 pub mod cartpole;
 pub mod lqr;
+pub mod mpc;
 pub mod peer_robots;
 pub mod peers;
 pub mod pendulum;

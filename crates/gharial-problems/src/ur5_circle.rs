@@ -196,6 +196,7 @@ const TERMINAL: Weights = Weights {
 struct Ur5 {
     space: Arc<MultibodyPhaseSpace>,
     actuation: Arc<Actuation>,
+    ode: Arc<MultibodyFreeFwdDynamics>,
     dynamics: Dynamics,
 }
 
@@ -207,12 +208,18 @@ impl Ur5 {
         let space = Arc::new(MultibodyPhaseSpace::new(model.clone()));
         let actuation = Arc::new(Actuation::full(&model));
         let ode = Arc::new(MultibodyFreeFwdDynamics::new(space.clone(), actuation.clone())?);
-        let step = SemiImplicitEuler::new(ode, space.configuration().clone(), DT)?;
+        let step = SemiImplicitEuler::new(ode.clone(), space.configuration().clone(), DT)?;
         Ok(Self {
             space,
             actuation,
+            ode,
             dynamics: Dynamics::Explicit(Arc::new(step)),
         })
+    }
+
+    /// The robot's dynamics integrated by semi-implicit Euler with step `h`.
+    fn step(&self, h: f64) -> Result<SemiImplicitEuler> {
+        SemiImplicitEuler::new(self.ode.clone(), self.space.configuration().clone(), h)
     }
 
     /// `scale · [½ Σ w_i (x − x0)_i² + ½ wu ‖u − g(q)‖² + ½ wee ‖p(q) − p*‖²]` with its own
@@ -448,8 +455,13 @@ impl CircleTask {
 /// # Errors
 /// Never for these fixed numbers (constructors are fallible in general).
 pub fn build(variant: CircleVariant) -> Result<Example> {
-    let task = CircleTask::new(variant)?;
-    let (name, description) = match variant {
+    example(&CircleTask::new(variant)?)
+}
+
+/// The catalogue example of `task`'s first horizon (its problem shares the task's
+/// target handles).
+fn example(task: &CircleTask) -> Result<Example> {
+    let (name, description) = match task.variant {
         CircleVariant::Free => (
             "ur5-circle",
             "UR5 end-effector circle tracking (r = 0.3 m, 2 rad/s, (y, z)-plane), first MPC horizon: N = 10, dt = 50 ms.",
@@ -466,13 +478,75 @@ pub fn build(variant: CircleVariant) -> Result<Example> {
     let xs0 = crate::rollout(&task.problem, &task.us0)?;
     Ok(Example {
         name,
-        problem: task.problem,
+        problem: task.problem.clone(),
         xs0,
-        us0: task.us0,
+        us0: task.us0.clone(),
         dt: Some(DT),
         proxddp: proxddp_options(),
         description,
     })
+}
+
+/// The plant step of the closed loops (s).
+pub const PLANT_DT: f64 = 1e-3;
+
+/// The closed-loop scenario `ur5-circle-mpc*` of `variant` ([`crate::mpc`]): the task's
+/// horizon as controller, one MPC cycle per node ([`DT`]) of at most 5 iterations (the
+/// SQP paper allows 4-5), the UR5's ABA by semi-implicit Euler at [`PLANT_DT`] as plant;
+/// after each shift the stage that entered gets the target of its time and the terminal
+/// cost the next. Metrics: mean and largest tool error against the circle at the plant
+/// rate, largest `|q_1|` and largest `y - y_max`.
+///
+/// # Errors
+/// Never for these fixed numbers (constructors are fallible in general).
+pub fn scenario(variant: CircleVariant) -> Result<crate::mpc::MpcScenario> {
+    let task = Arc::new(CircleTask::new(variant)?);
+    let robot = Ur5::load()?;
+    let plant = Arc::new(robot.step(PLANT_DT)?);
+    let name = match variant {
+        CircleVariant::Free => "ur5-circle-mpc",
+        CircleVariant::JointBound => "ur5-circle-mpc-joint-bound",
+        CircleVariant::HalfSpace => "ur5-circle-mpc-half-space",
+    };
+    let n = task.running.len();
+    let shifted = task.clone();
+    let measured = task.clone();
+    Ok(crate::mpc::MpcScenario {
+        name,
+        example: example(&task)?,
+        queue: Vec::new(),
+        plant,
+        plant_dt: PLANT_DT,
+        steps_per_cycle: (DT / PLANT_DT).round() as usize,
+        options: gharial::mpc::MpcOptions::default().with(|o| o.max_iters = 5),
+        on_shift: Box::new(move |cycle, id| {
+            let t0 = cycle as f64 * DT;
+            shifted.set_stage_target(id, t0 + (n - 1) as f64 * DT)?;
+            shifted.set_terminal_target(t0 + n as f64 * DT)
+        }),
+        metrics: Box::new(move |rec| closed_loop_metrics(&measured, &robot, rec)),
+    })
+}
+
+/// Tool error against the circle at every plant step, largest `|q_1|` and `y - y_max`.
+fn closed_loop_metrics(task: &CircleTask, robot: &Ur5, rec: &gharial::mpc::Record) -> Result<Vec<crate::mpc::Metric>> {
+    let (mut sum, mut worst, mut q1, mut y_excess) = (0.0, 0.0_f64, 0.0_f64, f64::NEG_INFINITY);
+    for (k, x) in rec.xs.iter().enumerate() {
+        let p = robot.tool_position(x)?;
+        let r = task.reference(k as f64 * PLANT_DT);
+        let e = ((p[0] - r[0]).powi(2) + (p[1] - r[1]).powi(2) + (p[2] - r[2]).powi(2)).sqrt();
+        sum += e;
+        worst = worst.max(e);
+        q1 = q1.max(x[0].abs());
+        y_excess = y_excess.max(p[1] - task.y_max());
+    }
+    let metric = |name, value, unit| crate::mpc::Metric { name, value, unit };
+    Ok(vec![
+        metric("mean tool error", sum / rec.xs.len().max(1) as f64, "m"),
+        metric("max tool error", worst, "m"),
+        metric("max |q_1|", q1, "rad"),
+        metric("max y - y_max", y_excess, "m"),
+    ])
 }
 
 /// The recommended ProxDDP settings of the task (module documentation).

@@ -1,0 +1,183 @@
+//! `gharial simulate`: a receding-horizon scenario in closed loop, with the distribution
+//! of its cycle times, its iterations and statuses, its metrics, and optional JSON output.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::time::Duration;
+
+use gharial::mpc::Record;
+use gharial_problems::mpc::{Metric, MpcScenario};
+use serde_json::json;
+
+use crate::solver_choice::SolverArgs;
+
+/// The arguments of `gharial simulate`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct SimulateArgs {
+    /// Scenario name (see `gharial list`).
+    pub scenario: String,
+    /// Simulated time in seconds (at most 5000: the record keeps every plant state).
+    #[arg(long, default_value_t = std::f64::consts::PI, value_parser = duration)]
+    pub duration: f64,
+    /// Wall-time budget of each MPC cycle in milliseconds (default: none; the iteration
+    /// budget is `--max-iters`, default the scenario's).
+    #[arg(long, value_parser = crate::positive_real)]
+    pub cycle_budget: Option<f64>,
+    /// Write the closed loop (states, controls, cycles, metrics) to this JSON file.
+    #[arg(long)]
+    pub output: Option<String>,
+    // The solver and its options (last: their help headings follow).
+    #[command(flatten)]
+    pub solver: SolverArgs,
+}
+
+/// A simulated duration: finite, at least 0, at most 5000 s.
+fn duration(s: &str) -> Result<f64, String> {
+    let v = crate::nonnegative_real(s)?;
+    if v <= 5000.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be at most 5000 s, got {v}"))
+    }
+}
+
+/// Runs `gharial simulate`; returns the process exit code (0: every cycle returned a
+/// finite plan, 1: the loop stopped on an error, 2: invalid input).
+pub fn run(args: &SimulateArgs) -> i32 {
+    if let Err(e) = args.solver.check() {
+        eprintln!("gharial simulate: {e}");
+        return 2;
+    }
+    let mut sc = match gharial_problems::mpc::scenario(&args.scenario) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("gharial simulate: {e}");
+            return 2;
+        }
+    };
+    let mut output = match args.output.as_deref().map(|p| (p, std::fs::File::create(p))) {
+        None => None,
+        Some((path, Ok(file))) => Some((path, file)),
+        Some((path, Err(e))) => {
+            eprintln!("gharial simulate: cannot write {path}: {e}");
+            return 2;
+        }
+    };
+    if let Some(n) = args.solver.common.max_iters {
+        sc.options.max_iters = n;
+    }
+    sc.options.max_time = args.cycle_budget.map(|ms| Duration::from_secs_f64(ms * 1e-3));
+    let config = args.solver.config(&sc.example);
+    let mut mpc = match sc.controller(config.build()) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("gharial simulate: {e}");
+            return 2;
+        }
+    };
+    out!(
+        "scenario  {}: horizon {} x {} ms, plant step {} ms, MPC every {} ms, at most {} {} iterations per cycle",
+        sc.name,
+        sc.example.problem.horizon(),
+        sc.example.dt.unwrap_or(0.0) * 1e3,
+        sc.plant_dt * 1e3,
+        sc.plant_dt * sc.steps_per_cycle as f64 * 1e3,
+        sc.options.max_iters,
+        config.kind().name()
+    );
+    let rec = match sc.run(&mut mpc, args.duration) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("gharial simulate: {e}");
+            return 1;
+        }
+    };
+    let metrics = match sc.metrics(&rec) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("gharial simulate: {e}");
+            return 1;
+        }
+    };
+    print_summary(&rec, &metrics);
+    if let Some((path, file)) = output.as_mut() {
+        let text = serde_json::to_string_pretty(&record_json(&sc, &rec, &metrics)).expect("JSON of plain numbers");
+        if let Err(e) = file.write_all(text.as_bytes()) {
+            eprintln!("gharial simulate: cannot write {path}: {e}");
+            return 1;
+        }
+        out!("record    written to {path}");
+    }
+    0
+}
+
+/// The `q`-quantile of sorted durations, in milliseconds.
+fn quantile_ms(sorted: &[Duration], q: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let i = ((sorted.len() - 1) as f64 * q).round() as usize;
+    sorted[i].as_secs_f64() * 1e3
+}
+
+fn print_summary(rec: &Record, metrics: &[Metric]) {
+    let times = rec.sorted_solve_times();
+    let iters: Vec<usize> = rec.cycles.iter().map(|c| c.iterations).collect();
+    let total: usize = iters.iter().sum();
+    let mut statuses: BTreeMap<String, usize> = BTreeMap::new();
+    for c in &rec.cycles {
+        *statuses.entry(c.status.to_string()).or_default() += 1;
+    }
+    out!(
+        "cycles    {} ({} plant steps), iterations {} (mean {:.2}, max {})",
+        rec.cycles.len(),
+        rec.us.len(),
+        total,
+        total as f64 / rec.cycles.len().max(1) as f64,
+        iters.iter().max().copied().unwrap_or(0)
+    );
+    let s: Vec<String> = statuses.iter().map(|(k, v)| format!("{k} {v}")).collect();
+    out!("statuses  {}", s.join(", "));
+    out!(
+        "cycle time (ms)  median {:.3}, p99 {:.3}, max {:.3}, min {:.3}",
+        quantile_ms(&times, 0.5),
+        quantile_ms(&times, 0.99),
+        quantile_ms(&times, 1.0),
+        quantile_ms(&times, 0.0)
+    );
+    for m in metrics {
+        out!("{:<16} {:.6} {}", m.name, m.value, m.unit);
+    }
+}
+
+fn record_json(sc: &MpcScenario, rec: &Record, metrics: &[Metric]) -> serde_json::Value {
+    let cycles: Vec<_> = rec
+        .cycles
+        .iter()
+        .map(|c| {
+            json!({
+                "step": c.step,
+                "time": c.step as f64 * sc.plant_dt,
+                "solve_time_ms": c.solve_time.as_secs_f64() * 1e3,
+                "iterations": c.iterations,
+                "status": c.status.to_string(),
+                "cost": c.cost,
+                "prim_err": c.prim_err,
+                "dual_err": c.dual_err,
+            })
+        })
+        .collect();
+    let metrics: serde_json::Map<String, serde_json::Value> = metrics
+        .iter()
+        .map(|m| (m.name.to_string(), json!({"value": m.value, "unit": m.unit})))
+        .collect();
+    json!({
+        "scenario": sc.name,
+        "plant_dt": sc.plant_dt,
+        "steps_per_cycle": sc.steps_per_cycle,
+        "xs": rec.xs,
+        "us": rec.us,
+        "cycles": cycles,
+        "metrics": metrics,
+    })
+}
