@@ -507,14 +507,12 @@ fn simulate_writes_a_closed_loop_that_the_plant_replays() {
         let mean = doc["metrics"]["mean tool error"]["value"].as_f64().unwrap();
         assert!(mean.is_finite() && mean < 0.05, "{solver}: {mean}");
         // The record is the plant's own trajectory under the recorded controls.
-        let sc = gharial_problems::mpc::scenario("ur5-circle-mpc").unwrap();
+        let mut sc = gharial_problems::mpc::scenario("ur5-circle-mpc").unwrap();
         assert_eq!(&xs[0][..], sc.example.problem.x0().unwrap());
-        let mut data = sc.plant.create_data();
+        let mut next = vec![0.0; 12];
         for k in (0..500).step_by(37) {
-            sc.plant.forward(&xs[k], &us[k], &mut data);
-            let d = (0..12)
-                .map(|i| (data.xnext[i] - xs[k + 1][i]).abs())
-                .fold(0.0, f64::max);
+            sc.plant.step(k, &xs[k], &us[k], &mut next).unwrap();
+            let d = (0..12).map(|i| (next[i] - xs[k + 1][i]).abs()).fold(0.0, f64::max);
             assert!(d < 1e-12, "{solver}: step {k}: {d:e}");
         }
     }

@@ -6,10 +6,7 @@
 //! |---|---|---|---|
 //! | `ur5-circle-mpc`, `ur5-circle-mpc-joint-bound`, `ur5-circle-mpc-half-space` | [`crate::ur5_circle`] | UR5 ABA, semi-implicit Euler at 1 ms | 50 ms (one node) |
 
-use std::sync::Arc;
-
-use gharial::dynamics::ExplicitDynamics;
-use gharial::mpc::{ClosedLoop, Mpc, MpcOptions, Record, simulate};
+use gharial::mpc::{ClosedLoop, Mpc, MpcOptions, Plant, Record, simulate};
 use gharial::problem::StageModel;
 use gharial::solvers::{InitialGuess, Solver};
 use gharial::{Error, Result};
@@ -41,7 +38,7 @@ pub struct MpcScenario {
     /// Stages queued to enter the horizon (empty: the horizon rotates).
     pub queue: Vec<StageModel>,
     /// The plant, one step of `plant_dt`.
-    pub plant: Arc<dyn ExplicitDynamics>,
+    pub plant: Box<dyn Plant>,
     /// The plant's step (s).
     pub plant_dt: f64,
     /// Plant steps per MPC cycle (the stages' time step over `plant_dt`).
@@ -97,7 +94,7 @@ impl MpcScenario {
             .to_vec();
         let steps = (duration / self.plant_dt).round() as usize;
         let settings = ClosedLoop::new(steps, self.steps_per_cycle);
-        simulate(mpc, self.plant.as_ref(), &x0, &settings, &mut self.on_shift)
+        simulate(mpc, self.plant.as_mut(), &x0, &settings, &mut self.on_shift)
     }
 
     /// The scenario's metrics of a closed loop it ran.

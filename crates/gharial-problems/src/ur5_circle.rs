@@ -502,7 +502,7 @@ pub const PLANT_DT: f64 = 1e-3;
 pub fn scenario(variant: CircleVariant) -> Result<crate::mpc::MpcScenario> {
     let task = Arc::new(CircleTask::new(variant)?);
     let robot = Ur5::load()?;
-    let plant = Arc::new(robot.step(PLANT_DT)?);
+    let plant = Box::new(gharial::mpc::DiscretePlant::new(Arc::new(robot.step(PLANT_DT)?)));
     let name = match variant {
         CircleVariant::Free => "ur5-circle-mpc",
         CircleVariant::JointBound => "ur5-circle-mpc-joint-bound",

@@ -3,12 +3,67 @@
 //! the feedback policy at every step and by an MPC cycle every `steps_per_cycle` steps,
 //! with optional pushes; everything recorded, nothing allocated after the start.
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use super::Mpc;
-use crate::dynamics::ExplicitDynamics;
+use crate::dynamics::{ExplicitDynamics, ExplicitDynamicsData};
 use crate::error::{Error, Result, check_dim, check_finite};
 use crate::solvers::{Solver, Status};
+use crate::spaces::Manifold;
+
+/// The simulated system, stepped at its own rate.
+pub trait Plant: Send {
+    /// The plant's state space.
+    fn space(&self) -> &Arc<dyn Manifold>;
+    /// Control size.
+    fn nu(&self) -> usize;
+    /// Writes into `next` the state one plant step after `x` under `u`; `step` is the
+    /// step's number, for plants that change with time (contact phases, terrain).
+    ///
+    /// # Errors
+    /// If the plant cannot step (e.g. a singular contact problem).
+    fn step(&mut self, step: usize, x: &[f64], u: &[f64], next: &mut [f64]) -> Result<()>;
+}
+
+/// A discrete model (e.g. an integrator of a robot's dynamics at 1 ms) as a plant.
+pub struct DiscretePlant {
+    dynamics: Arc<dyn ExplicitDynamics>,
+    data: ExplicitDynamicsData,
+}
+
+impl std::fmt::Debug for DiscretePlant {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DiscretePlant")
+            .field("nx", &self.dynamics.space().nx())
+            .field("nu", &self.dynamics.nu())
+            .finish()
+    }
+}
+
+impl DiscretePlant {
+    /// The plant stepping `dynamics` (data allocated here).
+    pub fn new(dynamics: Arc<dyn ExplicitDynamics>) -> Self {
+        Self {
+            data: dynamics.create_data(),
+            dynamics,
+        }
+    }
+}
+
+impl Plant for DiscretePlant {
+    fn space(&self) -> &Arc<dyn Manifold> {
+        self.dynamics.space()
+    }
+    fn nu(&self) -> usize {
+        self.dynamics.nu()
+    }
+    fn step(&mut self, _step: usize, x: &[f64], u: &[f64], next: &mut [f64]) -> Result<()> {
+        self.dynamics.forward(x, u, &mut self.data);
+        next.copy_from_slice(crate::linalg::slice(&self.data.xnext));
+        Ok(())
+    }
+}
 
 /// A velocity (tangent) kick applied to the plant's state before a step.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,11 +145,11 @@ impl Record {
 ///
 /// # Errors
 /// If the plant does not fit the controller's state and control sizes, `x0` or a push is
-/// malformed, `steps_per_cycle` is 0, an MPC call fails, `on_shift` fails, or the plant's
-/// state becomes non-finite (the record up to that step is lost with the error).
+/// malformed, `steps_per_cycle` is 0, an MPC call, `on_shift` or a plant step fails, or
+/// the plant's state becomes non-finite (the record up to that step is lost with the error).
 pub fn simulate<S: Solver>(
     mpc: &mut Mpc<S>,
-    plant: &dyn ExplicitDynamics,
+    plant: &mut dyn Plant,
     x0: &[f64],
     settings: &ClosedLoop,
     mut on_shift: impl FnMut(usize, usize) -> Result<()>,
@@ -121,7 +176,6 @@ pub fn simulate<S: Solver>(
         cycles: Vec::with_capacity(steps.div_ceil(settings.steps_per_cycle)),
     };
     rec.xs[0].copy_from_slice(x0);
-    let mut data = plant.create_data();
     let mut kicked = vec![0.0; nx];
     for k in 0..steps {
         if k % settings.steps_per_cycle == 0 {
@@ -147,10 +201,8 @@ pub fn simulate<S: Solver>(
             x.copy_from_slice(&kicked);
         }
         mpc.control(x, &mut rec.us[k])?;
-        plant.forward(x, &rec.us[k], &mut data);
-        let y = crate::linalg::slice(&data.xnext);
-        check_finite(format_args!("simulate: plant state after step {k}"), y)?;
-        next[0].copy_from_slice(y);
+        plant.step(k, x, &rec.us[k], &mut next[0])?;
+        check_finite(format_args!("simulate: plant state after step {k}"), &next[0])?;
     }
     Ok(rec)
 }

@@ -7,7 +7,7 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-use super::{ClosedLoop, Mpc, MpcOptions, Push, simulate};
+use super::{ClosedLoop, DiscretePlant, Mpc, MpcOptions, Push, simulate};
 use crate::constraints::{BoxConstraint, NegativeOrthant};
 use crate::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
 use crate::dynamics::{Dynamics, ExplicitRungeKutta, LinearDiscreteDynamics, Ode, OdeData};
@@ -405,10 +405,12 @@ fn bad_input_is_refused_with_an_error() {
 }
 
 /// The plant of [`lq_problem`] with `A` scaled by `1 + mismatch` in its coupling terms.
-fn lq_plant(mismatch: f64) -> LinearDiscreteDynamics {
+fn lq_plant(mismatch: f64) -> DiscretePlant {
     let a = faer::mat![[1.0, 0.1 * (1.0 + mismatch)], [-0.2 * (1.0 + mismatch), 0.95]];
     let b = faer::mat![[0.0], [0.1]];
-    LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &[0.0, 0.01]).unwrap()
+    DiscretePlant::new(Arc::new(
+        LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &[0.0, 0.01]).unwrap(),
+    ))
 }
 
 #[test]
@@ -427,9 +429,9 @@ fn closed_loop_with_the_exact_model_follows_each_plan_and_pushes_kick_the_state(
         .unwrap()
     };
     let mut mpc = mpc_of(&p);
-    let plant = lq_plant(0.0);
+    let mut plant = lq_plant(0.0);
     let mut shifts = Vec::new();
-    let rec = simulate(&mut mpc, &plant, &x, &ClosedLoop::new(30, 1), |c, id| {
+    let rec = simulate(&mut mpc, &mut plant, &x, &ClosedLoop::new(30, 1), |c, id| {
         shifts.push((c, id));
         Ok(())
     })
@@ -456,9 +458,9 @@ fn closed_loop_with_the_exact_model_follows_each_plan_and_pushes_kick_the_state(
         dx: vec![0.0, 0.5],
     });
     let mut mpc = mpc_of(&p);
-    let kicked = simulate(&mut mpc, &plant, &x, &pushed, |_, _| Ok(())).unwrap();
+    let kicked = simulate(&mut mpc, &mut plant, &x, &pushed, |_, _| Ok(())).unwrap();
     let mut mpc = mpc_of(&p);
-    let calm = simulate(&mut mpc, &plant, &x, &ClosedLoop::new(30, 2), |_, _| Ok(())).unwrap();
+    let calm = simulate(&mut mpc, &mut plant, &x, &ClosedLoop::new(30, 2), |_, _| Ok(())).unwrap();
     // The record holds the state after the push, at which the control was computed.
     assert!(max_diff(&kicked.xs[..5], &calm.xs[..5]) < 1e-14);
     assert!((kicked.xs[5][1] - calm.xs[5][1] - 0.5).abs() < 1e-14);
@@ -488,7 +490,14 @@ fn closed_loop_regulates_a_mismatched_plant_and_refuses_bad_input() {
         MpcOptions::default(),
     )
     .unwrap();
-    let rec = simulate(&mut mpc, &lq_plant(0.2), &x, &ClosedLoop::new(400, 1), |_, _| Ok(())).unwrap();
+    let rec = simulate(
+        &mut mpc,
+        &mut lq_plant(0.2),
+        &x,
+        &ClosedLoop::new(400, 1),
+        |_, _| Ok(()),
+    )
+    .unwrap();
     let mut exact = Mpc::new(
         p.clone(),
         tight_proxddp(),
@@ -497,7 +506,10 @@ fn closed_loop_regulates_a_mismatched_plant_and_refuses_bad_input() {
         MpcOptions::default(),
     )
     .unwrap();
-    let nominal = simulate(&mut exact, &lq_plant(0.0), &x, &ClosedLoop::new(400, 1), |_, _| Ok(())).unwrap();
+    let nominal = simulate(&mut exact, &mut lq_plant(0.0), &x, &ClosedLoop::new(400, 1), |_, _| {
+        Ok(())
+    })
+    .unwrap();
     // Both loops settle (the horizon is time invariant), the mismatched one near the
     // nominal steady state, from a start far from it.
     let (last, goal) = (&rec.xs[400], &nominal.xs[400]);
@@ -508,15 +520,20 @@ fn closed_loop_regulates_a_mismatched_plant_and_refuses_bad_input() {
         "{last:?} vs {goal:?}"
     );
     assert!((x[0] - goal[0]).abs() > 0.09);
-    assert!(simulate(&mut mpc, &lq_plant(0.0), &[0.0], &ClosedLoop::new(4, 1), |_, _| Ok(())).is_err());
-    assert!(simulate(&mut mpc, &lq_plant(0.0), &x, &ClosedLoop::new(4, 0), |_, _| Ok(())).is_err());
+    assert!(
+        simulate(&mut mpc, &mut lq_plant(0.0), &[0.0], &ClosedLoop::new(4, 1), |_, _| Ok(
+            ()
+        ))
+        .is_err()
+    );
+    assert!(simulate(&mut mpc, &mut lq_plant(0.0), &x, &ClosedLoop::new(4, 0), |_, _| Ok(())).is_err());
     let mut bad = ClosedLoop::new(4, 1);
     bad.pushes.push(Push {
         step: 1,
         dx: vec![f64::NAN, 0.0],
     });
-    assert!(simulate(&mut mpc, &lq_plant(0.0), &x, &bad, |_, _| Ok(())).is_err());
-    let e = simulate(&mut mpc, &lq_plant(0.0), &x, &ClosedLoop::new(4, 1), |_, _| {
+    assert!(simulate(&mut mpc, &mut lq_plant(0.0), &x, &bad, |_, _| Ok(())).is_err());
+    let e = simulate(&mut mpc, &mut lq_plant(0.0), &x, &ClosedLoop::new(4, 1), |_, _| {
         Err(crate::Error::InvalidModel("stop".into()))
     });
     assert!(e.is_err());
