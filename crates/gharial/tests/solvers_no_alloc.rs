@@ -8,12 +8,14 @@
 
 #[path = "support/counting_alloc.rs"]
 mod counting_alloc;
+#[path = "support/pendulum.rs"]
+mod pendulum;
 
 use std::sync::Arc;
 
 use gharial::constraints::{BoxConstraint, EqualityConstraintSet, NegativeOrthant};
 use gharial::costs::{QuadraticControlCost, QuadraticStateCost};
-use gharial::dynamics::{Dynamics, ExplicitRungeKutta, ImplicitEuler, Ode, OdeData};
+use gharial::dynamics::{Dynamics, ExplicitRungeKutta, ImplicitEuler, Ode};
 use gharial::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary};
 use gharial::mpc::{Mpc, MpcOptions};
 use gharial::problem::{Problem, StageConstraint, StageModel};
@@ -22,36 +24,10 @@ use gharial::solvers::Solver;
 use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::proxddp::{HessianApprox, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::spaces::{Manifold, VectorSpace};
+use pendulum::Pendulum;
 
 #[global_allocator]
 static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
-
-/// A damped pendulum `θ'' = -sin θ - 0.1 θ' + u`.
-struct Pendulum {
-    space: Arc<dyn Manifold>,
-}
-
-impl Ode for Pendulum {
-    fn space(&self) -> &Arc<dyn Manifold> {
-        &self.space
-    }
-    fn nu(&self) -> usize {
-        1
-    }
-    fn evaluate(&self, x: &[f64], u: &[f64], d: &mut OdeData) {
-        let xd = d.xdot_mut();
-        xd[0] = x[1];
-        xd[1] = -x[0].sin() - 0.1 * x[1] + u[0];
-    }
-    fn jacobians(&self, x: &[f64], _u: &[f64], d: &mut OdeData) {
-        d.jx.fill(0.0);
-        d.jx[(0, 1)] = 1.0;
-        d.jx[(1, 0)] = -x[0].cos();
-        d.jx[(1, 1)] = -0.1;
-        d.ju.fill(0.0);
-        d.ju[(1, 0)] = 1.0;
-    }
-}
 
 /// `h(x) = θ - 4` (an inequality `θ ≤ 4` on the state).
 struct AngleBound;

@@ -355,6 +355,3 @@ impl<S: Solver> Mpc<S> {
         self.cycles
     }
 }
-
-#[cfg(test)]
-mod tests;

@@ -7,43 +7,20 @@
 use std::collections::VecDeque;
 use std::sync::Arc;
 
-use super::{ClosedLoop, DiscretePlant, Mpc, MpcOptions, Push, simulate};
-use crate::constraints::{BoxConstraint, NegativeOrthant};
-use crate::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
-use crate::dynamics::{Dynamics, ExplicitRungeKutta, LinearDiscreteDynamics, Ode, OdeData};
-use crate::functions::{ControlError, StageFunction, StageFunctionData};
-use crate::problem::{Problem, StageConstraint, StageModel};
-use crate::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
-use crate::solvers::proxddp::{ProxDdp, ProxDdpOptions};
-use crate::solvers::{InitialGuess, Solution, Solver};
-use crate::spaces::{Manifold, VectorSpace};
+#[path = "support/pendulum.rs"]
+mod pendulum;
 
-/// A damped pendulum `θ'' = -sin θ - 0.1 θ' + u`.
-struct Pendulum {
-    space: Arc<dyn Manifold>,
-}
-
-impl Ode for Pendulum {
-    fn space(&self) -> &Arc<dyn Manifold> {
-        &self.space
-    }
-    fn nu(&self) -> usize {
-        1
-    }
-    fn evaluate(&self, x: &[f64], u: &[f64], d: &mut OdeData) {
-        let xd = d.xdot_mut();
-        xd[0] = x[1];
-        xd[1] = -x[0].sin() - 0.1 * x[1] + u[0];
-    }
-    fn jacobians(&self, x: &[f64], _u: &[f64], d: &mut OdeData) {
-        d.jx.fill(0.0);
-        d.jx[(0, 1)] = 1.0;
-        d.jx[(1, 0)] = -x[0].cos();
-        d.jx[(1, 1)] = -0.1;
-        d.ju.fill(0.0);
-        d.ju[(1, 0)] = 1.0;
-    }
-}
+use gharial::constraints::{BoxConstraint, NegativeOrthant};
+use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
+use gharial::dynamics::{Dynamics, ExplicitRungeKutta, LinearDiscreteDynamics, Ode};
+use gharial::functions::{ControlError, StageFunction, StageFunctionData};
+use gharial::mpc::{ClosedLoop, DiscretePlant, Mpc, MpcOptions, Push, simulate};
+use gharial::problem::{Problem, StageConstraint, StageModel};
+use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
+use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions};
+use gharial::solvers::{InitialGuess, Solution, Solver};
+use gharial::spaces::{Manifold, VectorSpace};
+use pendulum::Pendulum;
 
 /// `h(x) = θ' - 2` (the inequality `θ' ≤ 2`).
 struct SpeedBound;
@@ -112,7 +89,7 @@ fn stage(bounds: usize, umax: f64) -> StageModel {
     s
 }
 
-fn terminal() -> Arc<dyn crate::costs::Cost> {
+fn terminal() -> Arc<dyn gharial::costs::Cost> {
     Arc::new(QuadraticStateCost::diagonal(space(), &[std::f64::consts::PI, 0.0], &[10.0, 1.0], 0).unwrap())
 }
 
@@ -534,7 +511,7 @@ fn closed_loop_regulates_a_mismatched_plant_and_refuses_bad_input() {
     });
     assert!(simulate(&mut mpc, &mut lq_plant(0.0), &x, &bad, |_, _| Ok(())).is_err());
     let e = simulate(&mut mpc, &mut lq_plant(0.0), &x, &ClosedLoop::new(4, 1), |_, _| {
-        Err(crate::Error::InvalidModel("stop".into()))
+        Err(gharial::Error::InvalidModel("stop".into()))
     });
     assert!(e.is_err());
 }
