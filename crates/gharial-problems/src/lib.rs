@@ -30,6 +30,7 @@
 //! | `ur5`, `ur5-box` | [`peer_robots`] | UR5 phase space (R¹²) | 100 | 10 ms |
 //! | `double-pendulum`, `double-pendulum-box`, `double-pendulum-box-term` | [`peer_robots`] | R⁴ | 100 | 10 ms |
 //! | `ur5-circle`, `ur5-circle-joint-bound`, `ur5-circle-half-space` | [`ur5_circle`] | UR5 phase space (R¹²) | 10 | 50 ms |
+//! | `ur10-ballistic` | [`ur10_ballistic`] | UR10 and mug (R²⁵, ndx 24; mug held, then flying) | 200 | 10 ms |
 //!
 //! Every module documents its model, its numbers and the results measured with
 //! ProxDDP.
@@ -43,6 +44,7 @@ pub mod peers;
 pub mod pendulum;
 pub mod quadrotor;
 pub mod se2_car;
+pub mod ur10_ballistic;
 pub mod ur5_circle;
 
 use gharial::problem::{Problem, ProblemData};
@@ -181,6 +183,10 @@ static CATALOGUE: &[ProblemInfo] = &[
         name: "ur5-circle-half-space",
         summary: "UR5 circle tracking with the tool in a half-space y <= y_max that cuts the circle",
     },
+    ProblemInfo {
+        name: "ur10-ballistic",
+        summary: "UR10 throws a held mug (6D constraint until t_c = 0.81 s) to land at (3.4, -0.2, 0) at T = 2 s, torque limits (Figs. 8, 9)",
+    },
 ];
 
 /// Every problem [`build`] knows, in catalogue order.
@@ -218,6 +224,7 @@ pub fn build(name: &str) -> Result<Example> {
         "ur5-circle" => ur5_circle::build(ur5_circle::CircleVariant::Free),
         "ur5-circle-joint-bound" => ur5_circle::build(ur5_circle::CircleVariant::JointBound),
         "ur5-circle-half-space" => ur5_circle::build(ur5_circle::CircleVariant::HalfSpace),
+        "ur10-ballistic" => ur10_ballistic::build(),
         _ => Err(Error::InvalidModel(format!(
             "unknown problem `{name}`; valid names: {}",
             CATALOGUE.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")

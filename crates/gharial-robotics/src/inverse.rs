@@ -64,12 +64,27 @@ fn static_balance(
     contacts: &[ContactModel],
     q: &[f64],
 ) -> Result<QuasiStatic> {
+    gharial::error::check_dim(format_args!("{what}: rows of B (nv)"), model.nv(), actuation.nv())?;
+    let jc = contact_jacobian(model, contacts, q).map_err(|e| crate::multibody_error(what, e))?;
+    static_balance_with_jacobian(what, model, actuation, &jc, q)
+}
+
+/// The minimum-norm `(u, λ)` with `B u + Jcᵀ λ = g(q)` for a given constraint Jacobian
+/// `Jc` (`nc × nv`); `what` names the caller.
+pub(crate) fn static_balance_with_jacobian(
+    what: &str,
+    model: &Model,
+    actuation: &Actuation,
+    jc: &Mat<f64>,
+    q: &[f64],
+) -> Result<QuasiStatic> {
     let nv = model.nv();
     gharial::error::check_dim(format_args!("{what}: rows of B (nv)"), nv, actuation.nv())?;
-    let mb = |e| crate::multibody_error(what, e);
+    gharial::error::check_dim(format_args!("{what}: columns of Jc (nv)"), nv, jc.ncols())?;
     let mut data = model.create_data();
-    let g = generalized_gravity(model, &mut data, q).map_err(mb)?.to_vec();
-    let jc = contact_jacobian(model, contacts, q).map_err(mb)?;
+    let g = generalized_gravity(model, &mut data, q)
+        .map_err(|e| crate::multibody_error(what, e))?
+        .to_vec();
     let (nu, nc) = (actuation.nu(), jc.nrows());
     // A = [B, Jcᵀ] (nv × (nu + nc)).
     let b = actuation.to_matrix();

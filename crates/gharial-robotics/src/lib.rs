@@ -17,7 +17,7 @@ pub mod spaces;
 
 pub use dynamics::{
     Actuation, ContactDynamicsData, ContactSpec, MultibodyConstraintFwdDynamics, MultibodyFreeFwdDynamics,
-    contacts_at_frames, set_contact_references,
+    MultibodyWeldFwdDynamics, WeldData, contacts_at_frames, set_contact_references,
 };
 pub use inverse::{QuasiStatic, gravity_compensation, quasi_static_torque};
 pub use spaces::{MultibodyConfiguration, MultibodyPhaseSpace};

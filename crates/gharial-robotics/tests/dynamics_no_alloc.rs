@@ -10,7 +10,7 @@ use gharial::spaces::Manifold;
 use gharial_multibody::ReferenceFrame;
 use gharial_robotics::{
     Actuation, ContactSpec, MultibodyConstraintFwdDynamics, MultibodyFreeFwdDynamics, MultibodyPhaseSpace,
-    set_contact_references,
+    MultibodyWeldFwdDynamics, set_contact_references,
 };
 use rand::SeedableRng;
 use rand::rngs::SmallRng;
@@ -93,6 +93,8 @@ fn multibody_odes_do_not_allocate() {
         println!("solo12 4 feet {rf:?}: contact forces + Jacobians: {n} allocations");
         assert_eq!(n, 0, "contact forces allocated {n} times");
     }
+    let weld = MultibodyWeldFwdDynamics::new(space.clone(), b.clone(), "root_joint", 20.0, 5.0).unwrap();
+    count("solo12 root welded", Arc::new(weld), &space);
     let dense = Actuation::matrix(&solo, b.to_matrix().as_ref()).unwrap();
     let free = MultibodyFreeFwdDynamics::new(space.clone(), dense).unwrap();
     count("solo12 free, dense B", Arc::new(free), &space);

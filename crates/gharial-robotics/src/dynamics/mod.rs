@@ -4,6 +4,8 @@
 //! - [`MultibodyConstraintFwdDynamics`]: rigid 3D / 6D contacts with Baumgarte
 //!   stabilisation (ProxDDP paper, (55) and (56)): `a` and the contact forces `λ` solve
 //!   `M a + b = B u + Jcᵀ λ`, `Jc a + γ = −Kp c(q) − Kd ċ` exactly (KKT solve).
+//! - [`MultibodyWeldFwdDynamics`]: a free body (a grasped object) held at its parent
+//!   frame by a 6D constraint with Baumgarte stabilisation; its free dynamics release it.
 //!
 //! Both take the actuation matrix `B` (`nv × nu`, [`Actuation`]), the armature from the
 //! model (`Model::armature`, on the diagonal of `M` in every multibody algorithm), and
@@ -41,11 +43,13 @@ mod actuation;
 mod constrained;
 mod contacts;
 mod free;
+mod weld;
 
 pub use actuation::Actuation;
 pub use constrained::{ContactDynamicsData, MultibodyConstraintFwdDynamics};
 pub use contacts::{ContactSpec, contacts_at_frames, set_contact_references};
 pub use free::MultibodyFreeFwdDynamics;
+pub use weld::{MultibodyWeldFwdDynamics, WeldData};
 
 /// What both multibody ODEs share: the phase space, the actuation and the checks and
 /// writes of `(x, u)`, `ẋ` and the Jacobians.
