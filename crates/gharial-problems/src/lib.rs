@@ -31,6 +31,7 @@
 //! | `double-pendulum`, `double-pendulum-box`, `double-pendulum-box-term` | [`peer_robots`] | R⁴ | 100 | 10 ms |
 //! | `ur5-circle`, `ur5-circle-joint-bound`, `ur5-circle-half-space` | [`ur5_circle`] | UR5 phase space (R¹²) | 10 | 50 ms |
 //! | `ur10-ballistic` | [`ur10_ballistic`] | UR10 and mug (R²⁵, ndx 24; mug held, then flying) | 200 | 10 ms |
+//! | `solo-jump` | [`solo_jump`] | Solo-12 phase space (nx = 37, ndx = 36) | 60 | 20 ms |
 //!
 //! Every module documents its model, its numbers and the results measured with
 //! ProxDDP.
@@ -44,6 +45,7 @@ pub mod peers;
 pub mod pendulum;
 pub mod quadrotor;
 pub mod se2_car;
+pub mod solo_jump;
 pub mod ur10_ballistic;
 pub mod ur5_circle;
 
@@ -187,6 +189,10 @@ static CATALOGUE: &[ProblemInfo] = &[
         name: "ur10-ballistic",
         summary: "UR10 throws a held mug (6D constraint until t_c = 0.81 s) to land at (3.4, -0.2, 0) at T = 2 s, torque limits (Figs. 8, 9)",
     },
+    ProblemInfo {
+        name: "solo-jump",
+        summary: "Solo-12 whole-body jump (Fig. 12, 15): stance, flight from 0.4 s, landing at 0.9 s with feet heights z = 0, dt = 20 ms, N = 60",
+    },
 ];
 
 /// Every problem [`build`] knows, in catalogue order.
@@ -225,6 +231,7 @@ pub fn build(name: &str) -> Result<Example> {
         "ur5-circle-joint-bound" => ur5_circle::build(ur5_circle::CircleVariant::JointBound),
         "ur5-circle-half-space" => ur5_circle::build(ur5_circle::CircleVariant::HalfSpace),
         "ur10-ballistic" => ur10_ballistic::build(),
+        "solo-jump" => solo_jump::build(),
         _ => Err(Error::InvalidModel(format!(
             "unknown problem `{name}`; valid names: {}",
             CATALOGUE.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")

@@ -102,9 +102,15 @@ fn every_catalogue_model_passes_the_finite_difference_checker() {
                     worst = worst.max(rep.max_error());
                 }
                 let rep = check_cost(stage.cost.as_ref(), space.as_ref(), &x, &u, opts);
+                // Central differences resolve a gradient only down to about ε |ℓ| / h: at
+                // random states with the feet under the ground, the fly-high cost of
+                // solo-jump reaches 1e85 and its control term falls below one ulp.
+                let mut cost_data = stage.cost.create_data();
+                stage.cost.evaluate(&x, &u, &mut cost_data);
+                let resolution = f64::EPSILON * cost_data.value.abs() / opts.eps;
                 for (block, e) in &rep.errors {
                     if block == "lx" || block == "lu" {
-                        assert!(*e < 1e-6, "{} stage {t} cost {block}: {e:e}", info.name);
+                        assert!(*e < 1e-6 + resolution, "{} stage {t} cost {block}: {e:e}", info.name);
                         worst = worst.max(*e);
                     }
                 }
