@@ -23,6 +23,10 @@ pub struct SolveArgs {
     /// Write the solution, settings and history to this JSON file.
     #[arg(long)]
     pub output: Option<String>,
+    /// Write the data of the paper's figures as CSV files into this directory (for the
+    /// experiments that have them: ur10-ballistic, solo-jump).
+    #[arg(long)]
+    pub figures: Option<String>,
     // The solver and its options (last: their help headings follow).
     #[command(flatten)]
     pub solver: SolverArgs,
@@ -68,6 +72,12 @@ pub fn run(args: &SolveArgs) -> i32 {
             return 2;
         }
     };
+    if let Some(dir) = &args.figures
+        && !std::path::Path::new(dir).is_dir()
+    {
+        eprintln!("gharial solve: --figures {dir}: not a directory");
+        return 2;
+    }
     let mut config = args.solver.config(&example);
     if args.verbose {
         config.set_log(LogSink::Stderr);
@@ -115,11 +125,40 @@ pub fn run(args: &SolveArgs) -> i32 {
             }
         }
     }
+    if let Some(dir) = &args.figures
+        && !write_figures(&example.name, sol, dir)
+    {
+        return 1;
+    }
     let code = if sol.status.converged() { 0 } else { 1 };
     // Everything is written: exit without freeing the problem and the solver one
     // allocation at a time (seconds for horizons of 10^5 stages).
     std::io::stdout().flush().ok();
     std::process::exit(code)
+}
+
+/// Writes the figure files of `name` into `dir`; `false` (with a message) if that fails.
+fn write_figures(name: &str, sol: &Solution, dir: &str) -> bool {
+    let files = match gharial_problems::figures::figures(name, sol) {
+        None => {
+            out!("figures   {name} has no figure data");
+            return true;
+        }
+        Some(Err(e)) => {
+            eprintln!("gharial solve: figures: {e}");
+            return false;
+        }
+        Some(Ok(f)) => f,
+    };
+    for (file, text) in files {
+        let path = std::path::Path::new(dir).join(file);
+        if let Err(e) = std::fs::write(&path, text) {
+            eprintln!("gharial solve: cannot write {}: {e}", path.display());
+            return false;
+        }
+        out!("figure    written to {}", path.display());
+    }
+    true
 }
 
 /// A solver's iteration table (`gharial solve --help` explains the columns).

@@ -534,3 +534,26 @@ fn simulate_writes_a_closed_loop_that_the_plant_replays() {
         assert!(stderr(&o).contains(what), "{args:?}: {}", stderr(&o));
     }
 }
+
+#[test]
+fn solve_writes_the_figures_of_an_experiment() {
+    let dir = std::env::temp_dir().join(format!("gharial-cli-fig-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let d = dir.to_str().unwrap();
+    let o = gharial(&["solve", "solo-jump", "--figures", d]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let conv = std::fs::read_to_string(dir.join("solo-jump-convergence.csv")).unwrap();
+    let rows: Vec<&str> = conv.lines().collect();
+    assert!(rows[0].starts_with("iter,prim_err,dual_err"), "{}", rows[0]);
+    // One row per iteration of the printed table, the last below the tolerance.
+    let last: Vec<f64> = rows.last().unwrap().split(',').map(|v| v.parse().unwrap()).collect();
+    assert!(rows.len() > 10 && last[1] < 1e-6 && last[2] < 1e-5, "{last:?}");
+    let traj = std::fs::read_to_string(dir.join("solo-jump-trajectory.csv")).unwrap();
+    assert_eq!(traj.lines().count(), 1 + 61, "a header and one row per node");
+    std::fs::remove_dir_all(&dir).ok();
+    let o = gharial(&["solve", "lqr", "--figures", "/nonexistent/dir"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("not a directory"));
+    let o = gharial(&["solve", "lqr", "--figures", std::env::temp_dir().to_str().unwrap()]);
+    assert!(o.status.success() && stdout(&o).contains("no figure data"));
+}

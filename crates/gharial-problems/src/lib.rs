@@ -38,6 +38,7 @@
 
 pub mod acrobot;
 pub mod cartpole;
+pub mod figures;
 pub mod lqr;
 pub mod mpc;
 pub mod peer_robots;
