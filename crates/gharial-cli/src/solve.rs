@@ -126,7 +126,7 @@ pub fn run(args: &SolveArgs) -> i32 {
         }
     }
     if let Some(dir) = &args.figures
-        && !write_figures(&example.name, sol, dir)
+        && !write_figures(example.name, sol, dir)
     {
         return 1;
     }
