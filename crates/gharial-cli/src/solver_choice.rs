@@ -30,15 +30,16 @@ pub enum SolverKind {
 
 impl SolverKind {
     /// Every solver, in the order `gharial list` shows them.
-    pub const ALL: [SolverKind; 5] = [
+    pub const ALL: [SolverKind; 6] = [
         SolverKind::ProxDdp,
         SolverKind::Ddp(DdpVariant::Ddp),
         SolverKind::Ddp(DdpVariant::Fddp),
         SolverKind::Ddp(DdpVariant::BoxDdp),
         SolverKind::Ddp(DdpVariant::BoxFddp),
+        SolverKind::Ddp(DdpVariant::Sqp),
     ];
 
-    /// The command-line name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`).
+    /// The command-line name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`).
     pub fn name(self) -> &'static str {
         match self {
             SolverKind::ProxDdp => "proxddp",
@@ -55,6 +56,7 @@ impl SolverKind {
             SolverKind::Ddp(DdpVariant::Fddp) => "FDDP",
             SolverKind::Ddp(DdpVariant::BoxDdp) => "BoxDDP",
             SolverKind::Ddp(DdpVariant::BoxFddp) => "BoxFDDP",
+            SolverKind::Ddp(DdpVariant::Sqp) => "SQP",
         }
     }
 
@@ -71,6 +73,9 @@ impl SolverKind {
             }
             SolverKind::Ddp(DdpVariant::BoxFddp) => {
                 "FDDP with control bounds (Mastalli et al. 2022); control bounds only"
+            }
+            SolverKind::Ddp(DdpVariant::Sqp) => {
+                "stagewise SQP, Gauss-Newton multiple shooting with a filter line search (Jordana et al. 2023); no constraints"
             }
         }
     }

@@ -14,7 +14,7 @@ fn gharial(args: &[&str]) -> Output {
 }
 
 /// The solvers' command-line names.
-const SOLVERS: [&str; 5] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp"];
+const SOLVERS: [&str; 6] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp"];
 
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
@@ -398,6 +398,7 @@ fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
         "FDDP",
         "BoxDDP",
         "BoxFDDP",
+        "SQP",
     ];
     assert_eq!(solvers("lqr"), all);
     assert_eq!(

@@ -88,3 +88,45 @@ fn box_variants_on_the_pendulum_with_tight_bounds_stop_without_claiming_converge
         assert!(sol.us.iter().flatten().all(|u| u.abs() <= 0.6), "{}", variant.name());
     }
 }
+
+/// SQP against mim_solvers' SQP (0.3.0, default filter line search, harness run with
+/// `termination_tolerance = 1e-6`): the same iterates, so after mim's number of steps
+/// the same cost (to 1e-9; on `double-pendulum` also the same gaps, 6.58e-9). The
+/// stopping test stops at most as late: its multipliers are the LQ step's exact
+/// co-states, whose Lagrangian gradient falls with the gaps, while mim's KKT value keeps
+/// a dual part of the size of its gaps' 1-norm (1.1e-5 at iteration 8 on the pendulum,
+/// where the gaps are 4e-6), so it stops two steps later there.
+#[test]
+fn sqp_takes_the_steps_of_mim_solvers_on_the_harness_problems() {
+    let cases = [
+        ("peers-lqr", 1, 6.248581777225141),
+        ("ur5", 6, 0.3388661864889561),
+        ("double-pendulum", 11, 0.08429063715535973),
+    ];
+    for (name, iters, cost) in cases {
+        let sol = solve(name, DdpVariant::Sqp);
+        assert_eq!(sol.status, Status::Converged, "{name}");
+        assert!(
+            sol.iterations <= iters && sol.iterations + 2 >= iters,
+            "{name}: {} iterations, mim_solvers {iters}",
+            sol.iterations
+        );
+        assert!(rel(sol.cost, cost) < 1e-7, "{name}: cost {} vs {cost}", sol.cost);
+        // mim's number of steps, whatever the stopping test.
+        let ex = gharial_problems::build(name).unwrap();
+        let mut solver = Ddp::new(DdpOptions::new(DdpVariant::Sqp).with(|o| {
+            o.tol = 1e-14;
+            o.max_iters = iters;
+        }));
+        solver.setup(&ex.problem).unwrap();
+        let same = solver
+            .solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0))
+            .unwrap();
+        assert_eq!(same.iterations, iters, "{name}");
+        assert!(
+            rel(same.cost, cost) < 1e-9,
+            "{name}: cost after {iters} steps {} vs {cost}",
+            same.cost
+        );
+    }
+}

@@ -72,7 +72,7 @@ fn implicit_dynamics_reach_the_dense_kkt_solution() {
     let (p, exact) = implicit_euler_ocp(&lq, 0.1);
     let reference = dense::solve(&exact).unwrap();
     let (xs, us) = zero_guess(&p);
-    for variant in [DdpVariant::Ddp, DdpVariant::Fddp] {
+    for variant in [DdpVariant::Ddp, DdpVariant::Fddp, DdpVariant::Sqp] {
         let sol = solve(&p, DdpOptions::new(variant), &xs, &us);
         assert_eq!(sol.status, Status::Converged, "{}", variant.name());
         assert!(max_diff(&sol.xs, &reference.xs) < 1e-8, "{}", variant.name());
@@ -157,7 +157,7 @@ fn bounds_from_orthant_constraints_and_negative_coefficients() {
 fn unsupported_problems_are_refused_with_a_clear_error() {
     let lq = random_lq(3, 2, 10, 5);
     let boxed = ocp(&lq, Some(0.3), None);
-    for variant in [DdpVariant::Ddp, DdpVariant::Fddp] {
+    for variant in [DdpVariant::Ddp, DdpVariant::Fddp, DdpVariant::Sqp] {
         let err = Ddp::new(DdpOptions::new(variant))
             .setup(&boxed)
             .unwrap_err()

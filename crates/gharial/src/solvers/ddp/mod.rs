@@ -1,6 +1,7 @@
 //! The DDP family on gharial's problems: DDP / iLQR, FDDP, box-DDP and box-FDDP, as
 //! crocoddyl implements them (`SolverDDP`, `SolverFDDP`, `SolverBoxDDP`,
-//! `SolverBoxFDDP`), on the shared LQ kernels.
+//! `SolverBoxFDDP`), and the stagewise SQP of Jordana et al. (2023) (mim_solvers'
+//! `SolverSQP`), on the shared LQ kernels.
 //!
 //! Each iteration is a backward pass, a line search on the step length and a
 //! regularisation update:
@@ -30,7 +31,15 @@
 //! backward pass, before a step is taken, so a converged solve reports one iteration fewer
 //! than crocoddyl, which checks after the step it takes with that direction.
 //!
-//! DDP and FDDP refuse problems with constraints; the box variants accept bounds on the
+//! *SQP* (Gauss-Newton multiple shooting) shares the backward pass with FDDP's gaps and
+//! the regularisation, and differs in three places: the step is the LQ subproblem's
+//! solution `(δx, δu, λ⁺)` by a linear rollout of the gains through the linearised
+//! dynamics and gaps; the trial `x ⊕ αδx, u + αδu` is accepted by a filter on (cost,
+//! 1-norm of the gaps) (Section V-C; with the default memory of 1: if it lowers the cost
+//! or the gaps); and the solve has converged when the KKT residual (20),
+//! `max(|∇L|_∞, |gaps|_∞)` with the co-states `λ⁺` of the last step, is below `tol`.
+//!
+//! DDP, FDDP and SQP refuse problems with constraints; the box variants accept bounds on the
 //! controls only ([`bounds`]), anything else is refused with an error naming the
 //! constraint. All need a fixed initial state.
 
@@ -220,16 +229,19 @@ impl Ddp {
         if opts.log.is_active() {
             opts.log.line(format_args!("{}", TABLE.header()));
         }
+        let th_stop = if opts.variant.linear_rollout() {
+            opts.tol
+        } else {
+            opts.tol * opts.tol * problem.horizon().max(1) as f64
+        };
         let mut lp = Loop {
-            th_stop: opts
-                .th_stop
-                .unwrap_or(opts.tol * opts.tol * problem.horizon().max(1) as f64),
+            th_stop: opts.th_stop.unwrap_or(th_stop),
             reg: opts.reg_init,
             iter: 0,
             m: Measures::default(),
             rebuild: true,
         };
-        let status = if ws.load_guess(problem, guess.xs, guess.us, opts.gap_tol)? {
+        let status = if ws.load_guess(problem, &guess, opts.gap_tol)? {
             loop {
                 if let Some(s) = lp.iteration(ws, problem, opts, sol, start, &mut callback) {
                     break s;
@@ -270,12 +282,18 @@ impl Loop {
             Ok(e) => e,
             Err(s) => return Some(s),
         };
+        let sqp = opts.variant.linear_rollout();
         self.m = Measures {
             gaps: ws.max_gap(),
             dual,
-            stop: (e.dg + 0.5 * e.dq).abs(),
+            // SQP's KKT residual (20) includes the gaps.
+            stop: if sqp {
+                ws.kkt(problem)
+            } else {
+                (e.dg + 0.5 * e.dq).abs()
+            },
         };
-        if ws.feasible && self.m.stop < self.th_stop {
+        if (ws.feasible || sqp) && self.m.stop < self.th_stop {
             return Some(if self.reg <= opts.reg_converged {
                 Status::Converged
             } else {
@@ -284,7 +302,7 @@ impl Loop {
         }
         // The full step cannot change the cost by more than its rounding: a tolerance
         // below that floor is out of reach.
-        if ws.feasible && self.m.stop <= ROUNDOFF_STOP * f64::EPSILON * (1.0 + ws.cost.abs()) {
+        if !sqp && ws.feasible && self.m.stop <= ROUNDOFF_STOP * f64::EPSILON * (1.0 + ws.cost.abs()) {
             return Some(Status::Stalled);
         }
         if opts.max_time.is_some_and(|b| start.elapsed() >= b) {
@@ -294,7 +312,11 @@ impl Loop {
             return Some(Status::MaxIterations);
         }
         let cost = ws.cost;
-        let step = line_search(ws, problem, e, opts);
+        let step = if sqp {
+            filter_line_search(ws, problem, opts)
+        } else {
+            line_search(ws, problem, e, opts)
+        };
         let record = IterationRecord {
             iter: self.iter,
             alpha: step.alpha,
@@ -312,7 +334,7 @@ impl Loop {
         ws.end_iteration();
         self.rebuild = step.cost.is_some();
         if let Some(c) = step.cost
-            && !ws.accept(problem, c, step.alpha)
+            && !ws.accept(problem, c, step.alpha, opts.gap_tol)
         {
             return Some(Status::NonFinite);
         }
@@ -382,6 +404,35 @@ fn line_search(ws: &mut Workspace, problem: &Problem, e: Expected, opts: &DdpOpt
         };
         if accept {
             step.cost = Some(c);
+            return step;
+        }
+    }
+    step
+}
+
+/// SQP's line search (Jordana et al. 2023, V-C): the LQ step by a linear rollout, then
+/// `α = 1, 1/2, ...` until the trial's (cost, gap 1-norm) is not dominated by the
+/// filter's pairs, which include the current point's.
+fn filter_line_search(ws: &mut Workspace, problem: &Problem, opts: &DdpOptions) -> Step {
+    let mut step = Step {
+        alpha: 1.0,
+        cost: None,
+        expected: 0.0,
+        decrease: 0.0,
+    };
+    if !ws.linear_step() {
+        return step;
+    }
+    let gap = ws.gap_l1();
+    ws.filter.push(ws.cost, gap);
+    for i in 0..opts.linesearch_steps {
+        step.alpha = 0.5_f64.powi(i as i32);
+        let Some((c, g)) = ws.linear_trial(problem, step.alpha) else {
+            continue;
+        };
+        if ws.filter.accepts(c, g) {
+            step.cost = Some(c);
+            step.decrease = ws.cost - c;
             return step;
         }
     }

@@ -22,24 +22,30 @@ pub enum DdpVariant {
     BoxDdp,
     /// FDDP with control bounds (Mastalli et al. 2022).
     BoxFddp,
+    /// Stagewise SQP, Gauss-Newton multiple shooting (Jordana et al. 2023, GNMS): the
+    /// step of the LQ subproblem by a linear rollout, a filter line search on cost and
+    /// gaps, the KKT residual (20) as stopping test.
+    Sqp,
 }
 
 impl DdpVariant {
     /// Every variant, in the order of [`DdpVariant::name`]'s documentation.
-    pub const ALL: [DdpVariant; 4] = [
+    pub const ALL: [DdpVariant; 5] = [
         DdpVariant::Ddp,
         DdpVariant::Fddp,
         DdpVariant::BoxDdp,
         DdpVariant::BoxFddp,
+        DdpVariant::Sqp,
     ];
 
-    /// The solver name: `ddp`, `fddp`, `box-ddp`, `box-fddp`.
+    /// The solver name: `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`.
     pub fn name(self) -> &'static str {
         match self {
             DdpVariant::Ddp => "ddp",
             DdpVariant::Fddp => "fddp",
             DdpVariant::BoxDdp => "box-ddp",
             DdpVariant::BoxFddp => "box-fddp",
+            DdpVariant::Sqp => "sqp",
         }
     }
 
@@ -51,6 +57,12 @@ impl DdpVariant {
     /// Whether gaps are kept open and closed in proportion to the step (FDDP).
     pub fn multiple_shooting(self) -> bool {
         matches!(self, DdpVariant::Fddp | DdpVariant::BoxFddp)
+    }
+
+    /// Whether the step is the LQ subproblem's, applied by a linear rollout, with a
+    /// filter line search and the KKT stopping test (SQP).
+    pub fn linear_rollout(self) -> bool {
+        self == DdpVariant::Sqp
     }
 
     /// Whether control bounds are handled (box-DDP, box-FDDP).
@@ -67,7 +79,8 @@ pub struct DdpOptions {
     pub variant: DdpVariant,
     /// Tolerance: the solve has converged when the gaps are closed and the expected cost
     /// decrease of a full step, `|Δ₁ + ½Δ₂|`, is below `tol² N` (crocoddyl's `th_stop`
-    /// with the mapping of aligator's crocoddyl benchmark). Default `1e-6`.
+    /// with the mapping of aligator's crocoddyl benchmark); for SQP, when the KKT residual
+    /// (20) is below `tol`. Default `1e-6`.
     pub tol: f64,
     /// A threshold on `|Δ₁ + ½Δ₂|` used instead of `tol² N` (crocoddyl's `th_stop`).
     pub th_stop: Option<f64>,
@@ -110,6 +123,9 @@ pub struct DdpOptions {
     pub th_grad: f64,
     /// Gaps of the initial guess up to this size count as closed (default `1e-12`).
     pub gap_tol: f64,
+    /// SQP: the filter's memory, the number of past (cost, gap) pairs a trial must not be
+    /// dominated by (default 1: better cost or smaller gaps than the current point).
+    pub filter_size: usize,
     /// The box QP of the box variants.
     pub box_qp: BoxQpOptions,
     /// Newton-Raphson solve of implicit dynamics in the rollouts.
@@ -143,6 +159,7 @@ impl Default for DdpOptions {
             th_accept_neg: 2.0,
             th_grad: 1e-12,
             gap_tol: 1e-12,
+            filter_size: 1,
             box_qp: BoxQpOptions::default(),
             implicit: ImplicitSolve::default(),
             max_time: None,
@@ -211,6 +228,9 @@ impl DdpOptions {
         }
         if self.max_iters == 0 {
             return Err(Error::option("max_iters", "must be at least 1"));
+        }
+        if !(1..=1000).contains(&self.filter_size) {
+            return Err(Error::option("filter_size", "must be in 1..=1000"));
         }
         if self.num_threads == 0 {
             return Err(Error::option("num_threads", "must be at least 1"));

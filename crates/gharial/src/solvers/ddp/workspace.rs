@@ -10,9 +10,9 @@ use crate::error::{Error, Result};
 use crate::linalg::{dot, matvec, norm_inf, slice, slice_mut};
 use crate::lq::{LqError, LqProblem, LqSolution, RiccatiSolver, RiccatiStage};
 use crate::problem::{InitialCondition, Problem, ProblemData, StageData, StageModel};
-use crate::solvers::HessianApprox;
 use crate::solvers::boxqp::{BoxQp, BoxQpOptions};
 use crate::solvers::skeleton::{Receding, copy_stage_model, copy_trajectory, lq_for};
+use crate::solvers::{HessianApprox, InitialGuess};
 
 /// The terms of the expected improvement of FDDP (Mastalli et al. 2020, (19)-(20)) that do
 /// not depend on the trial: `Δ_g` and `Δ_q` (crocoddyl's `dg`, `dq`).
@@ -66,6 +66,54 @@ pub(super) struct Workspace {
     iterated: bool,
     /// Receding horizon: the data of the queued stages, slot by slot.
     spare: Vec<StageData>,
+    /// SQP: the co-states of the last LQ step (the multipliers of the KKT test), the
+    /// Lagrangian gradient, empty path multipliers, and the filter.
+    lams: Vec<Vec<f64>>,
+    gx: Vec<Vec<f64>>,
+    gu: Vec<Vec<f64>>,
+    no_nus: Vec<Vec<f64>>,
+    pub filter: SqpFilter,
+}
+
+/// The filter of SQP's line search (Jordana et al. 2023, V-C): the (cost, gap) pairs of
+/// the last iterates; a trial is accepted unless one of them is at least as good in both.
+#[derive(Debug)]
+pub(super) struct SqpFilter {
+    pairs: Vec<(f64, f64)>,
+    len: usize,
+    next: usize,
+}
+
+impl SqpFilter {
+    fn new(size: usize) -> Self {
+        Self {
+            pairs: vec![(0.0, 0.0); size],
+            len: 0,
+            next: 0,
+        }
+    }
+
+    /// Forgets every pair (a new solve).
+    pub fn clear(&mut self) {
+        self.len = 0;
+        self.next = 0;
+    }
+
+    /// Remembers the pair of an iterate, forgetting the oldest when full.
+    pub fn push(&mut self, cost: f64, gap: f64) {
+        self.pairs[self.next] = (cost, gap);
+        self.next = (self.next + 1) % self.pairs.len();
+        self.len = (self.len + 1).min(self.pairs.len());
+    }
+
+    /// Whether no remembered pair dominates `(cost, gap)`.
+    pub fn accepts(&self, cost: f64, gap: f64) -> bool {
+        let n = self.pairs.len();
+        (0..self.len).all(|i| {
+            let (c, g) = self.pairs[(self.next + n - 1 - i) % n];
+            !(c <= cost && g <= gap)
+        })
+    }
 }
 
 /// Refuses constraints (DDP and FDDP handle none), in the horizon or the queue.
@@ -157,6 +205,13 @@ impl Workspace {
             cost: 0.0,
             iterated: false,
             spare: queue.iter().map(StageData::new).collect(),
+            lams: crate::solvers::Solution::new(problem, 0).lambdas,
+            gx: vecs(&ndxs),
+            gu: vecs(&nus),
+            no_nus: (0..=n)
+                .map(|t| vec![0.0; problem.constraints(t).iter().map(|c| c.nr()).sum()])
+                .collect(),
+            filter: SqpFilter::new(opts.filter_size),
         })
     }
 
@@ -186,9 +241,14 @@ impl Workspace {
     ///
     /// # Errors
     /// If the control bounds of a stage are empty.
-    pub fn load_guess(&mut self, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>], gap_tol: f64) -> Result<bool> {
-        copy_trajectory(&mut self.xs, xs);
-        copy_trajectory(&mut self.us, us);
+    pub fn load_guess(&mut self, problem: &Problem, guess: &InitialGuess<'_>, gap_tol: f64) -> Result<bool> {
+        copy_trajectory(&mut self.xs, guess.xs);
+        copy_trajectory(&mut self.us, guess.us);
+        match guess.lambdas {
+            Some(l) => copy_trajectory(&mut self.lams, l),
+            None => self.lams.iter_mut().for_each(|l| l.fill(0.0)),
+        }
+        self.filter.clear();
         if let InitialCondition::Fixed(x0) = problem.initial_condition() {
             // The initial state may have moved since setup (MPC).
             self.x0.copy_from_slice(x0);
@@ -426,6 +486,62 @@ impl Workspace {
         cost.is_finite().then_some(cost)
     }
 
+    /// SQP: the step of the LQ subproblem of the last backward pass (linear rollout of its
+    /// gains through the linearised dynamics and gaps), into the LQ solution; its
+    /// co-states become the multipliers of the next KKT test. `false` if it fails.
+    pub fn linear_step(&mut self) -> bool {
+        if self.riccati.forward(&self.lq, &mut self.lq_sol).is_err() {
+            return false;
+        }
+        for (l, s) in self.lams.iter_mut().zip(&self.lq_sol.lambdas) {
+            l.copy_from_slice(slice(s));
+        }
+        true
+    }
+
+    /// SQP's KKT residual (20) at the current point: the largest entry of the
+    /// Lagrangian's gradient with the co-states of the last LQ step, and of the gaps.
+    pub fn kkt(&mut self, problem: &Problem) -> f64 {
+        self.data
+            .lagrangian_gradient(problem, &self.lams, &self.no_nus, &mut self.gx, &mut self.gu);
+        let dual = self.gx.iter().chain(&self.gu).map(|g| norm_inf(g)).fold(0.0, f64::max);
+        dual.max(self.max_gap())
+    }
+
+    /// The sum of the gaps' 1-norms of the current point (SQP's filter measure).
+    pub fn gap_l1(&self) -> f64 {
+        self.fs.iter().flatten().map(|v| v.abs()).sum()
+    }
+
+    /// SQP's trial of step length `alpha`: `x̃ = x ⊕ α δx`, `ũ = u + α δu` from
+    /// [`Workspace::linear_step`], evaluated; returns its cost and the 1-norm of its gaps,
+    /// or `None` if a value is not finite.
+    pub fn linear_trial(&mut self, problem: &Problem, alpha: f64) -> Option<(f64, f64)> {
+        let st = &self.lq_sol;
+        for t in 0..self.xs.len() {
+            let v = &mut self.dx[t];
+            for (vi, d) in v.iter_mut().zip(slice(&st.xs[t])) {
+                *vi = alpha * d;
+            }
+            problem.space(t).integrate(&self.xs[t], v, &mut self.xs_try[t]);
+        }
+        for (t, u) in self.us_try.iter_mut().enumerate() {
+            for (j, ui) in u.iter_mut().enumerate() {
+                *ui = self.us[t][j] + alpha * st.us[t][j];
+            }
+        }
+        let cost = self.data.evaluate(problem, &self.xs_try, &self.us_try);
+        if !self.values_finite() {
+            return None;
+        }
+        problem.space(0).difference(&self.xs_try[0], &self.x0, &mut self.pfs[0]);
+        let mut gap = self.pfs[0].iter().map(|v| v.abs()).sum::<f64>();
+        for sd in &self.data.stages {
+            gap += sd.dyn_value().iter().map(|v| v.abs()).sum::<f64>();
+        }
+        Some((cost, gap))
+    }
+
     /// Marks the end of an iteration (accepted step or not).
     pub fn end_iteration(&mut self) {
         self.iterated = true;
@@ -433,15 +549,19 @@ impl Workspace {
 
     /// Makes the last trial (the data's last evaluation) the current point: derivatives,
     /// gaps; `alpha` is its step length. Returns `false` if a derivative is not finite.
-    pub fn accept(&mut self, problem: &Problem, cost: f64, alpha: f64) -> bool {
+    pub fn accept(&mut self, problem: &Problem, cost: f64, alpha: f64, gap_tol: f64) -> bool {
         std::mem::swap(&mut self.xs, &mut self.xs_try);
         std::mem::swap(&mut self.us, &mut self.us_try);
         self.cost = cost;
         // A single-shooting trial is a rollout; a multiple-shooting one closes the gaps
-        // at the full step (crocoddyl: `setCandidate(.., was_feasible || α == 1)`).
+        // at the full step (crocoddyl: `setCandidate(.., was_feasible || α == 1)`); SQP
+        // reads them.
         self.feasible = !self.variant.multiple_shooting() || self.feasible || alpha == 1.0;
         self.data.compute_derivatives(problem, &self.xs, &self.us);
         self.read_gaps(problem);
+        if self.variant.linear_rollout() {
+            self.feasible = self.max_gap() <= gap_tol;
+        }
         self.lq_derivatives_finite()
     }
 
