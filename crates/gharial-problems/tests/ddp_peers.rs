@@ -130,3 +130,34 @@ fn sqp_takes_the_steps_of_mim_solvers_on_the_harness_problems() {
         );
     }
 }
+
+/// FDDP with the filter line search of SQP ("FDDP (filter LS)" of the SQP paper):
+/// crocoddyl's FDDP optimum on the harness problems, from the same guesses; the option
+/// is refused for DDP, whose trials have no gaps.
+#[test]
+fn fddp_with_the_filter_line_search_reaches_crocoddyls_optimum() {
+    let cases = [
+        ("peers-lqr", 6.248581777225142),
+        ("ur5", 0.33886618648725525),
+        ("double-pendulum", 0.08429063709752813),
+    ];
+    for (name, cost) in cases {
+        let ex = gharial_problems::build(name).unwrap();
+        let opts = DdpOptions::new(DdpVariant::Fddp).with(|o| {
+            o.filter_linesearch = true;
+            o.max_iters = 500;
+        });
+        let mut solver = Ddp::new(opts);
+        solver.setup(&ex.problem).unwrap();
+        let sol = solver
+            .solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0))
+            .unwrap();
+        assert_eq!(sol.status, Status::Converged, "{name}");
+        assert!(rel(sol.cost, cost) < 1e-8, "{name}: cost {} vs {cost}", sol.cost);
+        eprintln!("{name}: FDDP (filter LS) {} iterations", sol.iterations);
+    }
+    let ddp = DdpOptions::new(DdpVariant::Ddp).with(|o| o.filter_linesearch = true);
+    let ex = gharial_problems::build("peers-lqr").unwrap();
+    let err = Ddp::new(ddp).setup(&ex.problem).unwrap_err().to_string();
+    assert!(err.contains("filter_linesearch"), "{err}");
+}

@@ -377,7 +377,8 @@ fn backward(
     }
 }
 
-/// Backtracking on the step length with crocoddyl's acceptance rules (module docs).
+/// Backtracking on the step length with crocoddyl's acceptance rules (module docs), or
+/// with SQP's filter (`filter_linesearch`).
 fn line_search(ws: &mut Workspace, problem: &Problem, e: Expected, opts: &DdpOptions) -> Step {
     let multiple_shooting = opts.variant.multiple_shooting();
     let mut step = Step {
@@ -386,6 +387,10 @@ fn line_search(ws: &mut Workspace, problem: &Problem, e: Expected, opts: &DdpOpt
         expected: 0.0,
         decrease: 0.0,
     };
+    if opts.filter_linesearch {
+        let gap = ws.gap_l1();
+        ws.filter.push(ws.cost, gap);
+    }
     for i in 0..opts.linesearch_steps {
         step.alpha = 0.5_f64.powi(i as i32);
         let Some(c) = ws.trial(problem, step.alpha, opts) else {
@@ -395,7 +400,10 @@ fn line_search(ws: &mut Workspace, problem: &Problem, e: Expected, opts: &DdpOpt
         let a = step.alpha;
         step.expected = a * (d1 + 0.5 * a * d2);
         step.decrease = ws.cost - c;
-        let accept = if step.expected >= 0.0 {
+        let accept = if opts.filter_linesearch {
+            let g = ws.trial_gap_l1(problem);
+            ws.filter.accepts(c, g)
+        } else if step.expected >= 0.0 {
             d1.abs() < opts.th_grad
                 || (!ws.feasible && !multiple_shooting)
                 || step.decrease > opts.th_accept * step.expected

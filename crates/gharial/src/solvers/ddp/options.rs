@@ -123,9 +123,14 @@ pub struct DdpOptions {
     pub th_grad: f64,
     /// Gaps of the initial guess up to this size count as closed (default `1e-12`).
     pub gap_tol: f64,
-    /// SQP: the filter's memory, the number of past (cost, gap) pairs a trial must not be
-    /// dominated by (default 1: better cost or smaller gaps than the current point).
+    /// SQP, and FDDP with `filter_linesearch`: the filter's memory, the number of past
+    /// (cost, gap) pairs a trial must not be dominated by (default 1: better cost or
+    /// smaller gaps than the current point).
     pub filter_size: usize,
+    /// FDDP and box-FDDP: accept trials by the filter of SQP's line search instead of
+    /// crocoddyl's Armijo rules ("FDDP (filter LS)" of Jordana et al. 2023; default
+    /// false).
+    pub filter_linesearch: bool,
     /// The box QP of the box variants.
     pub box_qp: BoxQpOptions,
     /// Newton-Raphson solve of implicit dynamics in the rollouts.
@@ -160,6 +165,7 @@ impl Default for DdpOptions {
             th_grad: 1e-12,
             gap_tol: 1e-12,
             filter_size: 1,
+            filter_linesearch: false,
             box_qp: BoxQpOptions::default(),
             implicit: ImplicitSolve::default(),
             max_time: None,
@@ -231,6 +237,12 @@ impl DdpOptions {
         }
         if !(1..=1000).contains(&self.filter_size) {
             return Err(Error::option("filter_size", "must be in 1..=1000"));
+        }
+        if self.filter_linesearch && !self.variant.multiple_shooting() {
+            return Err(Error::option(
+                "filter_linesearch",
+                "is an option of fddp and box-fddp (sqp always filters; ddp's trials have no gaps)",
+            ));
         }
         if self.num_threads == 0 {
             return Err(Error::option("num_threads", "must be at least 1"));

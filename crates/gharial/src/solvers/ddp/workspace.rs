@@ -72,6 +72,8 @@ pub(super) struct Workspace {
     gx: Vec<Vec<f64>>,
     gu: Vec<Vec<f64>>,
     no_nus: Vec<Vec<f64>>,
+    /// Scratch of the initial gap of a trial.
+    wu_x0: Vec<f64>,
     pub filter: SqpFilter,
 }
 
@@ -211,6 +213,7 @@ impl Workspace {
             no_nus: (0..=n)
                 .map(|t| vec![0.0; problem.constraints(t).iter().map(|c| c.nr()).sum()])
                 .collect(),
+            wu_x0: vec![0.0; problem.space(0).ndx()],
             filter: SqpFilter::new(opts.filter_size),
         })
     }
@@ -534,12 +537,17 @@ impl Workspace {
         if !self.values_finite() {
             return None;
         }
-        problem.space(0).difference(&self.xs_try[0], &self.x0, &mut self.pfs[0]);
-        let mut gap = self.pfs[0].iter().map(|v| v.abs()).sum::<f64>();
+        Some((cost, self.trial_gap_l1(problem)))
+    }
+
+    /// The 1-norm of the gaps of the last trial (from the data's last evaluation).
+    pub fn trial_gap_l1(&mut self, problem: &Problem) -> f64 {
+        problem.space(0).difference(&self.xs_try[0], &self.x0, &mut self.wu_x0);
+        let mut gap = self.wu_x0.iter().map(|v| v.abs()).sum::<f64>();
         for sd in &self.data.stages {
             gap += sd.dyn_value().iter().map(|v| v.abs()).sum::<f64>();
         }
-        Some((cost, gap))
+        gap
     }
 
     /// Marks the end of an iteration (accepted step or not).
