@@ -47,6 +47,7 @@ pub mod pendulum;
 pub mod quadrotor;
 pub mod se2_car;
 pub mod solo_jump;
+pub mod solo_walk;
 pub mod ur10_ballistic;
 pub mod ur5_circle;
 

@@ -5,6 +5,7 @@
 //! | name | problem | plant | MPC period |
 //! |---|---|---|---|
 //! | `ur5-circle-mpc`, `ur5-circle-mpc-joint-bound`, `ur5-circle-mpc-half-space` | [`crate::ur5_circle`] | UR5 ABA, semi-implicit Euler at 1 ms | 50 ms (one node) |
+//! | `solo-walk-mpc`, `solo-walk-mpc-slope` | [`crate::solo_walk`] | Solo-12 contact dynamics of the gait's stance feet, semi-implicit Euler at 1 ms | 12 ms (one node) |
 
 use gharial::mpc::{ClosedLoop, Mpc, MpcOptions, Plant, Record, simulate};
 use gharial::problem::StageModel;
@@ -120,6 +121,14 @@ pub static SCENARIOS: &[(&str, &str)] = &[
         "ur5-circle-mpc-half-space",
         "ur5-circle-mpc with the tool kept in the half-space y <= c_y + r/2",
     ),
+    (
+        "solo-walk-mpc",
+        "Solo-12 trot at 0.2 m/s (ProxDDP paper, Fig. 16): 12 ms nodes, 40-node horizon, one ProxDDP iteration per cycle",
+    ),
+    (
+        "solo-walk-mpc-slope",
+        "solo-walk-mpc on ground tilted by 0.1 rad about y, unknown to the controller",
+    ),
 ];
 
 /// The scenario called `name` (see [`SCENARIOS`]).
@@ -132,6 +141,8 @@ pub fn scenario(name: &str) -> Result<MpcScenario> {
         "ur5-circle-mpc" => circle(CircleVariant::Free),
         "ur5-circle-mpc-joint-bound" => circle(CircleVariant::JointBound),
         "ur5-circle-mpc-half-space" => circle(CircleVariant::HalfSpace),
+        "solo-walk-mpc" => crate::solo_walk::scenario(0.0, crate::solo_walk::COMMAND),
+        "solo-walk-mpc-slope" => crate::solo_walk::scenario(crate::solo_walk::SLOPE, crate::solo_walk::COMMAND),
         _ => Err(Error::InvalidModel(format!(
             "unknown MPC scenario `{name}` (known: {})",
             SCENARIOS.iter().map(|s| s.0).collect::<Vec<_>>().join(", ")
