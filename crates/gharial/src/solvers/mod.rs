@@ -6,6 +6,7 @@
 //! returns a [`Solution`] whose [`Status`] says how it stopped. The last accepted iterate
 //! is always kept, so a solution can warm-start the next solve.
 
+pub mod admm;
 pub mod boxqp;
 pub mod ddp;
 pub mod filter;

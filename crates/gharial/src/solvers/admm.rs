@@ -1,0 +1,331 @@
+//! The stagewise ADMM of Jordana et al. (2023), Section IV: the QP of an LQ problem with
+//! two-sided bounds `lo ≤ C δx + D δu ≤ hi` on its constraint rows (equalities where
+//! `lo = hi`), solved by the OSQP iteration with the Riccati recursion as its linear
+//! solver (the QP subproblem of CSQP).
+//!
+//! With `G = [C D]` the constraint rows of every knot, the splitting `G δ = z`,
+//! `lo ≤ z ≤ hi`, the penalty `ρ` and the relaxation `α`, one iteration is
+//! ```text
+//! δ⁺  = argmin ½ δᵀ H δ + gᵀ δ + ρ/2 |G δ - z + y/ρ|²  s.t. the LQ's dynamics   (Riccati)
+//! ẑ   = α G δ⁺ + (1 - α) z
+//! z⁺  = proj_[lo, hi](ẑ + y/ρ)
+//! y⁺  = y + ρ (ẑ - z⁺)
+//! ```
+//! The penalty enters the LQ knots as constraint rows with dual regularisation
+//! `mu_c = 1/ρ` and offset `d = y/ρ - z` (the proximal Riccati's rows minimise
+//! `|C δx + D δu + d|² / (2 mu_c)`), so the factorisation is redone only when `ρ`
+//! changes and the other iterations solve for new vectors only. Equality rows take
+//! `1000 ρ` (OSQP's choice). Stopping: `|G δ - z|_∞ ≤ ε_abs + ε_rel max(|G δ|_∞, |z|_∞)`
+//! and `ρ |Gᵀ (z - z_prev)|_∞ ≤ ε_abs + ε_rel |Gᵀ y|_∞`. Every `rho_update_interval`
+//! iterations `ρ` is scaled by the square root of the ratio of the normalised primal
+//! and dual residuals when that changes it more than fivefold (OSQP's rule).
+
+use faer::Accum;
+
+use crate::error::{Error, Result};
+use crate::linalg::{matvec, matvec_t, norm_inf, slice};
+use crate::lq::{LqError, LqProblem, LqSolution, RiccatiSolver};
+
+/// Options of [`AdmmQp`] (defaults of mim_solvers' CSQP where it has them).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub struct AdmmOptions {
+    /// Initial penalty `ρ` (default 0.1).
+    pub rho_init: f64,
+    /// Relaxation `α` in `(0, 2)` (default 1.6).
+    pub alpha: f64,
+    /// Absolute tolerance (default 1e-4).
+    pub eps_abs: f64,
+    /// Relative tolerance (default 1e-4).
+    pub eps_rel: f64,
+    /// Iterations at most (default 1000).
+    pub max_iters: usize,
+    /// Iterations between penalty updates (default 25; 0: fixed `ρ`).
+    pub rho_update_interval: usize,
+}
+
+impl Default for AdmmOptions {
+    fn default() -> Self {
+        Self {
+            rho_init: 0.1,
+            alpha: 1.6,
+            eps_abs: 1e-4,
+            eps_rel: 1e-4,
+            max_iters: 1000,
+            rho_update_interval: 25,
+        }
+    }
+}
+
+impl AdmmOptions {
+    /// The options after `f` changed them (builder style).
+    pub fn with(mut self, f: impl FnOnce(&mut Self)) -> Self {
+        f(&mut self);
+        self
+    }
+
+    /// Checks every option's range.
+    ///
+    /// # Errors
+    /// Names the offending option.
+    pub fn validate(&self) -> Result<()> {
+        crate::error::check_positive("rho_init", self.rho_init)?;
+        if !(self.alpha > 0.0 && self.alpha < 2.0) {
+            return Err(Error::option("alpha", "must be in (0, 2)"));
+        }
+        for (name, v) in [("eps_abs", self.eps_abs), ("eps_rel", self.eps_rel)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(Error::option(name, "must be finite and nonnegative"));
+            }
+        }
+        if self.eps_abs == 0.0 && self.eps_rel == 0.0 {
+            return Err(Error::option("eps_abs", "eps_abs and eps_rel cannot both be 0"));
+        }
+        if self.max_iters == 0 {
+            return Err(Error::option("max_iters", "must be at least 1"));
+        }
+        Ok(())
+    }
+}
+
+/// How an ADMM solve ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AdmmStatus {
+    /// Primal and dual residuals within the tolerances.
+    Converged,
+    /// The iteration limit was reached (the bounds may be contradictory).
+    MaxIterations,
+}
+
+/// The stagewise ADMM QP solver (module documentation); every buffer allocated in
+/// [`AdmmQp::new`].
+#[derive(Debug)]
+pub struct AdmmQp {
+    options: AdmmOptions,
+    riccati: RiccatiSolver,
+    sol: LqSolution,
+    /// Splitting variable, scaled duals, last `z`, `G δ` per knot.
+    z: Vec<Vec<f64>>,
+    y: Vec<Vec<f64>>,
+    z_prev: Vec<Vec<f64>>,
+    gd: Vec<Vec<f64>>,
+    /// Scratch of state and control size for `Gᵀ v`.
+    tx: Vec<Vec<f64>>,
+    tu: Vec<Vec<f64>>,
+    rho: f64,
+    iters: usize,
+    prim: f64,
+    dual: f64,
+}
+
+/// Residuals and scales of one iteration.
+#[derive(Debug, Clone, Copy)]
+struct Residuals {
+    prim: f64,
+    dual: f64,
+    prim_scale: f64,
+    dual_scale: f64,
+}
+
+impl AdmmQp {
+    /// A solver for LQ problems shaped like `lq` (its constraint rows are the rows `G`).
+    ///
+    /// # Errors
+    /// If the options are out of range or the LQ problem is malformed.
+    pub fn new(lq: &LqProblem, options: AdmmOptions) -> Result<Self> {
+        options.validate()?;
+        let riccati = RiccatiSolver::new(lq).map_err(|e| Error::InvalidModel(format!("ADMM: {e}")))?;
+        let rows = |k: &crate::lq::LqKnot| vec![0.0; k.nc];
+        let z: Vec<Vec<f64>> = lq.knots.iter().map(rows).collect();
+        Ok(Self {
+            options,
+            riccati,
+            sol: LqSolution::new(lq),
+            y: z.clone(),
+            z_prev: z.clone(),
+            gd: z.clone(),
+            tx: lq.knots.iter().map(|k| vec![0.0; k.nx]).collect(),
+            tu: lq.knots.iter().map(|k| vec![0.0; k.nu]).collect(),
+            z,
+            rho: options.rho_init,
+            iters: 0,
+            prim: 0.0,
+            dual: 0.0,
+        })
+    }
+
+    /// Solves the QP of `lq` with `lo ≤ C δx + D δu ≤ hi` row by row (`±∞` for one-sided
+    /// rows). The knots' constraint offsets `d` and regularisations `mu_c` are the
+    /// solver's (overwritten). With `warm`, starts from the last solve's `z`, `y` and `ρ`
+    /// (the MPC settings of the paper, Section VI-B); else from zero and `rho_init`.
+    ///
+    /// # Errors
+    /// If `lo`, `hi` do not fit the rows, `lo > hi` somewhere, or the LQ solve fails
+    /// (a singular or non-finite system).
+    pub fn solve(&mut self, lq: &mut LqProblem, lo: &[Vec<f64>], hi: &[Vec<f64>], warm: bool) -> Result<AdmmStatus> {
+        self.check_bounds(lo, hi)?;
+        if !warm {
+            self.z.iter_mut().chain(self.y.iter_mut()).for_each(|v| v.fill(0.0));
+            self.rho = self.options.rho_init;
+        }
+        self.set_rows(lq, lo, hi);
+        self.factor(lq)?;
+        let o = self.options;
+        for it in 0..o.max_iters {
+            self.iters = it + 1;
+            self.x_update(lq)?;
+            let r = self.z_y_update(lq, lo, hi);
+            (self.prim, self.dual) = (r.prim, r.dual);
+            if r.prim <= o.eps_abs + o.eps_rel * r.prim_scale && r.dual <= o.eps_abs + o.eps_rel * r.dual_scale {
+                return Ok(AdmmStatus::Converged);
+            }
+            if o.rho_update_interval > 0 && self.iters.is_multiple_of(o.rho_update_interval) && self.update_rho(&r) {
+                self.set_rows(lq, lo, hi);
+                self.factor(lq)?;
+            }
+        }
+        Ok(AdmmStatus::MaxIterations)
+    }
+
+    fn check_bounds(&self, lo: &[Vec<f64>], hi: &[Vec<f64>]) -> Result<()> {
+        crate::error::check_dim("ADMM: knots of lo", self.z.len(), lo.len())?;
+        crate::error::check_dim("ADMM: knots of hi", self.z.len(), hi.len())?;
+        for (t, (l, h)) in lo.iter().zip(hi).enumerate() {
+            crate::error::check_dim(format_args!("ADMM: lo[{t}]"), self.z[t].len(), l.len())?;
+            crate::error::check_dim(format_args!("ADMM: hi[{t}]"), self.z[t].len(), h.len())?;
+            if let Some(i) = (0..l.len()).find(|&i| l[i] > h[i] || l[i].is_nan() || h[i].is_nan()) {
+                return Err(Error::InvalidModel(format!(
+                    "ADMM: knot {t}, row {i}: empty bounds [{}, {}]",
+                    crate::error::Num(l[i]),
+                    crate::error::Num(h[i])
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The penalty of row `i` of knot `t` (`1000 ρ` on equality rows).
+    fn row_rho(&self, lo: f64, hi: f64) -> f64 {
+        if lo == hi { 1e3 * self.rho } else { self.rho }
+    }
+
+    /// Writes `mu_c = 1/ρ_i` and `d = y/ρ_i - z` into the knots.
+    fn set_rows(&self, lq: &mut LqProblem, lo: &[Vec<f64>], hi: &[Vec<f64>]) {
+        for (t, knot) in lq.knots.iter_mut().enumerate() {
+            for i in 0..knot.nc {
+                let rho = self.row_rho(lo[t][i], hi[t][i]);
+                knot.mu_c[i] = 1.0 / rho;
+                knot.d[i] = self.y[t][i] / rho - self.z[t][i];
+            }
+        }
+    }
+
+    fn factor(&mut self, lq: &LqProblem) -> Result<()> {
+        self.riccati.backward(lq, 0.0).map_err(lq_error)
+    }
+
+    /// `δ⁺` for the current `z`, `y` (new vectors, same factorisation), and `G δ⁺`.
+    fn x_update(&mut self, lq: &mut LqProblem) -> Result<()> {
+        for (t, knot) in lq.knots.iter_mut().enumerate() {
+            for i in 0..knot.nc {
+                knot.d[i] = self.y[t][i] * knot.mu_c[i] - self.z[t][i];
+            }
+        }
+        self.riccati.backward_vectors(lq).map_err(lq_error)?;
+        self.riccati.forward(lq, &mut self.sol).map_err(lq_error)?;
+        for (t, knot) in lq.knots.iter().enumerate() {
+            let g = &mut self.gd[t];
+            matvec(g, Accum::Replace, knot.C.as_ref(), slice(&self.sol.xs[t]), 1.0);
+            if knot.nu > 0 {
+                matvec(g, Accum::Add, knot.D.as_ref(), slice(&self.sol.us[t]), 1.0);
+            }
+        }
+        Ok(())
+    }
+
+    /// The relaxed projection and dual update; the residuals of the iteration.
+    fn z_y_update(&mut self, lq: &LqProblem, lo: &[Vec<f64>], hi: &[Vec<f64>]) -> Residuals {
+        let a = self.options.alpha;
+        let mut r = Residuals {
+            prim: 0.0,
+            dual: 0.0,
+            prim_scale: 0.0,
+            dual_scale: 0.0,
+        };
+        for t in 0..self.z.len() {
+            self.z_prev[t].copy_from_slice(&self.z[t]);
+            for i in 0..self.z[t].len() {
+                let rho = self.row_rho(lo[t][i], hi[t][i]);
+                let zh = a * self.gd[t][i] + (1.0 - a) * self.z_prev[t][i];
+                let z = (zh + self.y[t][i] / rho).max(lo[t][i]).min(hi[t][i]);
+                self.y[t][i] += rho * (zh - z);
+                self.z[t][i] = z;
+                r.prim = r.prim.max((self.gd[t][i] - z).abs());
+                r.prim_scale = r.prim_scale.max(self.gd[t][i].abs()).max(z.abs());
+                self.z_prev[t][i] = rho * (z - self.z_prev[t][i]);
+            }
+        }
+        // Dual residual ρ Gᵀ(z - z_prev) (z_prev now holds ρ (z - z_prev)) and Gᵀ y.
+        for (t, knot) in lq.knots.iter().enumerate() {
+            r.dual = r.dual.max(self.transpose_norm(knot, t, false));
+            r.dual_scale = r.dual_scale.max(self.transpose_norm(knot, t, true));
+        }
+        r
+    }
+
+    /// `|Gᵀ v|_∞` at knot `t` for `v = y` (`duals`) or the scaled change of `z`.
+    fn transpose_norm(&mut self, knot: &crate::lq::LqKnot, t: usize, duals: bool) -> f64 {
+        let v = if duals { &self.y[t] } else { &self.z_prev[t] };
+        matvec_t(&mut self.tx[t], Accum::Replace, knot.C.as_ref(), v, 1.0);
+        let mut m = norm_inf(&self.tx[t]);
+        if knot.nu > 0 {
+            matvec_t(&mut self.tu[t], Accum::Replace, knot.D.as_ref(), v, 1.0);
+            m = m.max(norm_inf(&self.tu[t]));
+        }
+        m
+    }
+
+    /// OSQP's penalty update; `true` if `ρ` changed (refactorisation needed).
+    fn update_rho(&mut self, r: &Residuals) -> bool {
+        let p = r.prim / r.prim_scale.max(1e-30);
+        let d = r.dual / r.dual_scale.max(1e-30);
+        if p == 0.0 || d == 0.0 {
+            return false;
+        }
+        let ratio = (p / d).sqrt();
+        if !(0.2..=5.0).contains(&ratio) {
+            self.rho = (self.rho * ratio).clamp(1e-6, 1e6);
+            return true;
+        }
+        false
+    }
+
+    /// The last solution `δ` (states, controls, co-states).
+    pub fn solution(&self) -> &LqSolution {
+        &self.sol
+    }
+
+    /// The multipliers `y` of the constraint rows (per knot).
+    pub fn multipliers(&self) -> &[Vec<f64>] {
+        &self.y
+    }
+
+    /// Iterations of the last solve.
+    pub fn iterations(&self) -> usize {
+        self.iters
+    }
+
+    /// Primal and dual residuals of the last iteration.
+    pub fn residuals(&self) -> (f64, f64) {
+        (self.prim, self.dual)
+    }
+
+    /// The current penalty `ρ`.
+    pub fn rho(&self) -> f64 {
+        self.rho
+    }
+}
+
+fn lq_error(e: LqError) -> Error {
+    Error::InvalidModel(format!("ADMM: LQ solve failed: {e}"))
+}

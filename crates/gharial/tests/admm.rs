@@ -1,0 +1,152 @@
+//! The stagewise ADMM QP solver against an independent QP solver: on the random
+//! box-constrained LQ problems of `tests/data/qp_reference.json` (control bounds, some
+//! with a terminal equality), its solution has Clarabel's optimal cost to 1e-6 and keeps
+//! the bounds to the ADMM tolerance; warm starts take fewer iterations; a solve allocates
+//! nothing; contradictory bounds are refused, infeasible ones end at the limit.
+
+#[path = "support/counting_alloc.rs"]
+mod counting_alloc;
+#[path = "support/lq_ocp.rs"]
+mod lq_ocp;
+
+#[global_allocator]
+static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
+
+use faer::Col;
+use gharial::lq::{LqKnot, LqProblem};
+use gharial::problem::ProblemData;
+use gharial::solvers::admm::{AdmmOptions, AdmmQp, AdmmStatus};
+use lq_ocp::*;
+
+/// The QP of a case: its exact LQ with one row per control (`D = I`) at every running
+/// knot and, with a target, one per state (`C = I`) at the last; the bounds of the rows.
+fn qp(case: &QpCase) -> (LqProblem, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let lq = &case.lq;
+    let mut p = exact_lq(lq, None);
+    let (mut lo, mut hi) = (Vec::new(), Vec::new());
+    let n = lq.n;
+    for t in 0..=n {
+        let old = &p.knots[t];
+        let nc = if t < n {
+            lq.nu
+        } else if case.target.is_some() {
+            lq.nx
+        } else {
+            0
+        };
+        let mut k = LqKnot::new(old.nx, old.nu, nc, old.nx_next);
+        k.Q.copy_from(&old.Q);
+        k.S.copy_from(&old.S);
+        k.R.copy_from(&old.R);
+        k.q = old.q.clone();
+        k.r = old.r.clone();
+        k.A.copy_from(&old.A);
+        k.B.copy_from(&old.B);
+        k.f = old.f.clone();
+        if t < n {
+            for i in 0..nc {
+                k.D[(i, i)] = 1.0;
+            }
+            lo.push(vec![-case.umax; nc]);
+            hi.push(vec![case.umax; nc]);
+        } else {
+            for i in 0..nc {
+                k.C[(i, i)] = 1.0;
+            }
+            let xt = case.target.clone().unwrap_or_default();
+            lo.push(xt.clone());
+            hi.push(xt);
+        }
+        p.knots[t] = k;
+    }
+    (p, lo, hi)
+}
+
+fn trajectory(cols: &[Col<f64>]) -> Vec<Vec<f64>> {
+    cols.iter().map(|c| c.iter().copied().collect()).collect()
+}
+
+#[test]
+fn admm_reaches_the_optimum_of_an_independent_qp_solver() {
+    let cases = qp_reference_cases();
+    assert!(cases.len() >= 6);
+    let opts = AdmmOptions::default().with(|o| {
+        o.eps_abs = 1e-9;
+        o.eps_rel = 0.0;
+        o.max_iters = 20_000;
+    });
+    for case in &cases {
+        let (mut lq, lo, hi) = qp(case);
+        let mut admm = AdmmQp::new(&lq, opts).unwrap();
+        let status = admm.solve(&mut lq, &lo, &hi, false).unwrap();
+        assert_eq!(status, AdmmStatus::Converged, "seed {}", case.seed);
+        let sol = admm.solution();
+        let (xs, us) = (trajectory(&sol.xs), trajectory(&sol.us));
+        let p = ocp(&case.lq, Some(case.umax), case.target.as_deref());
+        let mut data = ProblemData::new(&p, 1).unwrap();
+        let cost = data.evaluate(&p, &xs, &us);
+        let rel = (cost - case.clarabel_cost).abs() / case.clarabel_cost.abs().max(1.0);
+        assert!(
+            rel < 1e-6,
+            "seed {}: cost {cost} vs Clarabel {} ({rel:e})",
+            case.seed,
+            case.clarabel_cost
+        );
+        let worst = us
+            .iter()
+            .flatten()
+            .map(|u| u.abs() - case.umax)
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!(worst < 1e-8, "seed {}: bound exceeded by {worst:e}", case.seed);
+        assert!(worst > -1e-6, "seed {}: the bound is active", case.seed);
+        if let Some(xt) = &case.target {
+            let d = xs[case.lq.n]
+                .iter()
+                .zip(xt)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            assert!(d < 1e-7, "seed {}: terminal target missed by {d:e}", case.seed);
+        }
+        eprintln!(
+            "seed {}: {} ADMM iterations, rho {:.3e}",
+            case.seed,
+            admm.iterations(),
+            admm.rho()
+        );
+    }
+}
+
+#[test]
+fn a_warm_start_takes_fewer_iterations_and_bad_bounds_are_refused() {
+    let case = &qp_reference_cases()[0];
+    let (mut lq, lo, mut hi) = qp(case);
+    let mut admm = AdmmQp::new(&lq, AdmmOptions::default()).unwrap();
+    assert_eq!(admm.solve(&mut lq, &lo, &hi, false).unwrap(), AdmmStatus::Converged);
+    let cold = admm.iterations();
+    assert_eq!(admm.solve(&mut lq, &lo, &hi, true).unwrap(), AdmmStatus::Converged);
+    assert!(admm.iterations() < cold, "warm {} vs cold {cold}", admm.iterations());
+    let allocations = counting_alloc::local_allocations_during(|| {
+        admm.solve(&mut lq, &lo, &hi, false).unwrap();
+    });
+    assert_eq!(allocations, 0, "a solve allocates nothing");
+    hi[3][0] = lo[3][0] - 1.0;
+    let e = admm.solve(&mut lq, &lo, &hi, false).unwrap_err().to_string();
+    assert!(e.contains("knot 3, row 0"), "{e}");
+    assert!(admm.solve(&mut lq, &lo[..2], &hi, false).is_err());
+    assert!(AdmmQp::new(&lq, AdmmOptions::default().with(|o| o.alpha = 2.0)).is_err());
+}
+
+/// An infeasible QP (a terminal target out of reach of the bounded controls) ends at the
+/// iteration limit with a large primal residual, not in a hang.
+#[test]
+fn an_infeasible_qp_ends_at_the_iteration_limit() {
+    let case = qp_reference_cases().into_iter().find(|c| c.target.is_some()).unwrap();
+    let (mut lq, mut lo, mut hi) = qp(&case);
+    let n = case.lq.n;
+    lo[n].iter_mut().for_each(|v| *v = 1e3);
+    hi[n].iter_mut().for_each(|v| *v = 1e3);
+    let mut admm = AdmmQp::new(&lq, AdmmOptions::default().with(|o| o.max_iters = 300)).unwrap();
+    assert_eq!(admm.solve(&mut lq, &lo, &hi, false).unwrap(), AdmmStatus::MaxIterations);
+    assert_eq!(admm.iterations(), 300);
+    assert!(admm.residuals().0 > 1.0, "{:?}", admm.residuals());
+}
