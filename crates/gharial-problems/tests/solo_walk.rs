@@ -140,3 +140,24 @@ fn cycles_with_the_plant_do_not_allocate() {
     assert_eq!(count, 0);
     assert!(x.iter().all(|v| v.is_finite()));
 }
+
+#[test]
+fn bad_input_is_an_error() {
+    use gharial_problems::solo_walk::scenario as walk;
+    for slope in [f64::NAN, 0.6, -1.0] {
+        let e = walk(slope, COMMAND).unwrap_err().to_string();
+        assert!(e.contains("slope"), "{e}");
+    }
+    let e = walk(0.0, [f64::INFINITY, 0.0]).unwrap_err().to_string();
+    assert!(e.contains("command"), "{e}");
+    let no_swing = Gait {
+        double_support: 4,
+        single_support: 0,
+    };
+    let e = WalkTask::new(no_swing, COMMAND).unwrap_err().to_string();
+    assert!(e.contains("Gait"), "{e}");
+    let task = WalkTask::new(Gait::default(), COMMAND).unwrap();
+    let e = task.set_stage_target(40, 0.0).unwrap_err().to_string();
+    assert!(e.contains("stage object 40"), "{e}");
+    assert!(task.set_stage_target(39, 0.5).is_ok());
+}
