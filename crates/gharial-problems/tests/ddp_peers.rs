@@ -161,3 +161,31 @@ fn fddp_with_the_filter_line_search_reaches_crocoddyls_optimum() {
     let err = Ddp::new(ddp).setup(&ex.problem).unwrap_err().to_string();
     assert!(err.contains("filter_linesearch"), "{err}");
 }
+
+/// CSQP (ADMM at mim_solvers' defaults, eps_abs = eps_rel = 1e-4, warm-started) on the
+/// harness's constrained problems: converged to the KKT tolerance 1e-6 at the constrained
+/// optimum of aligator's ProxDDP (to 1e-6 relative), in at most mim_solvers' CSQP
+/// iterations (5, 37, 55, 11; it fails on `pendulum_box_term` after 500).
+#[test]
+fn csqp_converges_on_the_harness_constrained_problems() {
+    use gharial::solvers::csqp::{Csqp, CsqpOptions};
+    let cases = [
+        ("peers-lqr-box", 6.922115864443983, 5),
+        ("peers-lqr-box-term", 6.922417055326476, 37),
+        ("ur5-box", 0.3549432460007217, 55),
+        ("double-pendulum-box", 0.08484275536174778, 11),
+        ("double-pendulum-box-term", 0.08484701247338439, 50),
+    ];
+    for (name, cost, iters) in cases {
+        let ex = gharial_problems::build(name).unwrap();
+        let mut solver = Csqp::new(CsqpOptions::default().with(|o| o.max_iters = 500));
+        solver.setup(&ex.problem).unwrap();
+        let sol = solver
+            .solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0))
+            .unwrap();
+        assert_eq!(sol.status, Status::Converged, "{name}");
+        assert!(rel(sol.cost, cost) < 1e-6, "{name}: cost {} vs {cost}", sol.cost);
+        assert!(sol.iterations <= iters, "{name}: {} iterations", sol.iterations);
+        assert!(sol.prim_err <= 1e-6, "{name}: infeasibility {}", sol.prim_err);
+    }
+}

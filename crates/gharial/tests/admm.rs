@@ -150,3 +150,44 @@ fn an_infeasible_qp_ends_at_the_iteration_limit() {
     assert_eq!(admm.iterations(), 300);
     assert!(admm.residuals().0 > 1.0, "{:?}", admm.residuals());
 }
+
+/// CSQP on the same LQ problems written as OCPs (control bounds as `ControlError` in a
+/// box, the target as a terminal equality): Clarabel's optimum, the KKT conditions with
+/// the multipliers it returns, in few SQP iterations.
+#[test]
+fn csqp_reaches_the_optimum_of_an_independent_qp_solver() {
+    use gharial::problem::kkt_residuals;
+    use gharial::solvers::csqp::{Csqp, CsqpOptions};
+    use gharial::solvers::{InitialGuess, Solver, Status};
+    for case in &qp_reference_cases() {
+        let p = ocp(&case.lq, Some(case.umax), case.target.as_deref());
+        let (xs, us) = zero_guess(&p);
+        let opts = CsqpOptions::default().with(|o| {
+            o.tol = 1e-7;
+            o.admm = o.admm.with(|a| {
+                a.eps_abs = 1e-9;
+                a.eps_rel = 0.0;
+                a.max_iters = 20_000;
+            });
+        });
+        let mut solver = Csqp::new(opts);
+        solver.setup(&p).unwrap();
+        let sol = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap();
+        assert_eq!(sol.status, Status::Converged, "seed {}", case.seed);
+        assert!(sol.iterations <= 3, "seed {}: {} iterations", case.seed, sol.iterations);
+        let rel = (sol.cost - case.clarabel_cost).abs() / case.clarabel_cost.abs().max(1.0);
+        assert!(
+            rel < 1e-6,
+            "seed {}: cost {} vs Clarabel {}",
+            case.seed,
+            sol.cost,
+            case.clarabel_cost
+        );
+        let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+        assert!(kkt.max() < 1e-6, "seed {}: {kkt:?}", case.seed);
+        let allocations = counting_alloc::local_allocations_during(|| {
+            solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap();
+        });
+        assert_eq!(allocations, 0, "seed {}: a CSQP solve allocates nothing", case.seed);
+    }
+}

@@ -16,7 +16,8 @@
 //! `|C δx + D δu + d|² / (2 mu_c)`), so the factorisation is redone only when `ρ`
 //! changes and the other iterations solve for new vectors only. Equality rows take
 //! `1000 ρ` (OSQP's choice). Stopping: `|G δ - z|_∞ ≤ ε_abs + ε_rel max(|G δ|_∞, |z|_∞)`
-//! and `ρ |Gᵀ (z - z_prev)|_∞ ≤ ε_abs + ε_rel |Gᵀ y|_∞`. Every `rho_update_interval`
+//! and `ρ |Gᵀ (z - z_prev)|_∞ ≤ ε_abs + ε_rel |Gᵀ y|_∞`, checked every
+//! `check_interval` iterations. Every `rho_update_interval`
 //! iterations `ρ` is scaled by the square root of the ratio of the normalised primal
 //! and dual residuals when that changes it more than fivefold (OSQP's rule).
 
@@ -42,6 +43,10 @@ pub struct AdmmOptions {
     pub max_iters: usize,
     /// Iterations between penalty updates (default 25; 0: fixed `ρ`).
     pub rho_update_interval: usize,
+    /// Iterations between convergence checks (default 25, OSQP's `check_termination`):
+    /// a warm-started QP is not stopped after an iteration or two with the loose
+    /// residuals of its first steps.
+    pub check_interval: usize,
 }
 
 impl Default for AdmmOptions {
@@ -53,6 +58,7 @@ impl Default for AdmmOptions {
             eps_rel: 1e-4,
             max_iters: 1000,
             rho_update_interval: 25,
+            check_interval: 25,
         }
     }
 }
@@ -83,6 +89,9 @@ impl AdmmOptions {
         }
         if self.max_iters == 0 {
             return Err(Error::option("max_iters", "must be at least 1"));
+        }
+        if self.check_interval == 0 {
+            return Err(Error::option("check_interval", "must be at least 1"));
         }
         Ok(())
     }
@@ -176,7 +185,9 @@ impl AdmmQp {
             self.x_update(lq)?;
             let r = self.z_y_update(lq, lo, hi);
             (self.prim, self.dual) = (r.prim, r.dual);
-            if r.prim <= o.eps_abs + o.eps_rel * r.prim_scale && r.dual <= o.eps_abs + o.eps_rel * r.dual_scale {
+            let check = self.iters.is_multiple_of(o.check_interval) || self.iters == o.max_iters;
+            if check && r.prim <= o.eps_abs + o.eps_rel * r.prim_scale && r.dual <= o.eps_abs + o.eps_rel * r.dual_scale
+            {
                 return Ok(AdmmStatus::Converged);
             }
             if o.rho_update_interval > 0 && self.iters.is_multiple_of(o.rho_update_interval) && self.update_rho(&r) {
@@ -298,6 +309,16 @@ impl AdmmQp {
             return true;
         }
         false
+    }
+
+    /// After the caller moved its point by `alpha δ` (a step of an SQP iteration), moves
+    /// the splitting variable by the same fraction (`z ← (1 - α) z`), so that a warm start
+    /// of the next QP, whose variable is `δ - α δ`, starts from the same constraint values;
+    /// the duals and `ρ` stay.
+    pub fn follow_step(&mut self, alpha: f64) {
+        for z in &mut self.z {
+            z.iter_mut().for_each(|v| *v *= 1.0 - alpha);
+        }
     }
 
     /// The last solution `δ` (states, controls, co-states).

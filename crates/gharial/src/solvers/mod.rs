@@ -8,6 +8,7 @@
 
 pub mod admm;
 pub mod boxqp;
+pub mod csqp;
 pub mod ddp;
 pub mod filter;
 pub mod linesearch;

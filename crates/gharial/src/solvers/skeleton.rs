@@ -252,3 +252,44 @@ pub(crate) fn write_gains(sol: &mut Solution, stages: &[RiccatiStage]) {
         kk.copy_from(st.K());
     }
 }
+
+/// The filter of SQP's line search (Jordana et al. 2023, V-C): the (cost, gap) pairs of
+/// the last iterates; a trial is accepted unless one of them is at least as good in both.
+#[derive(Debug)]
+pub(crate) struct SqpFilter {
+    pairs: Vec<(f64, f64)>,
+    len: usize,
+    next: usize,
+}
+
+impl SqpFilter {
+    pub fn new(size: usize) -> Self {
+        Self {
+            pairs: vec![(0.0, 0.0); size],
+            len: 0,
+            next: 0,
+        }
+    }
+
+    /// Forgets every pair (a new solve).
+    pub fn clear(&mut self) {
+        self.len = 0;
+        self.next = 0;
+    }
+
+    /// Remembers the pair of an iterate, forgetting the oldest when full.
+    pub fn push(&mut self, cost: f64, gap: f64) {
+        self.pairs[self.next] = (cost, gap);
+        self.next = (self.next + 1) % self.pairs.len();
+        self.len = (self.len + 1).min(self.pairs.len());
+    }
+
+    /// Whether no remembered pair dominates `(cost, gap)`.
+    pub fn accepts(&self, cost: f64, gap: f64) -> bool {
+        let n = self.pairs.len();
+        (0..self.len).all(|i| {
+            let (c, g) = self.pairs[(self.next + n - 1 - i) % n];
+            !(c <= cost && g <= gap)
+        })
+    }
+}

@@ -11,7 +11,7 @@ use crate::linalg::{dot, matvec, norm_inf, slice, slice_mut};
 use crate::lq::{LqError, LqProblem, LqSolution, RiccatiSolver, RiccatiStage};
 use crate::problem::{InitialCondition, Problem, ProblemData, StageData, StageModel};
 use crate::solvers::boxqp::{BoxQp, BoxQpOptions};
-use crate::solvers::skeleton::{Receding, copy_stage_model, copy_trajectory, lq_for};
+use crate::solvers::skeleton::{Receding, SqpFilter, copy_stage_model, copy_trajectory, lq_for};
 use crate::solvers::{HessianApprox, InitialGuess};
 
 /// The terms of the expected improvement of FDDP (Mastalli et al. 2020, (19)-(20)) that do
@@ -75,47 +75,6 @@ pub(super) struct Workspace {
     /// Scratch of the initial gap of a trial.
     wu_x0: Vec<f64>,
     pub filter: SqpFilter,
-}
-
-/// The filter of SQP's line search (Jordana et al. 2023, V-C): the (cost, gap) pairs of
-/// the last iterates; a trial is accepted unless one of them is at least as good in both.
-#[derive(Debug)]
-pub(super) struct SqpFilter {
-    pairs: Vec<(f64, f64)>,
-    len: usize,
-    next: usize,
-}
-
-impl SqpFilter {
-    fn new(size: usize) -> Self {
-        Self {
-            pairs: vec![(0.0, 0.0); size],
-            len: 0,
-            next: 0,
-        }
-    }
-
-    /// Forgets every pair (a new solve).
-    pub fn clear(&mut self) {
-        self.len = 0;
-        self.next = 0;
-    }
-
-    /// Remembers the pair of an iterate, forgetting the oldest when full.
-    pub fn push(&mut self, cost: f64, gap: f64) {
-        self.pairs[self.next] = (cost, gap);
-        self.next = (self.next + 1) % self.pairs.len();
-        self.len = (self.len + 1).min(self.pairs.len());
-    }
-
-    /// Whether no remembered pair dominates `(cost, gap)`.
-    pub fn accepts(&self, cost: f64, gap: f64) -> bool {
-        let n = self.pairs.len();
-        (0..self.len).all(|i| {
-            let (c, g) = self.pairs[(self.next + n - 1 - i) % n];
-            !(c <= cost && g <= gap)
-        })
-    }
 }
 
 /// Refuses constraints (DDP and FDDP handle none), in the horizon or the queue.

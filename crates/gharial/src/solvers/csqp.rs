@@ -1,0 +1,533 @@
+//! CSQP (Jordana et al. 2023): stagewise SQP with path and terminal constraints, each QP
+//! subproblem solved by the stagewise ADMM of [`crate::solvers::admm`].
+//!
+//! Each iteration linearises the problem at the current point (Gauss-Newton cost
+//! Hessians, dynamics Jacobians and gaps, constraint Jacobians) into the QP
+//! ```text
+//! min  Σ ℓ-model(δx, δu)   s.t.  linearised dynamics with the gaps,
+//!      lo - h(x, u) ≤ h_x δx + h_u δu ≤ hi - h(x, u)
+//! ```
+//! where `[lo, hi]` are the constraint sets' bounds (equality, orthant and box sets:
+//! [`crate::constraints::ConstraintSet::box_bounds`]; other sets are refused), solves it by
+//! ADMM, and takes the step `x ⊕ α δx, u + α δu` with SQP's filter line search on (cost,
+//! 1-norm of the gaps and constraint violations). The QP's co-states and constraint
+//! multipliers are the multipliers of the next KKT test (an iteration whose step the
+//! filter rejects keeps the point, and its warm-started QP continues the ADMM iterations
+//! of the same subproblem): the solve has converged when
+//! `max(|∇L|_∞, |gaps|_∞, |violation|_∞)` is below `tol` (the paper's (20) with the
+//! constraints).
+
+use std::time::{Duration, Instant};
+
+use super::admm::{AdmmOptions, AdmmQp};
+use super::log::{COST, Column, Format, ITER, LogSink, Table};
+use super::skeleton::{ConstraintEntry, Signature, SqpFilter, constraint_index, copy_stage_model, push_record};
+use super::{Callback, InitialGuess, IterationRecord, Solution, Solver, Status};
+use crate::error::{Error, Result};
+use crate::linalg::{norm_inf, slice, slice_mut};
+use crate::lq::LqProblem;
+use crate::problem::{Problem, ProblemData, StageModel};
+
+/// Options of [`Csqp`].
+#[derive(Debug, Clone)]
+#[non_exhaustive]
+pub struct CsqpOptions {
+    /// KKT tolerance (default 1e-6).
+    pub tol: f64,
+    /// SQP iterations at most (default 300).
+    pub max_iters: usize,
+    /// The QP solver (default: mim_solvers' `eps_abs = eps_rel = 1e-4`, 1000 iterations).
+    pub admm: AdmmOptions,
+    /// Keep ADMM's `z`, duals and `ρ` from one SQP iteration to the next (default true;
+    /// false resets them, the paper's MPC setting keeps `ρ`).
+    pub warm_qp: bool,
+    /// Step lengths tried: `1, 1/2, ..., 2^-(linesearch_steps - 1)` (default 10).
+    pub linesearch_steps: usize,
+    /// The filter's memory (default 1).
+    pub filter_size: usize,
+    /// Wall-time budget (default none).
+    pub max_time: Option<Duration>,
+    /// Where the iteration log goes (default nowhere).
+    pub log: LogSink,
+}
+
+impl Default for CsqpOptions {
+    fn default() -> Self {
+        Self {
+            tol: 1e-6,
+            max_iters: 300,
+            admm: AdmmOptions::default(),
+            warm_qp: true,
+            linesearch_steps: 10,
+            filter_size: 1,
+            max_time: None,
+            log: LogSink::default(),
+        }
+    }
+}
+
+impl CsqpOptions {
+    /// The options after `f` changed them (builder style).
+    pub fn with(mut self, f: impl FnOnce(&mut Self)) -> Self {
+        f(&mut self);
+        self
+    }
+
+    /// Checks every option's range.
+    ///
+    /// # Errors
+    /// Names the offending option.
+    pub fn validate(&self) -> Result<()> {
+        crate::error::check_positive("tol", self.tol)?;
+        if self.max_iters == 0 {
+            return Err(Error::option("max_iters", "must be at least 1"));
+        }
+        if !(1..=60).contains(&self.linesearch_steps) {
+            return Err(Error::option("linesearch_steps", "must be in 1..=60"));
+        }
+        if !(1..=1000).contains(&self.filter_size) {
+            return Err(Error::option("filter_size", "must be in 1..=1000"));
+        }
+        self.admm.validate()
+    }
+}
+
+/// The iteration table of CSQP.
+pub const TABLE: Table = Table(&[
+    ITER,
+    Column {
+        name: "alpha",
+        width: 9,
+        format: Format::Sci(3),
+        value: |r| r.alpha,
+        meaning: "step length (the last one tried when no step was accepted)",
+    },
+    COST,
+    Column {
+        name: "KKT",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.stop,
+        meaning: "max(|grad L|, gaps, constraint violation) at the start of the step",
+    },
+    Column {
+        name: "infeas",
+        width: 10,
+        format: Format::Sci(3),
+        value: |r| r.prim_err,
+        meaning: "largest gap or constraint violation (infinity norm)",
+    },
+    Column {
+        name: "qp_iters",
+        width: 9,
+        format: Format::Count,
+        value: |r| r.inner_crit,
+        meaning: "ADMM iterations of the step's QP",
+    },
+    Column {
+        name: "rho",
+        width: 9,
+        format: Format::Sci(2),
+        value: |r| r.mu,
+        meaning: "ADMM penalty at the end of the step's QP",
+    },
+]);
+
+/// Everything a CSQP solve uses, allocated at setup.
+struct Workspace {
+    data: ProblemData,
+    lq: LqProblem,
+    admm: AdmmQp,
+    xs: Vec<Vec<f64>>,
+    us: Vec<Vec<f64>>,
+    xs_try: Vec<Vec<f64>>,
+    us_try: Vec<Vec<f64>>,
+    /// Co-states and path multipliers of the last QP.
+    lams: Vec<Vec<f64>>,
+    nus: Vec<Vec<f64>>,
+    /// Bounds of the QP's rows, and of the sets (scratch).
+    lo: Vec<Vec<f64>>,
+    hi: Vec<Vec<f64>>,
+    set_lo: Vec<f64>,
+    set_hi: Vec<f64>,
+    gx: Vec<Vec<f64>>,
+    gu: Vec<Vec<f64>>,
+    cons: Vec<ConstraintEntry>,
+    filter: SqpFilter,
+    cost: f64,
+}
+
+/// Measures of the current point.
+#[derive(Debug, Clone, Copy, Default)]
+struct Infeasibility {
+    /// Largest gap or violation.
+    max: f64,
+    /// Sum of the 1-norms of the gaps and violations.
+    l1: f64,
+}
+
+impl Workspace {
+    fn new(problem: &Problem, opts: &CsqpOptions) -> Result<Self> {
+        let n = problem.horizon();
+        let mut max_nr = 0;
+        for t in 0..=n {
+            for c in problem.constraints(t) {
+                let (mut lo, mut hi) = (vec![0.0; c.nr()], vec![0.0; c.nr()]);
+                if !c.set.box_bounds(&mut lo, &mut hi) {
+                    return Err(Error::InvalidModel(format!(
+                        "csqp handles equality, orthant and box sets: constraint `{}` of knot {t} has another \
+                         set (use proxddp for cones)",
+                        c.name
+                    )));
+                }
+                max_nr = max_nr.max(c.nr());
+            }
+        }
+        let lq = super::skeleton::lq_for(problem, true, None);
+        let admm = AdmmQp::new(&lq, opts.admm)?;
+        let s = Solution::new(problem, 0);
+        let rows = |t: usize| vec![0.0; problem.constraints(t).iter().map(|c| c.nr()).sum()];
+        Ok(Self {
+            data: ProblemData::new(problem, 1)?,
+            lq,
+            admm,
+            xs_try: s.xs.clone(),
+            us_try: s.us.clone(),
+            gx: (0..=n).map(|t| vec![0.0; problem.space(t).ndx()]).collect(),
+            gu: s.us.clone(),
+            xs: s.xs,
+            us: s.us,
+            lams: s.lambdas,
+            nus: s.nus,
+            lo: (0..=n).map(rows).collect(),
+            hi: (0..=n).map(rows).collect(),
+            set_lo: vec![0.0; max_nr],
+            set_hi: vec![0.0; max_nr],
+            cons: constraint_index(problem),
+            filter: SqpFilter::new(opts.filter_size),
+            cost: 0.0,
+        })
+    }
+
+    /// The guess as the current point, evaluated with derivatives; `false` if a value is
+    /// not finite.
+    fn load(&mut self, problem: &Problem, guess: &InitialGuess<'_>) -> bool {
+        super::skeleton::copy_trajectory(&mut self.xs, guess.xs);
+        super::skeleton::copy_trajectory(&mut self.us, guess.us);
+        let zero = |v: &mut Vec<Vec<f64>>| v.iter_mut().for_each(|x| x.fill(0.0));
+        match guess.lambdas {
+            Some(l) => super::skeleton::copy_trajectory(&mut self.lams, l),
+            None => zero(&mut self.lams),
+        }
+        match guess.nus {
+            Some(v) => super::skeleton::copy_trajectory(&mut self.nus, v),
+            None => zero(&mut self.nus),
+        }
+        self.filter.clear();
+        self.data.invalidate_constant_derivatives();
+        self.cost = self.data.evaluate(problem, &self.xs, &self.us);
+        self.cost.is_finite() && self.derivatives(problem)
+    }
+
+    /// Derivatives at the point of the last evaluation; `false` if one is not finite.
+    fn derivatives(&mut self, problem: &Problem) -> bool {
+        self.data.compute_derivatives(problem, &self.xs, &self.us);
+        self.data.stages.iter().all(|s| {
+            crate::linalg::all_finite(s.dyn_jx.as_ref())
+                && crate::linalg::all_finite(s.dyn_ju.as_ref())
+                && s.cost.lx().iter().chain(s.cost.lu()).all(|v| v.is_finite())
+        })
+    }
+
+    /// Gaps and constraint violations of the data's last evaluation.
+    fn infeasibility(&mut self, problem: &Problem) -> Infeasibility {
+        let mut m = Infeasibility::default();
+        let mut add = |v: f64| {
+            m.max = m.max.max(v.abs());
+            m.l1 += v.abs();
+        };
+        self.data.init.value().iter().for_each(|v| add(*v));
+        for sd in &self.data.stages {
+            sd.dyn_value().iter().for_each(|v| add(*v));
+        }
+        for e in &self.cons {
+            let c = &problem.constraints(e.t)[e.k];
+            let nr = c.nr();
+            c.set.box_bounds(&mut self.set_lo[..nr], &mut self.set_hi[..nr]);
+            let h = self.data.constraint_data(e.t)[e.k].value();
+            for i in 0..nr {
+                add((self.set_lo[i] - h[i]).max(h[i] - self.set_hi[i]).max(0.0));
+            }
+        }
+        m
+    }
+
+    /// The QP of the current point: knots and row bounds.
+    fn build_qp(&mut self, problem: &Problem) {
+        let n = problem.horizon();
+        crate::linalg::copy(self.lq.G0.as_mut(), self.data.init.jx.as_ref());
+        slice_mut(&mut self.lq.g0).copy_from_slice(self.data.init.value());
+        for t in 0..=n {
+            let knot = &mut self.lq.knots[t];
+            if t < n {
+                let sd = &self.data.stages[t];
+                copy_stage_model(knot, sd, true, true);
+                slice_mut(&mut knot.q).copy_from_slice(sd.cost.lx());
+                slice_mut(&mut knot.r).copy_from_slice(sd.cost.lu());
+                slice_mut(&mut knot.f).copy_from_slice(sd.dyn_value());
+            } else {
+                crate::linalg::copy(knot.Q.as_mut(), self.data.terminal_cost.lxx.as_ref());
+                slice_mut(&mut knot.q).copy_from_slice(self.data.terminal_cost.lx());
+            }
+        }
+        for e in &self.cons {
+            let (t, off) = (e.t, e.rows.start);
+            let c = &problem.constraints(t)[e.k];
+            let nr = c.nr();
+            let d = &self.data.constraint_data(t)[e.k];
+            let knot = &mut self.lq.knots[t];
+            crate::linalg::copy(knot.C.as_mut().subrows_mut(off, nr), d.jx.as_ref());
+            if knot.nu > 0 {
+                crate::linalg::copy(knot.D.as_mut().subrows_mut(off, nr), d.ju.as_ref());
+            }
+            c.set.box_bounds(&mut self.set_lo[..nr], &mut self.set_hi[..nr]);
+            let h = d.value();
+            for i in 0..nr {
+                self.lo[t][off + i] = self.set_lo[i] - h[i];
+                self.hi[t][off + i] = self.set_hi[i] - h[i];
+            }
+        }
+    }
+
+    /// The KKT residual with the multipliers of the last QP.
+    fn kkt(&mut self, problem: &Problem, infeasibility: f64) -> f64 {
+        self.data
+            .lagrangian_gradient(problem, &self.lams, &self.nus, &mut self.gx, &mut self.gu);
+        let dual = self.gx.iter().chain(&self.gu).map(|g| norm_inf(g)).fold(0.0, f64::max);
+        dual.max(infeasibility)
+    }
+
+    /// Takes the QP's multipliers as the current ones.
+    fn take_multipliers(&mut self) {
+        let sol = self.admm.solution();
+        for (l, s) in self.lams.iter_mut().zip(&sol.lambdas) {
+            l.copy_from_slice(slice(s));
+        }
+        for (v, y) in self.nus.iter_mut().zip(self.admm.multipliers()) {
+            v.copy_from_slice(y);
+        }
+    }
+
+    /// The trial `x ⊕ α δx, u + α δu`, evaluated: its cost and infeasibility.
+    fn trial(&mut self, problem: &Problem, alpha: f64) -> Option<(f64, Infeasibility)> {
+        let sol = self.admm.solution();
+        for t in 0..self.xs.len() {
+            let v = &mut self.gx[t];
+            for (vi, d) in v.iter_mut().zip(slice(&sol.xs[t])) {
+                *vi = alpha * d;
+            }
+            problem.space(t).integrate(&self.xs[t], v, &mut self.xs_try[t]);
+        }
+        for (t, u) in self.us_try.iter_mut().enumerate() {
+            for (j, ui) in u.iter_mut().enumerate() {
+                *ui = self.us[t][j] + alpha * sol.us[t][j];
+            }
+        }
+        let cost = self.data.evaluate(problem, &self.xs_try, &self.us_try);
+        let inf = self.infeasibility(problem);
+        (cost.is_finite() && inf.l1.is_finite()).then_some((cost, inf))
+    }
+}
+
+/// The CSQP solver (module documentation).
+pub struct Csqp {
+    /// Options; changes take effect at the next `setup`.
+    pub options: CsqpOptions,
+    ws: Option<Box<Workspace>>,
+    solution: Solution,
+    signature: Signature,
+}
+
+impl std::fmt::Debug for Csqp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Csqp")
+            .field("options", &self.options)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Csqp {
+    /// A solver with the given options (nothing allocated until `setup`).
+    pub fn new(options: CsqpOptions) -> Self {
+        Self {
+            options,
+            ws: None,
+            solution: Solution::default(),
+            signature: Signature::default(),
+        }
+    }
+
+    /// Validates the options and allocates every buffer for `problem`.
+    ///
+    /// # Errors
+    /// If an option is out of range or a constraint's set is not an equality, orthant or
+    /// box.
+    pub fn setup(&mut self, problem: &Problem) -> Result<()> {
+        self.options.validate()?;
+        self.signature = Signature::default();
+        self.ws = Some(Box::new(Workspace::new(problem, &self.options)?));
+        self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
+        self.signature = Signature::of(problem);
+        Ok(())
+    }
+
+    fn run(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        callback: Option<&mut dyn Callback>,
+    ) -> Result<&Solution> {
+        self.signature.check(problem, "csqp")?;
+        guess.check(problem)?;
+        let start = Instant::now();
+        let opts = &self.options;
+        let ws = self.ws.as_mut().expect("checked by the signature");
+        let sol = &mut self.solution;
+        sol.history.clear();
+        if opts.log.is_active() {
+            opts.log.line(format_args!("{}", TABLE.header()));
+        }
+        let (status, iters, kkt, inf) = if ws.load(problem, &guess) {
+            iterate(ws, problem, opts, sol, start, callback)
+        } else {
+            (Status::NonFinite, 0, f64::NAN, Infeasibility::default())
+        };
+        super::skeleton::copy_trajectory(&mut sol.xs, &ws.xs);
+        super::skeleton::copy_trajectory(&mut sol.us, &ws.us);
+        super::skeleton::copy_trajectory(&mut sol.lambdas, &ws.lams);
+        super::skeleton::copy_trajectory(&mut sol.nus, &ws.nus);
+        sol.status = status;
+        sol.iterations = iters;
+        sol.prim_err = inf.max;
+        sol.dual_err = kkt;
+        sol.cost = ws.cost;
+        sol.solve_time = start.elapsed();
+        Ok(&self.solution)
+    }
+}
+
+/// The SQP iterations; returns the status, the iterations, the last KKT residual and
+/// infeasibility.
+fn iterate(
+    ws: &mut Workspace,
+    problem: &Problem,
+    opts: &CsqpOptions,
+    sol: &mut Solution,
+    start: Instant,
+    mut callback: Option<&mut dyn Callback>,
+) -> (Status, usize, f64, Infeasibility) {
+    // The data's last evaluation is the current point.
+    let mut inf = ws.infeasibility(problem);
+    let mut warm = false;
+    for iter in 0.. {
+        ws.build_qp(problem);
+        let kkt = ws.kkt(problem, inf.max);
+        let stop = |s| (s, iter, kkt, inf);
+        if kkt <= opts.tol {
+            return stop(Status::Converged);
+        }
+        if opts.max_time.is_some_and(|b| start.elapsed() >= b) {
+            return stop(Status::TimeBudget);
+        }
+        if iter >= opts.max_iters {
+            return stop(Status::MaxIterations);
+        }
+        if ws.admm.solve(&mut ws.lq, &ws.lo, &ws.hi, warm).is_err() {
+            return stop(Status::RegularizationFailure);
+        }
+        warm = opts.warm_qp;
+        ws.take_multipliers();
+        ws.filter.push(ws.cost, inf.l1);
+        let mut record = IterationRecord {
+            iter,
+            cost: ws.cost,
+            stop: kkt,
+            prim_err: inf.max,
+            inner_crit: ws.admm.iterations() as f64,
+            mu: ws.admm.rho(),
+            ..Default::default()
+        };
+        let mut accepted = None;
+        for i in 0..opts.linesearch_steps {
+            record.alpha = 0.5_f64.powi(i as i32);
+            if let Some((c, t)) = ws.trial(problem, record.alpha)
+                && ws.filter.accepts(c, t.l1)
+            {
+                accepted = Some((c, t));
+                break;
+            }
+        }
+        push_record(sol, record, &opts.log, &TABLE);
+        match accepted {
+            Some((c, t)) => {
+                std::mem::swap(&mut ws.xs, &mut ws.xs_try);
+                std::mem::swap(&mut ws.us, &mut ws.us_try);
+                (ws.cost, inf) = (c, t);
+                ws.admm.follow_step(record.alpha);
+            }
+            // An inexact QP step can fail the filter near the solution; the next QP,
+            // warm-started, continues the ADMM iterations on the same subproblem.
+            None if opts.warm_qp => {
+                ws.cost = ws.data.evaluate(problem, &ws.xs, &ws.us);
+                inf = ws.infeasibility(problem);
+            }
+            None => return (Status::LinesearchFailure, iter + 1, kkt, inf),
+        }
+        if !ws.derivatives(problem) {
+            return (Status::NonFinite, iter + 1, kkt, inf);
+        }
+        if let Some(cb) = callback.as_mut()
+            && !cb.on_iteration(&record)
+        {
+            return (Status::Interrupted, iter + 1, kkt, inf);
+        }
+    }
+    unreachable!("the loop returns")
+}
+
+impl Solver for Csqp {
+    fn name(&self) -> &'static str {
+        "csqp"
+    }
+    fn setup(&mut self, problem: &Problem) -> Result<()> {
+        Csqp::setup(self, problem)
+    }
+    fn solve_with(
+        &mut self,
+        problem: &Problem,
+        guess: InitialGuess<'_>,
+        callback: Option<&mut dyn Callback>,
+    ) -> Result<&Solution> {
+        self.run(problem, guess, callback)
+    }
+    fn solution(&self) -> &Solution {
+        &self.solution
+    }
+    fn table(&self) -> Table {
+        TABLE
+    }
+    fn set_limits(&mut self, max_iters: usize, max_time: Option<Duration>) {
+        self.options.max_iters = max_iters;
+        self.options.max_time = max_time;
+    }
+    fn setup_receding(&mut self, _problem: &Problem, _queue: &[StageModel]) -> Result<()> {
+        Err(Error::InvalidModel(
+            "csqp does not run in a receding horizon yet (use proxddp or the DDP family)".into(),
+        ))
+    }
+    fn shift(&mut self, _problem: &Problem, _slot: Option<usize>) -> Result<()> {
+        Err(Error::InvalidModel(
+            "csqp::shift: no receding horizon was set up".into(),
+        ))
+    }
+}
