@@ -164,7 +164,7 @@ pub fn examples(args: &ExamplesArgs) -> i32 {
         let config = args.solver.config(&ex);
         let rollout = match &config {
             SolverConfig::ProxDdp(o) => format!("{:?}", o.rollout).to_lowercase(),
-            SolverConfig::Ddp(_) => "-".to_string(),
+            SolverConfig::Ddp(_) | SolverConfig::Csqp(_) => "-".to_string(),
         };
         match time_solves(&ex.problem, &ex.xs0, &ex.us0, &config, args.repeats) {
             Ok(t) => {
@@ -449,6 +449,14 @@ fn peers_settings(config: &SolverConfig) -> String {
             o.variant.name(),
             Num(o.reg_init),
             o.num_threads
+        ),
+        SolverConfig::Csqp(o) => format!(
+            "tol={} eps_abs={} eps_rel={} max_qp_iters={} warm_qp={}",
+            Num(o.tol),
+            Num(o.admm.eps_abs),
+            Num(o.admm.eps_rel),
+            o.admm.max_iters,
+            o.warm_qp
         ),
     }
 }

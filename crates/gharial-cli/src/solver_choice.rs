@@ -11,6 +11,7 @@ use clap::ValueEnum;
 use clap::builder::PossibleValue;
 use gharial::error::Num;
 use gharial::solvers::Solver;
+use gharial::solvers::csqp::{Csqp, CsqpOptions};
 use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::log::{LogSink, Table};
 use gharial::solvers::proxddp::{ACTIVE_SET_ITERS_MAX, Merit, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
@@ -24,25 +25,30 @@ use crate::{count, positive_int, positive_real};
 pub enum SolverKind {
     /// ProxDDP.
     ProxDdp,
-    /// A member of the DDP family.
+    /// A member of the DDP family (with SQP).
     Ddp(DdpVariant),
+    /// CSQP.
+    Csqp,
 }
 
 impl SolverKind {
     /// Every solver, in the order `gharial list` shows them.
-    pub const ALL: [SolverKind; 6] = [
+    pub const ALL: [SolverKind; 7] = [
         SolverKind::ProxDdp,
         SolverKind::Ddp(DdpVariant::Ddp),
         SolverKind::Ddp(DdpVariant::Fddp),
         SolverKind::Ddp(DdpVariant::BoxDdp),
         SolverKind::Ddp(DdpVariant::BoxFddp),
         SolverKind::Ddp(DdpVariant::Sqp),
+        SolverKind::Csqp,
     ];
 
-    /// The command-line name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`).
+    /// The command-line name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`,
+    /// `csqp`).
     pub fn name(self) -> &'static str {
         match self {
             SolverKind::ProxDdp => "proxddp",
+            SolverKind::Csqp => "csqp",
             SolverKind::Ddp(v) => v.name(),
         }
     }
@@ -57,6 +63,7 @@ impl SolverKind {
             SolverKind::Ddp(DdpVariant::BoxDdp) => "BoxDDP",
             SolverKind::Ddp(DdpVariant::BoxFddp) => "BoxFDDP",
             SolverKind::Ddp(DdpVariant::Sqp) => "SQP",
+            SolverKind::Csqp => "CSQP",
         }
     }
 
@@ -77,6 +84,9 @@ impl SolverKind {
             SolverKind::Ddp(DdpVariant::Sqp) => {
                 "stagewise SQP, Gauss-Newton multiple shooting with a filter line search (Jordana et al. 2023); no constraints"
             }
+            SolverKind::Csqp => {
+                "SQP with QPs by stagewise ADMM (Jordana et al. 2023); equality, orthant and box constraints"
+            }
         }
     }
 
@@ -85,6 +95,7 @@ impl SolverKind {
         let solver: Box<dyn Solver> = match self {
             SolverKind::ProxDdp => Box::new(ProxDdp::new(ProxDdpOptions::default())),
             SolverKind::Ddp(v) => Box::new(Ddp::new(DdpOptions::new(v))),
+            SolverKind::Csqp => Box::new(Csqp::new(CsqpOptions::default())),
         };
         solver.table()
     }
@@ -94,6 +105,7 @@ impl SolverKind {
         match self {
             SolverKind::ProxDdp => Fields::ProxDdp(PROXDDP_FIELDS),
             SolverKind::Ddp(_) => Fields::Ddp(DDP_FIELDS),
+            SolverKind::Csqp => Fields::Csqp(CSQP_FIELDS),
         }
     }
 }
@@ -310,6 +322,13 @@ impl SolverArgs {
                 self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads);
                 SolverConfig::Ddp(o)
             }
+            SolverKind::Csqp => {
+                let mut o = CsqpOptions::default();
+                // Single-threaded: --threads is refused by `check`.
+                let mut threads = 1;
+                self.common.apply(&mut o.tol, &mut o.max_iters, &mut threads);
+                SolverConfig::Csqp(o)
+            }
         }
     }
 }
@@ -321,6 +340,8 @@ pub enum SolverConfig {
     ProxDdp(ProxDdpOptions),
     /// The DDP family (the variant is in the options).
     Ddp(DdpOptions),
+    /// CSQP.
+    Csqp(CsqpOptions),
 }
 
 impl SolverConfig {
@@ -329,6 +350,7 @@ impl SolverConfig {
         match self {
             SolverConfig::ProxDdp(_) => SolverKind::ProxDdp,
             SolverConfig::Ddp(o) => SolverKind::Ddp(o.variant),
+            SolverConfig::Csqp(_) => SolverKind::Csqp,
         }
     }
 
@@ -337,6 +359,7 @@ impl SolverConfig {
         match self {
             SolverConfig::ProxDdp(o) => o.log = log,
             SolverConfig::Ddp(o) => o.log = log,
+            SolverConfig::Csqp(o) => o.log = log,
         }
     }
 
@@ -345,6 +368,7 @@ impl SolverConfig {
         match self {
             SolverConfig::ProxDdp(o) => Box::new(ProxDdp::new(o.clone())),
             SolverConfig::Ddp(o) => Box::new(Ddp::new(o.clone())),
+            SolverConfig::Csqp(o) => Box::new(Csqp::new(o.clone())),
         }
     }
 
@@ -360,6 +384,10 @@ impl SolverConfig {
                 let d = DdpOptions::new(o.variant);
                 marked_settings(DDP_FIELDS, o, &d, &d, args)
             }
+            SolverConfig::Csqp(o) => {
+                let d = CsqpOptions::default();
+                marked_settings(CSQP_FIELDS, o, &d, &d, args)
+            }
         }
     }
 
@@ -368,6 +396,7 @@ impl SolverConfig {
         let object = match self {
             SolverConfig::ProxDdp(o) => settings_object(PROXDDP_FIELDS, o),
             SolverConfig::Ddp(o) => settings_object(DDP_FIELDS, o),
+            SolverConfig::Csqp(o) => settings_object(CSQP_FIELDS, o),
         };
         Value::Object(object)
     }
@@ -416,6 +445,7 @@ struct Field<O> {
 enum Fields {
     ProxDdp(&'static [Field<ProxDdpOptions>]),
     Ddp(&'static [Field<DdpOptions>]),
+    Csqp(&'static [Field<CsqpOptions>]),
 }
 
 impl Fields {
@@ -424,6 +454,7 @@ impl Fields {
         match self {
             Fields::ProxDdp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
             Fields::Ddp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
+            Fields::Csqp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
         }
     }
 }
@@ -505,6 +536,34 @@ const DDP_FIELDS: &[Field<DdpOptions>] = &[
         name: "num_threads",
         value: |o| Setting::Count(o.num_threads),
         flag: Some(THREADS),
+    },
+];
+
+const CSQP_FIELDS: &[Field<CsqpOptions>] = &[
+    Field {
+        name: "tol",
+        value: |o| Setting::Real(o.tol),
+        flag: Some(TOL),
+    },
+    Field {
+        name: "max_iters",
+        value: |o| Setting::Count(o.max_iters),
+        flag: Some(MAX_ITERS),
+    },
+    Field {
+        name: "eps_abs",
+        value: |o| Setting::Real(o.admm.eps_abs),
+        flag: None,
+    },
+    Field {
+        name: "eps_rel",
+        value: |o| Setting::Real(o.admm.eps_rel),
+        flag: None,
+    },
+    Field {
+        name: "max_qp_iters",
+        value: |o| Setting::Count(o.admm.max_iters),
+        flag: None,
     },
 ];
 

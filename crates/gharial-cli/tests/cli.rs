@@ -14,7 +14,7 @@ fn gharial(args: &[&str]) -> Output {
 }
 
 /// The solvers' command-line names.
-const SOLVERS: [&str; 6] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp"];
+const SOLVERS: [&str; 7] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp"];
 
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
@@ -399,11 +399,12 @@ fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
         "BoxDDP",
         "BoxFDDP",
         "SQP",
+        "CSQP",
     ];
     assert_eq!(solvers("lqr"), all);
     assert_eq!(
         solvers("lqr_box"),
-        ["ProxDDP", "ProxDDP_ls", "ProxDDP_as", "BoxDDP", "BoxFDDP"]
+        ["ProxDDP", "ProxDDP_ls", "ProxDDP_as", "BoxDDP", "BoxFDDP", "CSQP"]
     );
     // All solvers of one problem together.
     assert!(lines[..all.len()].iter().all(|l| l["problem"] == "lqr"));
