@@ -112,33 +112,98 @@ fn closed_loop_on_the_unmodelled_slope() {
     check_walk("solo-walk-mpc-slope", &rec, &ms, gharial_problems::solo_walk::SLOPE);
 }
 
-#[test]
-fn cycles_with_the_plant_do_not_allocate() {
-    let mut sc = scenario("solo-walk-mpc").unwrap();
-    let mut mpc = sc.controller(ProxDdp::new(sc.example.proxddp.clone())).unwrap();
-    let p = &sc.example.problem;
-    let mut x = p.x0().unwrap().to_vec();
-    let mut next = x.clone();
-    let mut u = vec![0.0; p.nu(0)];
-    let spc = sc.steps_per_cycle;
-    let mut run = |sc: &mut MpcScenario, cycles: std::ops::Range<usize>| {
+/// A closed loop driven cycle by cycle: MPC solve, then the policy on the plant.
+struct Drive {
+    sc: MpcScenario,
+    mpc: gharial::mpc::Mpc<ProxDdp>,
+    x: Vec<f64>,
+    next: Vec<f64>,
+    u: Vec<f64>,
+}
+
+impl Drive {
+    fn new(threads: usize) -> Self {
+        let sc = scenario("solo-walk-mpc").unwrap();
+        let opts = sc.example.proxddp.clone().with(|o| o.num_threads = threads);
+        let mpc = sc.controller(ProxDdp::new(opts)).unwrap();
+        let p = &sc.example.problem;
+        let x = p.x0().unwrap().to_vec();
+        let u = vec![0.0; p.nu(0)];
+        Self {
+            next: x.clone(),
+            x,
+            u,
+            sc,
+            mpc,
+        }
+    }
+
+    /// Cycles `cycles`, each followed by its plant steps.
+    fn run(&mut self, cycles: std::ops::Range<usize>) {
+        let spc = self.sc.steps_per_cycle;
         for c in cycles {
             if c > 0 {
-                let id = mpc.shift().unwrap();
-                (sc.on_shift)(c, id).unwrap();
+                let id = self.mpc.shift().unwrap();
+                (self.sc.on_shift)(c, id).unwrap();
             }
-            mpc.solve(&x).unwrap();
+            self.mpc.solve(&self.x).unwrap();
             for k in c * spc..(c + 1) * spc {
-                mpc.control(&x, &mut u).unwrap();
-                sc.plant.step(k, &x, &u, &mut next).unwrap();
-                x.copy_from_slice(&next);
+                self.mpc.control(&self.x, &mut self.u).unwrap();
+                self.sc.plant.step(k, &self.x, &self.u, &mut self.next).unwrap();
+                self.x.copy_from_slice(&self.next);
             }
         }
-    };
-    run(&mut sc, 0..2);
-    let count = counting_alloc::local_allocations_during(|| run(&mut sc, 2..62));
-    assert_eq!(count, 0);
-    assert!(x.iter().all(|v| v.is_finite()));
+    }
+}
+
+/// Allocations of `cycles` cycles after two warm-up cycles.
+fn cycle_allocations(cycles: usize) -> usize {
+    let mut d = Drive::new(1);
+    d.run(0..2);
+    let count = counting_alloc::local_allocations_during(|| d.run(2..2 + cycles));
+    assert!(d.x.iter().all(|v| v.is_finite()));
+    count
+}
+
+#[test]
+fn cycles_with_the_plant_do_not_allocate() {
+    assert_eq!(cycle_allocations(60), 0);
+}
+
+/// The count the scenario must sustain, 10^4 cycles (minutes in release):
+/// `cargo test --release -p gharial-problems --test solo_walk -- --ignored`.
+#[test]
+#[ignore]
+fn ten_thousand_cycles_do_not_allocate() {
+    assert_eq!(cycle_allocations(10_000), 0);
+}
+
+/// The parallel Riccati (two legs) gives the serial closed loop, contact phases changing
+/// along it, to 1e-9 relative.
+#[test]
+fn the_parallel_riccati_gives_the_serial_closed_loop() {
+    let (mut serial, mut parallel) = (Drive::new(1), Drive::new(2));
+    serial.run(0..30);
+    parallel.run(0..30);
+    let scale = serial.x.iter().fold(1.0_f64, |m, v| m.max(v.abs()));
+    let diff = serial
+        .x
+        .iter()
+        .zip(&parallel.x)
+        .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(diff <= 1e-9 * scale, "{diff:e}");
+    let sol = (serial.mpc.solution(), parallel.mpc.solution());
+    let du = sol
+        .0
+        .us
+        .iter()
+        .flatten()
+        .zip(sol.1.us.iter().flatten())
+        .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(
+        du <= 1e-9 * sol.0.us.iter().flatten().fold(1.0_f64, |m, v| m.max(v.abs())),
+        "{du:e}"
+    );
 }
 
 #[test]
