@@ -19,6 +19,13 @@ pub struct SimulateArgs {
     /// Simulated time in seconds (at most 5000: the record keeps every plant state).
     #[arg(long, default_value_t = std::f64::consts::PI, value_parser = duration)]
     pub duration: f64,
+    /// Solo-12 walking only: tilt of the (unmodelled) ground about y, in radians (at most
+    /// 0.3; `solo-walk-mpc --slope 0.1` is `solo-walk-mpc-slope`).
+    #[arg(long, value_parser = slope, allow_negative_numbers = true)]
+    pub slope: Option<f64>,
+    /// Solo-12 walking only: the forward base velocity command in m/s (at most 1).
+    #[arg(long, value_parser = speed, allow_negative_numbers = true)]
+    pub speed: Option<f64>,
     /// Wall-time budget of each MPC cycle in milliseconds (default: none; the iteration
     /// budget is `--max-iters`, default the scenario's).
     #[arg(long, value_parser = crate::positive_real)]
@@ -41,6 +48,44 @@ fn duration(s: &str) -> Result<f64, String> {
     }
 }
 
+/// A ground slope in radians: finite, |slope| ≤ 0.3.
+fn slope(s: &str) -> Result<f64, String> {
+    bounded(s, 0.3, "rad")
+}
+
+/// A walking speed command in m/s: finite, |v| ≤ 1.
+fn speed(s: &str) -> Result<f64, String> {
+    bounded(s, 1.0, "m/s")
+}
+
+fn bounded(s: &str, max: f64, unit: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() <= max => Ok(v),
+        Ok(v) => Err(format!("must be a finite number within ±{max} {unit}, got {v}")),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// The scenario of the command line: by name, with the walking parameters if given.
+fn build_scenario(args: &SimulateArgs) -> gharial::Result<MpcScenario> {
+    if args.slope.is_none() && args.speed.is_none() {
+        return gharial_problems::mpc::scenario(&args.scenario);
+    }
+    use gharial_problems::solo_walk::{COMMAND, SLOPE};
+    let default_slope = match args.scenario.as_str() {
+        "solo-walk-mpc" => 0.0,
+        "solo-walk-mpc-slope" => SLOPE,
+        _ => {
+            return Err(gharial::Error::InvalidModel(format!(
+                "--slope and --speed are parameters of solo-walk-mpc, not of {}",
+                args.scenario
+            )));
+        }
+    };
+    let command = [args.speed.unwrap_or(COMMAND[0]), COMMAND[1]];
+    gharial_problems::solo_walk::scenario(args.slope.unwrap_or(default_slope), command)
+}
+
 /// Runs `gharial simulate`; returns the process exit code (0: every cycle returned a
 /// finite plan, 1: the loop stopped on an error, 2: invalid input).
 pub fn run(args: &SimulateArgs) -> i32 {
@@ -48,7 +93,7 @@ pub fn run(args: &SimulateArgs) -> i32 {
         eprintln!("gharial simulate: {e}");
         return 2;
     }
-    let mut sc = match gharial_problems::mpc::scenario(&args.scenario) {
+    let mut sc = match build_scenario(args) {
         Ok(s) => s,
         Err(e) => {
             eprintln!("gharial simulate: {e}");

@@ -559,3 +559,21 @@ fn solve_writes_the_figures_of_an_experiment() {
     let o = gharial(&["solve", "lqr", "--figures", std::env::temp_dir().to_str().unwrap()]);
     assert!(o.status.success() && stdout(&o).contains("no figure data"));
 }
+
+#[test]
+fn simulate_walks_solo_on_a_slope_given_on_the_command_line() {
+    let o = gharial(&[
+        "simulate",
+        "solo-walk-mpc",
+        "--slope",
+        "-0.05",
+        "--speed",
+        "0.1",
+        "--duration",
+        "0.12",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("cycles    10 (120 plant steps)"), "{text}");
+    assert!(text.contains("max friction-cone violation"), "{text}");
+}
