@@ -457,16 +457,7 @@ fn iterate(
             mu: ws.admm.rho(),
             ..Default::default()
         };
-        let mut accepted = None;
-        for i in 0..opts.linesearch_steps {
-            record.alpha = 0.5_f64.powi(i as i32);
-            if let Some((c, t)) = ws.trial(problem, record.alpha)
-                && ws.filter.accepts(c, t.l1)
-            {
-                accepted = Some((c, t));
-                break;
-            }
-        }
+        let accepted = filter_line_search(ws, problem, opts, &mut record.alpha);
         push_record(sol, record, &opts.log, &TABLE);
         match accepted {
             Some((c, t)) => {
@@ -493,6 +484,25 @@ fn iterate(
         }
     }
     unreachable!("the loop returns")
+}
+
+/// Step lengths `1, 1/2, ...` (the last tried in `alpha`) until a trial passes the
+/// filter; its cost and infeasibility.
+fn filter_line_search(
+    ws: &mut Workspace,
+    problem: &Problem,
+    opts: &CsqpOptions,
+    alpha: &mut f64,
+) -> Option<(f64, Infeasibility)> {
+    for i in 0..opts.linesearch_steps {
+        *alpha = 0.5_f64.powi(i as i32);
+        if let Some((c, t)) = ws.trial(problem, *alpha)
+            && ws.filter.accepts(c, t.l1)
+        {
+            return Some((c, t));
+        }
+    }
+    None
 }
 
 impl Solver for Csqp {
