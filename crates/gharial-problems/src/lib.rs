@@ -44,6 +44,7 @@ pub mod mpc;
 pub mod peer_robots;
 pub mod peers;
 pub mod pendulum;
+pub mod profiles;
 pub mod quadrotor;
 pub mod se2_car;
 pub mod solo_jump;

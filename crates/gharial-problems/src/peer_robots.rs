@@ -44,7 +44,8 @@ use crate::lqr::terminal_state;
 /// The UR5 of example-robot-data 5.0.0 (sha256 `cede880f...`).
 const UR5_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/ur5_robot.urdf");
 /// The double pendulum of example-robot-data 5.0.0 (sha256 `da35e784...`).
-const DOUBLE_PENDULUM_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/double_pendulum.urdf");
+pub(crate) const DOUBLE_PENDULUM_URDF: &str =
+    include_str!("../../gharial-multibody/tests/data/robots/double_pendulum.urdf");
 
 /// Time step and horizon of every robot problem of the harness.
 const DT: f64 = 0.01;
@@ -141,9 +142,21 @@ impl Robot {
 /// # Errors
 /// Never for these fixed numbers (constructors are fallible in general).
 pub fn ur5(variant: Ur5Variant) -> Result<Example> {
-    let robot = Robot::load(UR5_URDF)?;
     let q0 = [0.0, -1.0, 1.0, -0.5, -0.5, 0.0];
     let x0: Vec<f64> = q0.iter().copied().chain([0.0; 6]).collect();
+    ur5_from(variant, &x0)
+}
+
+/// The UR5 reaching problem from the state `x0 = (q0, v0)`, its state regularised towards
+/// `(q0, 0)` (for the harness's `x0`, [`ur5`]).
+///
+/// # Errors
+/// If `x0` is not a UR5 state (12 numbers).
+pub(crate) fn ur5_from(variant: Ur5Variant, x0: &[f64]) -> Result<Example> {
+    let robot = Robot::load(UR5_URDF)?;
+    let nq = robot.space.nq();
+    let mut x_ref = x0.to_vec();
+    x_ref.get_mut(nq..).into_iter().flatten().for_each(|v| *v = 0.0);
     let target = [0.3, 0.5, 0.5];
     let nu = robot.nu();
     let ee = Some(("tool0", &target[..]));
@@ -160,9 +173,9 @@ pub fn ur5(variant: Ur5Variant) -> Result<Example> {
         ee: 1000.0,
     };
     let (mut problem, us0) = robot.problem(
-        &x0,
-        robot.cost(&x0, &running, ee, nu, DT)?,
-        robot.cost(&x0, &terminal, ee, 0, 1.0)?,
+        x0,
+        robot.cost(&x_ref, &running, ee, nu, DT)?,
+        robot.cost(&x_ref, &terminal, ee, 0, 1.0)?,
     )?;
     let (name, description) = match variant {
         Ur5Variant::Reach => (

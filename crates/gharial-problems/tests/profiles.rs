@@ -1,0 +1,146 @@
+//! The randomised families of `profiles`: reproducible from the seed, distinct
+//! instances in the documented ranges, valid problems whose first instances the solvers
+//! solve (KKT residuals recomputed independently of the solver), and clear errors.
+
+use gharial::problem::kkt_residuals;
+use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
+use gharial::solvers::proxddp::ProxDdp;
+use gharial::solvers::{InitialGuess, Solution, Solver};
+use gharial_problems::profiles::{FAMILIES, MAX_COUNT, family};
+use gharial_problems::{Example, total_cost};
+
+fn x0(ex: &Example) -> Vec<f64> {
+    ex.problem.x0().expect("fixed initial state").to_vec()
+}
+
+#[test]
+fn instances_are_reproducible_from_the_seed_and_distinct() {
+    for info in FAMILIES {
+        let a = family(info.name, 7, 4).unwrap();
+        let b = family(info.name, 7, 4).unwrap();
+        let prefix = family(info.name, 7, 2).unwrap();
+        let other = family(info.name, 8, 4).unwrap();
+        assert_eq!(a.len(), 4);
+        for i in 0..4 {
+            assert_eq!(
+                x0(&a[i]),
+                x0(&b[i]),
+                "{} instance {i} differs between two builds",
+                info.name
+            );
+            assert_eq!(a[i].xs0, b[i].xs0);
+            assert_eq!(a[i].us0, b[i].us0);
+            assert_ne!(
+                x0(&a[i]),
+                x0(&other[i]),
+                "{} instance {i}: seeds 7 and 8 agree",
+                info.name
+            );
+            for j in 0..i {
+                assert_ne!(x0(&a[i]), x0(&a[j]), "{} instances {j} and {i} coincide", info.name);
+            }
+        }
+        for (p, q) in prefix.iter().zip(&a) {
+            assert_eq!(x0(p), x0(q), "{}: a smaller count is not a prefix", info.name);
+        }
+    }
+}
+
+#[test]
+fn initial_states_are_in_the_documented_ranges() {
+    let pi = std::f64::consts::PI;
+    for ex in family("reach", 3, 20).unwrap() {
+        let x = x0(&ex);
+        assert_eq!(x.len(), 12);
+        assert!(x[..6].iter().all(|q| q.abs() <= pi), "{x:?}");
+        assert!(x[6..].iter().all(|v| *v == 0.0), "{x:?}");
+    }
+    for ex in family("pendulum", 3, 20).unwrap() {
+        let x = x0(&ex);
+        assert!(x[0].abs() <= pi && x[1..] == [0.0; 3], "{x:?}");
+        assert_eq!(ex.problem.nu(0), 1, "the paper's double pendulum has one actuator");
+    }
+    for ex in family("quadrotor", 3, 20).unwrap() {
+        let x = x0(&ex);
+        assert!(x[..3].iter().all(|p| p.abs() <= 1.0), "{x:?}");
+        let norm: f64 = x[3..7].iter().map(|q| q * q).sum::<f64>().sqrt();
+        assert!((norm - 1.0).abs() < 1e-12, "quaternion norm {norm}");
+        assert!(x[7..].iter().all(|v| *v == 0.0), "{x:?}");
+    }
+}
+
+#[test]
+fn instances_are_valid_problems_with_the_paper_warm_start() {
+    for info in FAMILIES {
+        for ex in family(info.name, 1, 3).unwrap() {
+            ex.problem.check_trajectory(&ex.xs0, &ex.us0).unwrap();
+            assert!(
+                ex.xs0.iter().all(|x| *x == ex.xs0[0]),
+                "{}: the state guess is x0",
+                info.name
+            );
+            let cost = total_cost(&ex.problem, &ex.xs0, &ex.us0).unwrap();
+            assert!(cost.is_finite() && cost > 0.0, "{}: initial cost {cost}", info.name);
+        }
+    }
+}
+
+/// Solves `ex` with SQP at tol 1e-4, then with ProxDDP if SQP did not converge.
+fn solve(ex: &Example) -> Option<Solution> {
+    let guess = || InitialGuess::primal(&ex.xs0, &ex.us0);
+    let mut sqp = Ddp::new(DdpOptions::new(DdpVariant::Sqp).with(|o| {
+        o.tol = 1e-4;
+        o.max_iters = 200;
+    }));
+    sqp.setup(&ex.problem).unwrap();
+    if sqp.solve(&ex.problem, guess()).unwrap().status.converged() {
+        return Some(sqp.solution().clone());
+    }
+    let mut prox = ProxDdp::new(ex.proxddp.clone().with(|o| o.tol = 1e-4));
+    prox.setup(&ex.problem).unwrap();
+    let sol = prox.solve(&ex.problem, guess()).unwrap();
+    sol.status.converged().then(|| sol.clone())
+}
+
+/// Some instances are hard (the point of the benchmark): of the first four of each
+/// family at least two solve, and every solution passes the independent checks.
+#[test]
+fn the_first_instances_of_each_family_solve() {
+    for info in FAMILIES {
+        let mut solved = 0;
+        for (i, ex) in family(info.name, 1, 4).unwrap().iter().enumerate() {
+            let Some(sol) = solve(ex) else { continue };
+            solved += 1;
+            let kkt = kkt_residuals(&ex.problem, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+            assert!(kkt.max() < 1e-3, "{} instance {i}: KKT {kkt:?}", info.name);
+            let start = total_cost(&ex.problem, &ex.xs0, &ex.us0).unwrap();
+            assert!(
+                sol.cost < start,
+                "{} instance {i}: cost {} from {start}",
+                info.name,
+                sol.cost
+            );
+            if info.name == "pendulum" {
+                // Upright: both angles near 0 modulo 2π.
+                let x = &sol.xs[ex.problem.horizon()];
+                assert!(
+                    x[0].cos() > 0.99 && x[1].cos() > 0.99,
+                    "pendulum instance {i} ends at {x:?}"
+                );
+            }
+        }
+        assert!(solved >= 2, "{}: {solved} of the first 4 instances solved", info.name);
+    }
+}
+
+#[test]
+fn bad_names_and_counts_are_errors() {
+    let e = family("humanoid", 1, 3).unwrap_err().to_string();
+    assert!(
+        e.contains("humanoid") && e.contains("reach, quadrotor, pendulum"),
+        "{e}"
+    );
+    let e = family("reach", 1, MAX_COUNT + 1).unwrap_err().to_string();
+    assert!(e.contains(&MAX_COUNT.to_string()), "{e}");
+    assert!(family("pendulum", 1, 0).unwrap().is_empty());
+}
