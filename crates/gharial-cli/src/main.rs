@@ -12,6 +12,7 @@ macro_rules! out {
 }
 
 mod bench;
+mod bench_profile;
 mod bench_solve;
 mod simulate;
 mod solve;
@@ -50,6 +51,9 @@ enum BenchCommand {
     /// The problems of the peer harness, as JSON lines in its format: ProxDDP and the
     /// DDP family on the problems each takes.
     Peers(bench_solve::PeersArgs),
+    /// The stagewise-SQP paper's Fig. 1: the fraction of a randomised family's instances
+    /// each solver solves within an iteration budget, as CSV.
+    Profile(bench_profile::ProfileArgs),
     /// Proximal Riccati solver (serial and parallel) on the peers' random LQ problems.
     Riccati {
         /// Thread counts (legs of the parallel solver) to time (1 = the serial solver),
@@ -206,6 +210,9 @@ fn main() {
         Command::Bench {
             which: BenchCommand::Peers(args),
         } => std::process::exit(bench_solve::peers(&args)),
+        Command::Bench {
+            which: BenchCommand::Profile(args),
+        } => std::process::exit(bench_profile::run(&args)),
         Command::Bench {
             which:
                 BenchCommand::Riccati {
