@@ -70,8 +70,8 @@
 //!
 //! | scenario | base height / standing | mean velocity, 2nd half | friction cones | cycle time: median, p99, max |
 //! |---|---|---|---|---|
-//! | `solo-walk-mpc` | 1.000 – 1.032 | 0.191 m/s (4.7 % below the command) | inside by 0.72 N or more | 17.6, 24.6, 25.7 ms |
-//! | `solo-walk-mpc-slope` | 0.365 – 1.001 | 0.185 m/s (7.3 % below) | out by up to 4.8 N | 21.5, 27.3, 32.6 ms |
+//! | `solo-walk-mpc` | 1.000 – 1.032 | 0.191 m/s (4.7 % below the command) | inside by 0.72 N or more | 14.6, 31.1, 33.9 ms |
+//! | `solo-walk-mpc-slope` | 0.365 – 1.001 | 0.185 m/s (7.3 % below) | out by up to 4.8 N | 14.4, 20.9, 21.9 ms |
 //!
 //! On the slope the controller, which believes the ground flat, keeps the base at its
 //! standing height above `z = 0` while the ground rises 0.19 m over the 1.9 m walked, so
@@ -79,14 +79,15 @@
 //! pushed up by the plant's contacts with forces the controller does not plan, which
 //! leave the cones. Over the tests' 1.5 s (`tests/solo_walk.rs`) both scenarios keep the
 //! base within 8 % of the standing height, the velocity within 7 % of the command and
-//! every stance force inside its cone. A cycle costs 12-20 ms: each stage solves the
-//! contact dynamics and its derivatives once for its dynamics and once more for every
-//! friction-cone and contact-force residual of each stance foot (5 to 9 times per stage),
-//! since each residual keeps its own contact data.
+//! every stance force inside its cone. A cycle costs 11-34 ms: each stage solves the
+//! contact dynamics and their derivatives three times, for its dynamics, for the stacked
+//! contact-force cost and for the stacked friction cones
+//! ([`StackedContactResidual`]; with one residual per foot it was 5 to 9 times, median
+//! cycle 17.6 ms in an earlier run).
 
 use std::sync::{Arc, Mutex};
 
-use gharial::constraints::SecondOrderCone;
+use gharial::constraints::{ConstraintSet, ConstraintSetProduct, SecondOrderCone};
 use gharial::costs::{CostStack, QuadraticControlCost, QuadraticResidualCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, SemiImplicitEuler};
 use gharial::functions::{Slice, StageFunction, Unary};
@@ -103,7 +104,7 @@ use gharial_multibody::{
 };
 use gharial_robotics::residuals::{
     ContactForceResidual, FlyHighResidual, FrameTranslationResidual, FrameVelocityResidual, FrictionCone,
-    FrictionConeResidual, effort_limits,
+    FrictionConeResidual, StackedContactResidual, effort_limits,
 };
 use gharial_robotics::{Actuation, ContactSpec, MultibodyConstraintFwdDynamics, MultibodyPhaseSpace};
 
@@ -573,14 +574,19 @@ fn stage_model(
     let stance = phase.stance_feet();
     let load = solo.model.total_mass() * solo.model.gravity.linear.z.abs() / stance.len() as f64;
     let touchdowns = gait.touchdowns(node);
+    if W_FORCE > 0.0 {
+        // One contact solve for the forces of all stance feet.
+        let parts = (0..stance.len())
+            .map(|k| ContactForceResidual::new(dyn_.clone(), k, &[0.0, 0.0, load]))
+            .collect::<Result<Vec<_>>>()?;
+        let r = StackedContactResidual::new(parts)?;
+        let c = QuadraticResidualCost::diagonal(Arc::new(r), &vec![W_FORCE; 3 * stance.len()])?;
+        cost = cost.with("forces", Arc::new(c), DT)?;
+    }
     for j in 0..4 {
         let name = FEET[j];
         let stance_index = stance.iter().position(|&s| s == j);
-        if let (Some(k), true) = (stance_index, W_FORCE > 0.0) {
-            let r = ContactForceResidual::new(dyn_.clone(), k, &[0.0, 0.0, load])?;
-            let c = QuadraticResidualCost::diagonal(Arc::new(r), &[W_FORCE; 3])?;
-            cost = cost.with(format!("force_{name}"), Arc::new(c), DT)?;
-        } else if stance_index.is_none() {
+        if stance_index.is_none() {
             let r = Unary::new(Arc::new(FlyHighResidual::new(&solo.space, name, FLY_HIGH_SLOPE)?), nu);
             let c = QuadraticResidualCost::diagonal(Arc::new(r), &[W_FLY_HIGH; 2])?;
             cost = cost.with(format!("fly_high_{name}"), Arc::new(c), DT)?;
@@ -603,14 +609,18 @@ fn stage_model(
     }
     let step = SemiImplicitEuler::new(dyn_.clone(), solo.space.configuration().clone(), DT)?;
     let mut stage = StageModel::new(Arc::new(cost), Dynamics::Explicit(Arc::new(step)))?;
-    for k in 0..stance.len() {
-        let r = FrictionConeResidual::new(dyn_.clone(), k, FrictionCone::vertical(MU)?)?;
-        stage.add_constraint(StageConstraint::new(
-            format!("friction cone {}", FEET[stance[k]]),
-            Arc::new(r),
-            Arc::new(SecondOrderCone::new(3)?),
-        ))?;
-    }
+    // The friction cones of all stance feet, with one contact solve.
+    let cones = (0..stance.len())
+        .map(|k| FrictionConeResidual::new(dyn_.clone(), k, FrictionCone::vertical(MU)?))
+        .collect::<Result<Vec<_>>>()?;
+    let blocks = (0..stance.len())
+        .map(|_| Ok((Arc::new(SecondOrderCone::new(3)?) as Arc<dyn ConstraintSet>, 3)))
+        .collect::<Result<Vec<_>>>()?;
+    stage.add_constraint(StageConstraint::new(
+        "friction cones",
+        Arc::new(StackedContactResidual::new(cones)?),
+        Arc::new(ConstraintSetProduct::new(blocks)?),
+    ))?;
     let dofs = solo
         .actuation
         .actuated_dofs()

@@ -30,7 +30,8 @@ use gharial_robotics::residuals::{
     CenterOfMassTranslationResidual, CenterOfMassVelocityResidual, ContactForceResidual, FlyHighResidual, ForceMap,
     FramePlacementResidual, FrameRotationResidual, FrameTranslationResidual, FrameVelocityResidual, FrictionCone,
     FrictionConeResidual, GravityCompensationResidual, RelativePlacementResidual, SmoothFrictionCone,
-    SmoothFrictionConeResidual, WrenchCone, WrenchConeResidual, effort_limits, position_limits, velocity_limits,
+    SmoothFrictionConeResidual, StackedContactResidual, WrenchCone, WrenchConeResidual, effort_limits, position_limits,
+    velocity_limits,
 };
 use gharial_robotics::{Actuation, ContactSpec, MultibodyConstraintFwdDynamics, MultibodyPhaseSpace};
 use rand::SeedableRng;
@@ -231,6 +232,53 @@ fn contact_residual_jacobians_match_finite_differences() {
             &format!("g1 contact {k}: friction cone of a 6D contact"),
         );
     }
+}
+
+/// A stack of contact residuals equals its parts, value and Jacobians, stacked (one
+/// contact solve instead of one per part), and passes the finite-difference check;
+/// residuals of different dynamics models are refused.
+#[test]
+fn stacked_contact_residuals_equal_their_parts() {
+    let mut rng = SmallRng::seed_from_u64(11);
+    let dynamics = solo_dynamics(ReferenceFrame::LocalWorldAligned);
+    let space = dynamics.phase_space().clone();
+    let nu = dynamics.actuation().nu();
+    let cone = FrictionCone::vertical(0.8).unwrap();
+    let parts = |d: &Arc<MultibodyConstraintFwdDynamics>| -> Vec<FrictionConeResidual> {
+        [3, 0, 2]
+            .iter()
+            .map(|&k| FrictionConeResidual::new(d.clone(), k, cone.clone()).unwrap())
+            .collect()
+    };
+    let stack = StackedContactResidual::new(parts(&dynamics)).unwrap();
+    assert_eq!(stack.nr(), 9);
+    for _ in 0..2 {
+        let (x, u) = (random_state(&space, &mut rng), random_vec(&mut rng, nu, 2.0));
+        let mut sd = StageFunctionData::new(stack.ndx(), nu, stack.nr(), stack.create_workspace());
+        stack.evaluate(&x, &u, &mut sd);
+        stack.jacobians(&x, &u, &mut sd);
+        for (i, p) in parts(&dynamics).iter().enumerate() {
+            let mut pd = StageFunctionData::new(p.ndx(), nu, 3, p.create_workspace());
+            p.evaluate(&x, &u, &mut pd);
+            p.jacobians(&x, &u, &mut pd);
+            for r in 0..3 {
+                assert_eq!(sd.value[3 * i + r], pd.value[r], "part {i} row {r}");
+                for j in 0..p.ndx() {
+                    assert_eq!(sd.jx[(3 * i + r, j)], pd.jx[(r, j)], "part {i} jx");
+                }
+                for j in 0..nu {
+                    assert_eq!(sd.ju[(3 * i + r, j)], pd.ju[(r, j)], "part {i} ju");
+                }
+            }
+        }
+        check_stage(&stack, &space, &x, &u, "stacked friction cones");
+    }
+    let other = solo_dynamics(ReferenceFrame::Local);
+    let mut mixed = parts(&dynamics);
+    mixed.push(FrictionConeResidual::new(other, 1, cone.clone()).unwrap());
+    let e = StackedContactResidual::new(mixed).unwrap_err().to_string();
+    assert!(e.contains("residual 3"), "{e}");
+    assert!(StackedContactResidual::<FrictionCone>::new(vec![]).is_err());
 }
 
 #[test]

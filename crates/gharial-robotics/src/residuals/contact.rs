@@ -494,3 +494,103 @@ impl ForceMap for WrenchCone {
         }
     }
 }
+
+/// Several residuals of contacts of one constrained dynamics, stacked in the given order
+/// (e.g. the friction cones of all stance feet of a stage): one contact solve, and one
+/// contact-force derivative pass, for all of them.
+#[derive(Debug)]
+pub struct StackedContactResidual<M: ForceMap> {
+    parts: Vec<ContactResidual<M>>,
+    nr: usize,
+}
+
+/// Scratch of a [`StackedContactResidual`]: the constrained dynamics at the last point
+/// and `∂m/∂f` of each part.
+struct StackedWs {
+    dynamics: ContactDynamicsData,
+    dm_df: Vec<Mat<f64>>,
+}
+
+impl<M: ForceMap> StackedContactResidual<M> {
+    /// The stack of `parts`.
+    ///
+    /// # Errors
+    /// If `parts` is empty or its residuals do not share one dynamics model.
+    pub fn new(parts: Vec<ContactResidual<M>>) -> Result<Self> {
+        let Some(first) = parts.first() else {
+            return Err(Error::InvalidModel("StackedContactResidual: no residual given".into()));
+        };
+        if let Some(k) = parts.iter().position(|p| !Arc::ptr_eq(&p.dynamics, &first.dynamics)) {
+            return Err(Error::InvalidModel(format!(
+                "StackedContactResidual: residual {k} reads another dynamics model than residual 0"
+            )));
+        }
+        let nr = parts.iter().map(|p| p.map.nr()).sum();
+        Ok(Self { parts, nr })
+    }
+
+    /// The stacked residuals.
+    pub fn parts(&self) -> &[ContactResidual<M>] {
+        &self.parts
+    }
+
+    fn dynamics(&self) -> &MultibodyConstraintFwdDynamics {
+        &self.parts[0].dynamics
+    }
+}
+
+impl<M: ForceMap> StageFunction for StackedContactResidual<M> {
+    fn nx(&self) -> usize {
+        self.parts[0].nx()
+    }
+    fn ndx(&self) -> usize {
+        self.parts[0].ndx()
+    }
+    fn nu(&self) -> usize {
+        self.parts[0].nu()
+    }
+    fn nr(&self) -> usize {
+        self.nr
+    }
+    fn create_workspace(&self) -> Workspace {
+        Box::new(StackedWs {
+            dynamics: self.dynamics().create_contact_data(),
+            dm_df: self.parts.iter().map(|p| Mat::zeros(p.map.nr(), p.map.nf())).collect(),
+        })
+    }
+
+    fn evaluate(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
+        let w: &mut StackedWs = ws(&mut data.ws);
+        let out = slice_mut(&mut data.value);
+        let Ok(lambda) = self.dynamics().contact_forces(x, u, &mut w.dynamics) else {
+            out.fill(f64::NAN);
+            return;
+        };
+        let mut off = 0;
+        for p in &self.parts {
+            let nr = p.map.nr();
+            p.map.value(&lambda[p.rows.clone()], &mut out[off..off + nr]);
+            off += nr;
+        }
+    }
+
+    fn jacobians(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
+        let w: &mut StackedWs = ws(&mut data.ws);
+        if self.dynamics().contact_force_jacobians(x, u, &mut w.dynamics).is_err() {
+            data.jx.fill(f64::NAN);
+            data.ju.fill(f64::NAN);
+            return;
+        }
+        let d = &w.dynamics;
+        let mut off = 0;
+        for (p, dm) in self.parts.iter().zip(w.dm_df.iter_mut()) {
+            let (r0, nf, nr) = (p.rows.start, p.rows.len(), p.map.nr());
+            p.map.jacobian(&d.lambda()[p.rows.clone()], dm.as_mut());
+            let jx = data.jx.as_mut().subrows_mut(off, nr);
+            matmul(jx, Accum::Replace, dm.as_ref(), d.dlambda_dx().subrows(r0, nf), 1.0);
+            let ju = data.ju.as_mut().subrows_mut(off, nr);
+            matmul(ju, Accum::Replace, dm.as_ref(), d.dlambda_du().subrows(r0, nf), 1.0);
+            off += nr;
+        }
+    }
+}

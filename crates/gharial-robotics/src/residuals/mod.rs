@@ -98,7 +98,7 @@ mod velocity;
 pub use com::{CenterOfMassTranslationResidual, CenterOfMassVelocityResidual};
 pub use contact::{
     ContactForceResidual, ContactResidual, ForceError, ForceMap, FrictionCone, FrictionConeResidual,
-    SmoothFrictionCone, SmoothFrictionConeResidual, WrenchCone, WrenchConeResidual,
+    SmoothFrictionCone, SmoothFrictionConeResidual, StackedContactResidual, WrenchCone, WrenchConeResidual,
 };
 pub use frame::{FramePlacementResidual, FrameRotationResidual, FrameTranslationResidual, RelativePlacementResidual};
 pub use gravity::GravityCompensationResidual;
