@@ -191,3 +191,73 @@ fn csqp_reaches_the_optimum_of_an_independent_qp_solver() {
         assert_eq!(allocations, 0, "seed {}: a CSQP solve allocates nothing", case.seed);
     }
 }
+
+/// CSQP with second-order-cone constraints (a cone on the controls of a random LQ,
+/// `‖(u_1, u_2)‖ ≤ u_0 + 0.3`, the shape of a friction cone) reaches ProxDDP's optimum,
+/// with the cone active; a penalty (L1) is refused at setup.
+#[test]
+fn csqp_handles_second_order_cones_like_proxddp() {
+    use std::sync::Arc;
+
+    use gharial::constraints::{L1Penalty, SecondOrderCone};
+    use gharial::functions::ControlError;
+    use gharial::problem::StageConstraint;
+    use gharial::solvers::csqp::{Csqp, CsqpOptions};
+    use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions};
+    use gharial::solvers::{InitialGuess, Solver, Status};
+    let lq = random_lq(4, 3, 30, 77);
+    let mut p = ocp(&lq, None, None);
+    let sp = space(&lq);
+    let cone = || {
+        StageConstraint::new(
+            "cone",
+            Arc::new(ControlError::new(sp.as_ref(), &[-0.3, 0.0, 0.0]).unwrap()),
+            Arc::new(SecondOrderCone::new(3).unwrap()),
+        )
+    };
+    for s in p.stages_mut() {
+        s.add_constraint(cone()).unwrap();
+    }
+    let (xs, us) = zero_guess(&p);
+    let mut reference = ProxDdp::new(ProxDdpOptions::default().with(|o| {
+        o.tol = 1e-7;
+        o.mu_init = 1e-5;
+        o.max_iters = 1000;
+    }));
+    reference.setup(&p).unwrap();
+    let r = reference.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().clone();
+    assert_eq!(
+        r.status,
+        Status::Converged,
+        "ProxDDP: {} after {} iterations, prim {:e} dual {:e}",
+        r.status,
+        r.iterations,
+        r.prim_err,
+        r.dual_err
+    );
+    let mut csqp = Csqp::new(CsqpOptions::default().with(|o| {
+        o.tol = 1e-7;
+        o.admm = o.admm.with(|a| {
+            a.eps_abs = 1e-9;
+            a.eps_rel = 0.0;
+            a.max_iters = 20_000;
+        });
+    }));
+    csqp.setup(&p).unwrap();
+    let sol = csqp.solve(&p, InitialGuess::primal(&xs, &us)).unwrap();
+    assert_eq!(sol.status, Status::Converged, "{}", sol.status);
+    let rel = (sol.cost - r.cost).abs() / r.cost.abs().max(1.0);
+    assert!(rel < 1e-6, "cost {} vs ProxDDP {}", sol.cost, r.cost);
+    let margin = |u: &Vec<f64>| u[0] + 0.3 - (u[1] * u[1] + u[2] * u[2]).sqrt();
+    let worst = sol.us.iter().map(margin).fold(f64::INFINITY, f64::min);
+    assert!(worst > -1e-6 && worst < 1e-6, "the cone is active and kept: {worst:e}");
+    let mut l1 = ocp(&lq, None, None);
+    let pen = StageConstraint::new(
+        "l1",
+        Arc::new(ControlError::new(sp.as_ref(), &[0.0; 3]).unwrap()),
+        Arc::new(L1Penalty::new(1.0).unwrap()),
+    );
+    l1.stages_mut()[0].add_constraint(pen).unwrap();
+    let e = Csqp::new(CsqpOptions::default()).setup(&l1).unwrap_err().to_string();
+    assert!(e.contains("penalty"), "{e}");
+}

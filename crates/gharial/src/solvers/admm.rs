@@ -97,6 +97,33 @@ impl AdmmOptions {
     }
 }
 
+/// The sets of the constraint rows' values `z`, by their Euclidean projections: boxes
+/// ([`AdmmQp::solve`]) or any closed convex sets, e.g. second-order cones
+/// ([`AdmmQp::solve_sets`]).
+pub trait RowSets {
+    /// Whether row `i` of knot `t` is an equality (its penalty is `1000 ρ`).
+    fn is_equality(&self, t: usize, i: usize) -> bool;
+    /// Projects `v`, the values of the rows of knot `t`, onto their set, in place.
+    fn project(&mut self, t: usize, v: &mut [f64]);
+}
+
+/// Row bounds `lo ≤ z ≤ hi` as [`RowSets`].
+struct Bounds<'a> {
+    lo: &'a [Vec<f64>],
+    hi: &'a [Vec<f64>],
+}
+
+impl RowSets for Bounds<'_> {
+    fn is_equality(&self, t: usize, i: usize) -> bool {
+        self.lo[t][i] == self.hi[t][i]
+    }
+    fn project(&mut self, t: usize, v: &mut [f64]) {
+        for (i, vi) in v.iter_mut().enumerate() {
+            *vi = vi.max(self.lo[t][i]).min(self.hi[t][i]);
+        }
+    }
+}
+
 /// How an ADMM solve ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum AdmmStatus {
@@ -115,6 +142,8 @@ pub struct AdmmQp {
     sol: LqSolution,
     /// Splitting variable, scaled duals, last `z`, `G δ` per knot.
     z: Vec<Vec<f64>>,
+    /// Whether each row is an equality (from the sets of the last solve).
+    equality: Vec<Vec<bool>>,
     y: Vec<Vec<f64>>,
     z_prev: Vec<Vec<f64>>,
     gd: Vec<Vec<f64>>,
@@ -152,6 +181,7 @@ impl AdmmQp {
             sol: LqSolution::new(lq),
             y: z.clone(),
             z_prev: z.clone(),
+            equality: z.iter().map(|r| vec![false; r.len()]).collect(),
             gd: z.clone(),
             tx: lq.knots.iter().map(|k| vec![0.0; k.nx]).collect(),
             tu: lq.knots.iter().map(|k| vec![0.0; k.nu]).collect(),
@@ -173,17 +203,31 @@ impl AdmmQp {
     /// (a singular or non-finite system).
     pub fn solve(&mut self, lq: &mut LqProblem, lo: &[Vec<f64>], hi: &[Vec<f64>], warm: bool) -> Result<AdmmStatus> {
         self.check_bounds(lo, hi)?;
+        self.solve_sets(lq, &mut Bounds { lo, hi }, warm)
+    }
+
+    /// As [`AdmmQp::solve`] with the rows' values in the sets of `sets` (its projections
+    /// must keep each row's length).
+    ///
+    /// # Errors
+    /// If the LQ solve fails (a singular or non-finite system).
+    pub fn solve_sets(&mut self, lq: &mut LqProblem, sets: &mut dyn RowSets, warm: bool) -> Result<AdmmStatus> {
         if !warm {
             self.z.iter_mut().chain(self.y.iter_mut()).for_each(|v| v.fill(0.0));
             self.rho = self.options.rho_init;
         }
-        self.set_rows(lq, lo, hi);
+        for (t, e) in self.equality.iter_mut().enumerate() {
+            for (i, ei) in e.iter_mut().enumerate() {
+                *ei = sets.is_equality(t, i);
+            }
+        }
+        self.set_rows(lq);
         self.factor(lq)?;
         let o = self.options;
         for it in 0..o.max_iters {
             self.iters = it + 1;
             self.x_update(lq)?;
-            let r = self.z_y_update(lq, lo, hi);
+            let r = self.z_y_update(lq, sets);
             (self.prim, self.dual) = (r.prim, r.dual);
             let check = self.iters.is_multiple_of(o.check_interval) || self.iters == o.max_iters;
             if check && r.prim <= o.eps_abs + o.eps_rel * r.prim_scale && r.dual <= o.eps_abs + o.eps_rel * r.dual_scale
@@ -191,7 +235,7 @@ impl AdmmQp {
                 return Ok(AdmmStatus::Converged);
             }
             if o.rho_update_interval > 0 && self.iters.is_multiple_of(o.rho_update_interval) && self.update_rho(&r) {
-                self.set_rows(lq, lo, hi);
+                self.set_rows(lq);
                 self.factor(lq)?;
             }
         }
@@ -216,15 +260,15 @@ impl AdmmQp {
     }
 
     /// The penalty of row `i` of knot `t` (`1000 ρ` on equality rows).
-    fn row_rho(&self, lo: f64, hi: f64) -> f64 {
-        if lo == hi { 1e3 * self.rho } else { self.rho }
+    fn row_rho(&self, t: usize, i: usize) -> f64 {
+        if self.equality[t][i] { 1e3 * self.rho } else { self.rho }
     }
 
     /// Writes `mu_c = 1/ρ_i` and `d = y/ρ_i - z` into the knots.
-    fn set_rows(&self, lq: &mut LqProblem, lo: &[Vec<f64>], hi: &[Vec<f64>]) {
+    fn set_rows(&self, lq: &mut LqProblem) {
         for (t, knot) in lq.knots.iter_mut().enumerate() {
             for i in 0..knot.nc {
-                let rho = self.row_rho(lo[t][i], hi[t][i]);
+                let rho = self.row_rho(t, i);
                 knot.mu_c[i] = 1.0 / rho;
                 knot.d[i] = self.y[t][i] / rho - self.z[t][i];
             }
@@ -255,7 +299,7 @@ impl AdmmQp {
     }
 
     /// The relaxed projection and dual update; the residuals of the iteration.
-    fn z_y_update(&mut self, lq: &LqProblem, lo: &[Vec<f64>], hi: &[Vec<f64>]) -> Residuals {
+    fn z_y_update(&mut self, lq: &LqProblem, sets: &mut dyn RowSets) -> Residuals {
         let a = self.options.alpha;
         let mut r = Residuals {
             prim: 0.0,
@@ -265,12 +309,14 @@ impl AdmmQp {
         };
         for t in 0..self.z.len() {
             self.z_prev[t].copy_from_slice(&self.z[t]);
+            let zh = |s: &Self, i: usize| a * s.gd[t][i] + (1.0 - a) * s.z_prev[t][i];
             for i in 0..self.z[t].len() {
-                let rho = self.row_rho(lo[t][i], hi[t][i]);
-                let zh = a * self.gd[t][i] + (1.0 - a) * self.z_prev[t][i];
-                let z = (zh + self.y[t][i] / rho).max(lo[t][i]).min(hi[t][i]);
-                self.y[t][i] += rho * (zh - z);
-                self.z[t][i] = z;
+                self.z[t][i] = zh(self, i) + self.y[t][i] / self.row_rho(t, i);
+            }
+            sets.project(t, &mut self.z[t]);
+            for i in 0..self.z[t].len() {
+                let (rho, z) = (self.row_rho(t, i), self.z[t][i]);
+                self.y[t][i] += rho * (zh(self, i) - z);
                 r.prim = r.prim.max((self.gd[t][i] - z).abs());
                 r.prim_scale = r.prim_scale.max(self.gd[t][i].abs()).max(z.abs());
                 self.z_prev[t][i] = rho * (z - self.z_prev[t][i]);

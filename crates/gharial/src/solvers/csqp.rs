@@ -7,9 +7,10 @@
 //! min  Σ ℓ-model(δx, δu)   s.t.  linearised dynamics with the gaps,
 //!      lo - h(x, u) ≤ h_x δx + h_u δu ≤ hi - h(x, u)
 //! ```
-//! where `[lo, hi]` are the constraint sets' bounds (equality, orthant and box sets:
-//! [`crate::constraints::ConstraintSet::box_bounds`]; other sets are refused), solves it by
-//! ADMM, and takes the step `x ⊕ α δx, u + α δu` with SQP's filter line search on (cost,
+//! (written for a box; in general `h(x, u) + h_x δx + h_u δu ∈ C` for the constraint's
+//! closed convex set `C`: equalities, orthants, boxes, second-order cones such as
+//! friction cones, and their products; penalties such as L1 are refused), solves it by
+//! ADMM, whose projection is `proj_C(· + h) - h`, and takes the step `x ⊕ α δx, u + α δu` with SQP's filter line search on (cost,
 //! 1-norm of the gaps and constraint violations). The QP's co-states and constraint
 //! multipliers are the multipliers of the next KKT test (an iteration whose step the
 //! filter rejects keeps the point, and its warm-started QP continues the ADMM iterations
@@ -19,7 +20,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::admm::{AdmmOptions, AdmmQp};
+use super::admm::{AdmmOptions, AdmmQp, RowSets};
 use super::log::{COST, Column, Format, ITER, LogSink, Table};
 use super::skeleton::{ConstraintEntry, Signature, SqpFilter, constraint_index, copy_stage_model, push_record};
 use super::{Callback, InitialGuess, IterationRecord, Solution, Solver, Status};
@@ -145,11 +146,11 @@ struct Workspace {
     /// Co-states and path multipliers of the last QP.
     lams: Vec<Vec<f64>>,
     nus: Vec<Vec<f64>>,
-    /// Bounds of the QP's rows, and of the sets (scratch).
-    lo: Vec<Vec<f64>>,
-    hi: Vec<Vec<f64>>,
-    set_lo: Vec<f64>,
-    set_hi: Vec<f64>,
+    /// Scratch of the projections (the largest constraint's rows).
+    w: Vec<f64>,
+    out: Vec<f64>,
+    /// Entries of `cons` of each knot: `knot_entries[t]..knot_entries[t + 1]`.
+    knot_entries: Vec<usize>,
     gx: Vec<Vec<f64>>,
     gu: Vec<Vec<f64>>,
     cons: Vec<ConstraintEntry>,
@@ -172,21 +173,25 @@ impl Workspace {
         let mut max_nr = 0;
         for t in 0..=n {
             for c in problem.constraints(t) {
-                let (mut lo, mut hi) = (vec![0.0; c.nr()], vec![0.0; c.nr()]);
-                if !c.set.box_bounds(&mut lo, &mut hi) {
+                let far = |v: f64| c.set.violation(&vec![v; c.nr()]) > 0.0;
+                if !(far(1e6) || far(-1e6)) {
                     return Err(Error::InvalidModel(format!(
-                        "csqp handles equality, orthant and box sets: constraint `{}` of knot {t} has another \
-                         set (use proxddp for cones)",
+                        "csqp handles constraint sets: constraint `{}` of knot {t} has a penalty, not a set \
+                         (use proxddp)",
                         c.name
                     )));
                 }
                 max_nr = max_nr.max(c.nr());
             }
         }
+        let cons = constraint_index(problem);
+        let mut knot_entries = vec![0; n + 2];
+        for t in 0..=n {
+            knot_entries[t + 1] = knot_entries[t] + problem.constraints(t).len();
+        }
         let lq = super::skeleton::lq_for(problem, true, None);
         let admm = AdmmQp::new(&lq, opts.admm)?;
         let s = Solution::new(problem, 0);
-        let rows = |t: usize| vec![0.0; problem.constraints(t).iter().map(|c| c.nr()).sum()];
         Ok(Self {
             data: ProblemData::new(problem, 1)?,
             lq,
@@ -199,11 +204,10 @@ impl Workspace {
             us: s.us,
             lams: s.lambdas,
             nus: s.nus,
-            lo: (0..=n).map(rows).collect(),
-            hi: (0..=n).map(rows).collect(),
-            set_lo: vec![0.0; max_nr],
-            set_hi: vec![0.0; max_nr],
-            cons: constraint_index(problem),
+            w: vec![0.0; max_nr],
+            out: vec![0.0; max_nr],
+            knot_entries,
+            cons,
             filter: SqpFilter::new(opts.filter_size),
             cost: 0.0,
         })
@@ -252,17 +256,12 @@ impl Workspace {
         }
         for e in &self.cons {
             let c = &problem.constraints(e.t)[e.k];
-            let nr = c.nr();
-            c.set.box_bounds(&mut self.set_lo[..nr], &mut self.set_hi[..nr]);
-            let h = self.data.constraint_data(e.t)[e.k].value();
-            for i in 0..nr {
-                add((self.set_lo[i] - h[i]).max(h[i] - self.set_hi[i]).max(0.0));
-            }
+            add(c.set.violation(self.data.constraint_data(e.t)[e.k].value()));
         }
         m
     }
 
-    /// The QP of the current point: knots and row bounds.
+    /// The QP of the current point (its knots; the sets are applied by [`ShiftedSets`]).
     fn build_qp(&mut self, problem: &Problem) {
         let n = problem.horizon();
         crate::linalg::copy(self.lq.G0.as_mut(), self.data.init.jx.as_ref());
@@ -289,12 +288,6 @@ impl Workspace {
             crate::linalg::copy(knot.C.as_mut().subrows_mut(off, nr), d.jx.as_ref());
             if knot.nu > 0 {
                 crate::linalg::copy(knot.D.as_mut().subrows_mut(off, nr), d.ju.as_ref());
-            }
-            c.set.box_bounds(&mut self.set_lo[..nr], &mut self.set_hi[..nr]);
-            let h = d.value();
-            for i in 0..nr {
-                self.lo[t][off + i] = self.set_lo[i] - h[i];
-                self.hi[t][off + i] = self.set_hi[i] - h[i];
             }
         }
     }
@@ -442,7 +435,15 @@ fn iterate(
         if iter >= opts.max_iters {
             return stop(Status::MaxIterations);
         }
-        if ws.admm.solve(&mut ws.lq, &ws.lo, &ws.hi, warm).is_err() {
+        let mut sets = ShiftedSets {
+            problem,
+            data: &ws.data,
+            cons: &ws.cons,
+            knot_entries: &ws.knot_entries,
+            w: &mut ws.w,
+            out: &mut ws.out,
+        };
+        if ws.admm.solve_sets(&mut ws.lq, &mut sets, warm).is_err() {
             return stop(Status::RegularizationFailure);
         }
         warm = opts.warm_qp;
@@ -484,6 +485,43 @@ fn iterate(
         }
     }
     unreachable!("the loop returns")
+}
+
+/// The sets of the QP's rows at the current point: row block `δh` of constraint `h ∈ C`
+/// lies in `C - h(x, u)`.
+struct ShiftedSets<'a> {
+    problem: &'a Problem,
+    data: &'a ProblemData,
+    cons: &'a [ConstraintEntry],
+    knot_entries: &'a [usize],
+    w: &'a mut [f64],
+    out: &'a mut [f64],
+}
+
+impl RowSets for ShiftedSets<'_> {
+    fn is_equality(&self, t: usize, i: usize) -> bool {
+        let entries = &self.cons[self.knot_entries[t]..self.knot_entries[t + 1]];
+        entries
+            .iter()
+            .find(|e| e.rows.contains(&i))
+            .is_some_and(|e| self.problem.constraints(t)[e.k].set.is_equality())
+    }
+
+    fn project(&mut self, t: usize, v: &mut [f64]) {
+        for e in &self.cons[self.knot_entries[t]..self.knot_entries[t + 1]] {
+            let c = &self.problem.constraints(t)[e.k];
+            let (nr, r) = (c.nr(), e.rows.clone());
+            let h = self.data.constraint_data(t)[e.k].value();
+            let (w, out) = (&mut self.w[..nr], &mut self.out[..nr]);
+            for ((wi, vi), hi) in w.iter_mut().zip(&v[r.clone()]).zip(h) {
+                *wi = vi + hi;
+            }
+            c.set.project(w, 1.0, out);
+            for ((vi, oi), hi) in v[r].iter_mut().zip(out.iter()).zip(h) {
+                *vi = oi - hi;
+            }
+        }
+    }
 }
 
 /// Step lengths `1, 1/2, ...` (the last tried in `alpha`) until a trial passes the
