@@ -13,6 +13,12 @@ fn x0(ex: &Example) -> Vec<f64> {
     ex.problem.x0().expect("fixed initial state").to_vec()
 }
 
+/// What tells instances apart: the initial state and the cost of the guess (the
+/// humanoid's instances differ by their goal only).
+fn key(ex: &Example) -> (Vec<f64>, f64) {
+    (x0(ex), total_cost(&ex.problem, &ex.xs0, &ex.us0).unwrap())
+}
+
 #[test]
 fn instances_are_reproducible_from_the_seed_and_distinct() {
     for info in FAMILIES {
@@ -23,25 +29,25 @@ fn instances_are_reproducible_from_the_seed_and_distinct() {
         assert_eq!(a.len(), 4);
         for i in 0..4 {
             assert_eq!(
-                x0(&a[i]),
-                x0(&b[i]),
+                key(&a[i]),
+                key(&b[i]),
                 "{} instance {i} differs between two builds",
                 info.name
             );
             assert_eq!(a[i].xs0, b[i].xs0);
             assert_eq!(a[i].us0, b[i].us0);
             assert_ne!(
-                x0(&a[i]),
-                x0(&other[i]),
+                key(&a[i]),
+                key(&other[i]),
                 "{} instance {i}: seeds 7 and 8 agree",
                 info.name
             );
             for j in 0..i {
-                assert_ne!(x0(&a[i]), x0(&a[j]), "{} instances {j} and {i} coincide", info.name);
+                assert_ne!(key(&a[i]), key(&a[j]), "{} instances {j} and {i} coincide", info.name);
             }
         }
         for (p, q) in prefix.iter().zip(&a) {
-            assert_eq!(x0(p), x0(q), "{}: a smaller count is not a prefix", info.name);
+            assert_eq!(key(p), key(q), "{}: a smaller count is not a prefix", info.name);
         }
     }
 }
@@ -66,6 +72,18 @@ fn initial_states_are_in_the_documented_ranges() {
         let norm: f64 = x[3..7].iter().map(|q| q * q).sum::<f64>().sqrt();
         assert!((norm - 1.0).abs() < 1e-12, "quaternion norm {norm}");
         assert!(x[7..].iter().all(|v| *v == 0.0), "{x:?}");
+    }
+    let x_neutral = x0(&family("humanoid", 3, 1).unwrap()[0]);
+    for ex in family("humanoid", 3, 5).unwrap() {
+        assert_eq!(x0(&ex), x_neutral, "the humanoid's goal is random, not its start");
+        // At the guess only the foot terms cost: (N dt ½ + 100 · ½) |d|² for the goal
+        // offset d, whose squared norm lies in [0.05², 0.2² + 0.1² + 0.2²].
+        let n = ex.problem.horizon() as f64;
+        let d2 = total_cost(&ex.problem, &ex.xs0, &ex.us0).unwrap() / (0.5 * n * ex.dt.unwrap() + 50.0);
+        assert!(
+            (0.05f64.powi(2) - 1e-12..=0.09 + 1e-12).contains(&d2),
+            "goal offset² {d2}"
+        );
     }
 }
 
@@ -135,9 +153,9 @@ fn the_first_instances_of_each_family_solve() {
 
 #[test]
 fn bad_names_and_counts_are_errors() {
-    let e = family("humanoid", 1, 3).unwrap_err().to_string();
+    let e = family("taichi", 1, 3).unwrap_err().to_string();
     assert!(
-        e.contains("humanoid") && e.contains("reach, quadrotor, pendulum"),
+        e.contains("taichi") && e.contains("reach, quadrotor, pendulum, humanoid"),
         "{e}"
     );
     let e = family("reach", 1, MAX_COUNT + 1).unwrap_err().to_string();
