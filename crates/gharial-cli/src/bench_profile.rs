@@ -120,7 +120,7 @@ fn solver_name(s: &str) -> Result<ProfileSolver, String> {
 /// The arguments of `gharial bench profile`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct ProfileArgs {
-    /// Instance family: reach, quadrotor or pendulum.
+    /// Instance family: reach, quadrotor, pendulum or humanoid.
     pub family: String,
     /// Solvers, comma separated (any solver's name, and fddp-filter).
     #[arg(long, value_delimiter = ',', value_parser = solver_name,
