@@ -313,19 +313,12 @@ impl Workspace {
 
     /// The trial `x ⊕ α δx, u + α δu`, evaluated: its cost and infeasibility.
     fn trial(&mut self, problem: &Problem, alpha: f64) -> Option<(f64, Infeasibility)> {
-        let sol = self.admm.solution();
-        for t in 0..self.xs.len() {
-            let v = &mut self.gx[t];
-            for (vi, d) in v.iter_mut().zip(slice(&sol.xs[t])) {
-                *vi = alpha * d;
-            }
-            problem.space(t).integrate(&self.xs[t], v, &mut self.xs_try[t]);
-        }
-        for (t, u) in self.us_try.iter_mut().enumerate() {
-            for (j, ui) in u.iter_mut().enumerate() {
-                *ui = self.us[t][j] + alpha * sol.us[t][j];
-            }
-        }
+        let trial = super::skeleton::LinearTrial {
+            xs: &self.xs,
+            us: &self.us,
+            step: self.admm.solution(),
+        };
+        trial.write(problem, alpha, &mut self.gx, &mut self.xs_try, &mut self.us_try);
         let cost = self.data.evaluate(problem, &self.xs_try, &self.us_try);
         let inf = self.infeasibility(problem);
         (cost.is_finite() && inf.l1.is_finite()).then_some((cost, inf))

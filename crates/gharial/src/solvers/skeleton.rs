@@ -227,6 +227,39 @@ pub(crate) fn copy_stage_model(knot: &mut LqKnot, sd: &StageData, hessian: bool,
     }
 }
 
+/// The trial point of a step `α` of an LQ solution `step` (SQP's linear rollout):
+/// `x̃_t = x_t ⊕ α δx_t` (with `dx` as scratch) and `ũ_t = u_t + α δu_t`.
+pub(crate) struct LinearTrial<'a> {
+    pub xs: &'a [Vec<f64>],
+    pub us: &'a [Vec<f64>],
+    pub step: &'a crate::lq::LqSolution,
+}
+
+impl LinearTrial<'_> {
+    /// Writes the trial of step length `alpha` into `xs_try`, `us_try`.
+    pub(crate) fn write(
+        &self,
+        problem: &Problem,
+        alpha: f64,
+        dx: &mut [Vec<f64>],
+        xs_try: &mut [Vec<f64>],
+        us_try: &mut [Vec<f64>],
+    ) {
+        for t in 0..self.xs.len() {
+            let v = &mut dx[t];
+            for (vi, d) in v.iter_mut().zip(crate::linalg::slice(&self.step.xs[t])) {
+                *vi = alpha * d;
+            }
+            problem.space(t).integrate(&self.xs[t], v, &mut xs_try[t]);
+        }
+        for (t, u) in us_try.iter_mut().enumerate() {
+            for (j, ui) in u.iter_mut().enumerate() {
+                *ui = self.us[t][j] + alpha * self.step.us[t][j];
+            }
+        }
+    }
+}
+
 /// `dst = src` entry by entry (trajectories of equal shapes).
 pub(crate) fn copy_trajectory(dst: &mut [Vec<f64>], src: &[Vec<f64>]) {
     for (a, b) in dst.iter_mut().zip(src) {

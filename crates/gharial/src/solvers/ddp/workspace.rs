@@ -479,19 +479,12 @@ impl Workspace {
     /// [`Workspace::linear_step`], evaluated; returns its cost and the 1-norm of its gaps,
     /// or `None` if a value is not finite.
     pub fn linear_trial(&mut self, problem: &Problem, alpha: f64) -> Option<(f64, f64)> {
-        let st = &self.lq_sol;
-        for t in 0..self.xs.len() {
-            let v = &mut self.dx[t];
-            for (vi, d) in v.iter_mut().zip(slice(&st.xs[t])) {
-                *vi = alpha * d;
-            }
-            problem.space(t).integrate(&self.xs[t], v, &mut self.xs_try[t]);
-        }
-        for (t, u) in self.us_try.iter_mut().enumerate() {
-            for (j, ui) in u.iter_mut().enumerate() {
-                *ui = self.us[t][j] + alpha * st.us[t][j];
-            }
-        }
+        let trial = crate::solvers::skeleton::LinearTrial {
+            xs: &self.xs,
+            us: &self.us,
+            step: &self.lq_sol,
+        };
+        trial.write(problem, alpha, &mut self.dx, &mut self.xs_try, &mut self.us_try);
         let cost = self.data.evaluate(problem, &self.xs_try, &self.us_try);
         if !self.values_finite() {
             return None;
