@@ -32,6 +32,7 @@
 //! | `ur5-circle`, `ur5-circle-joint-bound`, `ur5-circle-half-space` | [`ur5_circle`] | UR5 phase space (R¹²) | 10 | 50 ms |
 //! | `ur10-ballistic` | [`ur10_ballistic`] | UR10 and mug (R²⁵, ndx 24; mug held, then flying) | 200 | 10 ms |
 //! | `solo-jump` | [`solo_jump`] | Solo-12 phase space (nx = 37, ndx = 36) | 60 | 20 ms |
+//! | `solo-com-circle` | [`solo_com_circle`] | Solo-12 phase space (nx = 37, ndx = 36) | 250 | 20 ms |
 //!
 //! Every module documents its model, its numbers and the results measured with
 //! ProxDDP.
@@ -47,6 +48,7 @@ pub mod pendulum;
 pub mod profiles;
 pub mod quadrotor;
 pub mod se2_car;
+pub mod solo_com_circle;
 pub mod solo_jump;
 pub mod solo_walk;
 pub mod ur10_ballistic;
@@ -196,6 +198,10 @@ static CATALOGUE: &[ProblemInfo] = &[
         name: "solo-jump",
         summary: "Solo-12 whole-body jump (Fig. 12, 15): stance, flight from 0.4 s, landing at 0.9 s with feet heights z = 0, dt = 20 ms, N = 60",
     },
+    ProblemInfo {
+        name: "solo-com-circle",
+        summary: "Solo-12 on four feet, CoM on a horizontal circle (r = 6.5 cm, 0.2 Hz), friction cones mu = 0.8 (stagewise-SQP paper, Figs. 4-5), dt = 20 ms, N = 250",
+    },
 ];
 
 /// Every problem [`build`] knows, in catalogue order.
@@ -235,6 +241,7 @@ pub fn build(name: &str) -> Result<Example> {
         "ur5-circle-half-space" => ur5_circle::build(ur5_circle::CircleVariant::HalfSpace),
         "ur10-ballistic" => ur10_ballistic::build(),
         "solo-jump" => solo_jump::build(),
+        "solo-com-circle" => solo_com_circle::build(solo_com_circle::HORIZON),
         _ => Err(Error::InvalidModel(format!(
             "unknown problem `{name}`; valid names: {}",
             CATALOGUE.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")

@@ -268,13 +268,13 @@ impl Gait {
 }
 
 /// The Solo-12, its standing state and the contact dynamics of each phase.
-struct Solo {
-    model: Arc<Model>,
-    space: Arc<MultibodyPhaseSpace>,
-    actuation: Arc<Actuation>,
+pub(crate) struct Solo {
+    pub(crate) model: Arc<Model>,
+    pub(crate) space: Arc<MultibodyPhaseSpace>,
+    pub(crate) actuation: Arc<Actuation>,
     /// Frame ids of [`FEET`].
-    feet: [usize; 4],
-    x0: Vec<f64>,
+    pub(crate) feet: [usize; 4],
+    pub(crate) x0: Vec<f64>,
 }
 
 fn model_error(e: gharial_multibody::Error) -> Error {
@@ -282,7 +282,7 @@ fn model_error(e: gharial_multibody::Error) -> Error {
 }
 
 impl Solo {
-    fn load() -> Result<Self> {
+    pub(crate) fn load() -> Result<Self> {
         let mut model = Model::from_urdf_str(SOLO_URDF, RootJoint::FreeFlyer).map_err(model_error)?;
         model.load_srdf_str(SOLO_SRDF).map_err(model_error)?;
         let mut q0 = model.reference_configuration(STANDING).map_err(model_error)?.to_vec();
@@ -311,7 +311,7 @@ impl Solo {
     }
 
     /// Point contacts at the stance feet of `phase` with gains `kp`, `kd`.
-    fn contacts(&self, phase: Phase, kp: f64, kd: f64) -> Result<Vec<ContactModel>> {
+    pub(crate) fn contacts(&self, phase: Phase, kp: f64, kd: f64) -> Result<Vec<ContactModel>> {
         let names: Vec<&str> = phase.stance_feet().iter().map(|&j| FEET[j]).collect();
         let spec = ContactSpec::point(ReferenceFrame::LocalWorldAligned).with_gains(kp, kd);
         gharial_robotics::contacts_at_frames(&self.model, &names, spec)
@@ -328,7 +328,7 @@ impl Solo {
 }
 
 /// World positions of the frames `feet` at `q`.
-fn feet_positions(model: &Model, data: &mut Data, feet: &[usize; 4], q: &[f64]) -> Result<[Vec3; 4]> {
+pub(crate) fn feet_positions(model: &Model, data: &mut Data, feet: &[usize; 4], q: &[f64]) -> Result<[Vec3; 4]> {
     forward_kinematics_placements(model, data, q).map_err(model_error)?;
     Ok(feet.map(|f| {
         let frame = &model.frames()[f];
