@@ -82,7 +82,7 @@ impl MpcScenario {
     /// seconds from the problem's initial state.
     ///
     /// # Errors
-    /// As [`simulate`], or if `duration` is not finite and non-negative.
+    /// As [`simulate()`], or if `duration` is not finite and non-negative.
     pub fn run<S: Solver>(&mut self, mpc: &mut Mpc<S>, duration: f64) -> Result<Record> {
         if !(duration.is_finite() && duration >= 0.0) {
             return Err(Error::option("duration", "must be finite and non-negative"));

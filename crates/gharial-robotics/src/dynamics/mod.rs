@@ -1,4 +1,4 @@
-//! Multibody dynamics as core [`Ode`]s on the phase space `x = (q, v)`.
+//! Multibody dynamics as core [`Ode`](gharial::dynamics::Ode)s on the phase space `x = (q, v)`.
 //!
 //! - [`MultibodyFreeFwdDynamics`]: `ẋ = (v, a)` with `a = ABA(q, v, B u)`.
 //! - [`MultibodyConstraintFwdDynamics`]: rigid 3D / 6D contacts with Baumgarte
@@ -19,7 +19,7 @@
 //! `ExplicitRungeKutta` (Euler, RK2, RK4).
 //!
 //! # Bad input during evaluation
-//! The [`Ode`] trait has no `Result`: when `x` or `u` is invalid (wrong size, NaN or
+//! The [`Ode`](gharial::dynamics::Ode) trait has no `Result`: when `x` or `u` is invalid (wrong size, NaN or
 //! infinity, a quaternion of norm other than 1) or the multibody algorithm fails (e.g. a
 //! rank-deficient contact Jacobian), `evaluate` writes NaN into `ẋ` and `jacobians` NaN
 //! into the Jacobians; the solvers detect the non-finite values and stop with their

@@ -40,7 +40,7 @@
 //! `max(|∇L|_∞, |gaps|_∞)` with the co-states `λ⁺` of the last step, is below `tol`.
 //!
 //! DDP, FDDP and SQP refuse problems with constraints; the box variants accept bounds on the
-//! controls only ([`bounds`]), anything else is refused with an error naming the
+//! controls only (recognised among the path constraints as [`crate::constraints::ConstraintSet::box_bounds`] describes), anything else is refused with an error naming the
 //! constraint. All need a fixed initial state.
 
 mod bounds;
