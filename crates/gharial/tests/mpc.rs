@@ -232,6 +232,37 @@ fn box_fddp_shifts_through_bounded_and_free_stages_like_fresh_solves() {
     assert!((umax - 3.0).abs() < 1e-9, "the control bound is active: {umax}");
 }
 
+fn tight_csqp() -> gharial::solvers::csqp::Csqp {
+    use gharial::solvers::csqp::{Csqp, CsqpOptions};
+    Csqp::new(CsqpOptions::default().with(|o| {
+        o.tol = 1e-8;
+        o.max_iters = 400;
+        o.admm = o.admm.with(|a| {
+            a.eps_abs = 1e-10;
+            a.eps_rel = 0.0;
+            a.max_iters = 20_000;
+        });
+    }))
+}
+
+#[test]
+fn csqp_shifts_through_stages_with_other_constraints_like_fresh_solves() {
+    let schedule = Schedule::new(&[2, 0, 1, 2, 0, 1, 1, 0], &[0, 2, 2, 1, 0], 1.2);
+    let p = Problem::new(&[0.3, 0.0], schedule.horizon.clone(), terminal()).unwrap();
+    let (xs, us) = zero_guess(&p);
+    let opts = MpcOptions::default().with(|o| o.max_iters = 400);
+    let mpc = Mpc::new(
+        p,
+        tight_csqp(),
+        schedule.queue.clone(),
+        InitialGuess::primal(&xs, &us),
+        opts,
+    )
+    .unwrap();
+    let umax = check_against_fresh(mpc, &schedule, || Box::new(tight_csqp()), 12, 1e-6);
+    assert!((umax - 1.2).abs() < 1e-6, "the control bound is active: {umax}");
+}
+
 #[test]
 fn an_empty_queue_rotates_the_horizon() {
     let schedule = Schedule::new(&[1, 0, 2, 0, 1], &[], 1.5);

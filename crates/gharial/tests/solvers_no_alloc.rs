@@ -214,6 +214,10 @@ fn mpc_cycles_do_not_allocate_after_construction() {
         let opts = MpcOptions::default().with(|o| o.max_iters = 3);
         let mpc = Mpc::new(p.clone(), solver, queue.clone(), InitialGuess::primal(&xs, &us), opts).unwrap();
         assert_eq!(mpc_allocations(mpc, 200), 0, "proxddp implicit {implicit}");
+        let csqp = gharial::solvers::csqp::Csqp::new(Default::default());
+        let opts = MpcOptions::default().with(|o| o.max_iters = 3);
+        let mpc = Mpc::new(p.clone(), csqp, queue.clone(), InitialGuess::primal(&xs, &us), opts).unwrap();
+        assert_eq!(mpc_allocations(mpc, 200), 0, "csqp implicit {implicit}");
         let (p, queue) = mixed_horizon(implicit, true);
         for variant in [DdpVariant::BoxFddp, DdpVariant::BoxDdp] {
             let solver = Ddp::new(DdpOptions::new(variant));

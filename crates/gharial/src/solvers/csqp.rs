@@ -22,12 +22,15 @@ use std::time::{Duration, Instant};
 
 use super::admm::{AdmmOptions, AdmmQp, RowSets};
 use super::log::{COST, Column, Format, ITER, LogSink, Table};
-use super::skeleton::{ConstraintEntry, Signature, SqpFilter, constraint_index, copy_stage_model, push_record};
+use super::skeleton::{
+    ConstraintEntry, Receding, Signature, SqpFilter, constraint_index, copy_stage_model, fill_constraint_index,
+    pad_constraint_rows, push_record,
+};
 use super::{Callback, InitialGuess, IterationRecord, Solution, Solver, Status};
 use crate::error::{Error, Result};
 use crate::linalg::{norm_inf, slice, slice_mut};
 use crate::lq::LqProblem;
-use crate::problem::{Problem, ProblemData, StageModel};
+use crate::problem::{Problem, ProblemData, StageData, StageModel};
 
 /// Options of [`Csqp`].
 #[derive(Debug, Clone)]
@@ -156,6 +159,9 @@ struct Workspace {
     cons: Vec<ConstraintEntry>,
     filter: SqpFilter,
     cost: f64,
+    /// Receding horizon: the data of the queued stages, slot by slot.
+    spare: Vec<StageData>,
+    receding: bool,
 }
 
 /// Measures of the current point.
@@ -168,31 +174,34 @@ struct Infeasibility {
 }
 
 impl Workspace {
-    fn new(problem: &Problem, opts: &CsqpOptions) -> Result<Self> {
+    /// The workspace of `problem`; with `queue`, also for a receding horizon through the
+    /// stages queued to enter it ([`Workspace::shift`]).
+    fn new(problem: &Problem, opts: &CsqpOptions, queue: Option<&[StageModel]>) -> Result<Self> {
+        let receding = queue.map(|q| Receding::of(problem, q)).transpose()?;
+        let queue = queue.unwrap_or(&[]);
         let n = problem.horizon();
+        let queued = queue.iter().flat_map(|s| s.constraints());
         let mut max_nr = 0;
-        for t in 0..=n {
-            for c in problem.constraints(t) {
-                let far = |v: f64| c.set.violation(&vec![v; c.nr()]) > 0.0;
-                if !(far(1e6) || far(-1e6)) {
-                    return Err(Error::InvalidModel(format!(
-                        "csqp handles constraint sets: constraint `{}` of knot {t} has a penalty, not a set \
-                         (use proxddp)",
-                        c.name
-                    )));
-                }
-                max_nr = max_nr.max(c.nr());
+        for (i, c) in (0..=n).flat_map(|t| problem.constraints(t)).chain(queued).enumerate() {
+            let far = |v: f64| c.set.violation(&vec![v; c.nr()]) > 0.0;
+            if !(far(1e6) || far(-1e6)) {
+                return Err(Error::InvalidModel(format!(
+                    "csqp handles constraint sets: constraint `{}` (number {i}) has a penalty, not a set \
+                     (use proxddp)",
+                    c.name
+                )));
             }
+            max_nr = max_nr.max(c.nr());
         }
-        let cons = constraint_index(problem);
-        let mut knot_entries = vec![0; n + 2];
-        for t in 0..=n {
-            knot_entries[t + 1] = knot_entries[t] + problem.constraints(t).len();
-        }
-        let lq = super::skeleton::lq_for(problem, true, None);
+        let mut cons = constraint_index(problem);
+        let lq = super::skeleton::lq_for(problem, true, receding.map(|r| r.max_nc));
         let admm = AdmmQp::new(&lq, opts.admm)?;
-        let s = Solution::new(problem, 0);
-        Ok(Self {
+        let mut s = Solution::new(problem, 0);
+        if let Some(r) = receding {
+            r.reserve_index(problem, &mut cons);
+            r.reserve_rows(&mut s.nus, n);
+        }
+        let mut ws = Self {
             data: ProblemData::new(problem, 1)?,
             lq,
             admm,
@@ -206,11 +215,44 @@ impl Workspace {
             nus: s.nus,
             w: vec![0.0; max_nr],
             out: vec![0.0; max_nr],
-            knot_entries,
+            knot_entries: vec![0; n + 2],
             cons,
             filter: SqpFilter::new(opts.filter_size),
             cost: 0.0,
-        })
+            spare: queue.iter().map(StageData::new).collect(),
+            receding: receding.is_some(),
+        };
+        ws.index_knots(problem);
+        Ok(ws)
+    }
+
+    /// The entries of each knot in the constraint index.
+    fn index_knots(&mut self, problem: &Problem) {
+        for t in 0..=problem.horizon() {
+            self.knot_entries[t + 1] = self.knot_entries[t] + problem.constraints(t).len();
+        }
+    }
+
+    /// Receding horizon, after [`Problem::shift`] took the queued stage `slot` (`None`:
+    /// after [`Problem::rotate`]): the stage data and path multipliers move one knot
+    /// earlier, the constraint index and the inert rows of the padded LQ knots follow the
+    /// new stages. Allocates nothing.
+    fn shift(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
+        if !self.receding || slot.is_some_and(|s| s >= self.spare.len()) {
+            return Err(Error::InvalidModel(format!(
+                "csqp::shift: slot {slot:?} of a queue of {} stages (was setup_receding called?)",
+                self.spare.len()
+            )));
+        }
+        self.data.shift(slot.map(|s| &mut self.spare[s]));
+        let n = problem.horizon();
+        super::skeleton::shift_rows(&mut self.nus, n, problem.stages()[n - 1].nc());
+        fill_constraint_index(problem, &mut self.cons);
+        self.index_knots(problem);
+        for (t, knot) in self.lq.knots[..n].iter_mut().enumerate() {
+            pad_constraint_rows(knot, problem.stages()[t].nc());
+        }
+        Ok(())
     }
 
     /// The guess as the current point, evaluated with derivatives; `false` if a value is
@@ -306,8 +348,10 @@ impl Workspace {
         for (l, s) in self.lams.iter_mut().zip(&sol.lambdas) {
             l.copy_from_slice(slice(s));
         }
+        // A padded knot's inert rows (receding horizon) come after the stage's own.
         for (v, y) in self.nus.iter_mut().zip(self.admm.multipliers()) {
-            v.copy_from_slice(y);
+            let rows = v.len();
+            v.copy_from_slice(&y[..rows]);
         }
     }
 
@@ -359,10 +403,17 @@ impl Csqp {
     /// If an option is out of range or a constraint's set is not an equality, orthant or
     /// box.
     pub fn setup(&mut self, problem: &Problem) -> Result<()> {
+        self.setup_with(problem, None)
+    }
+
+    fn setup_with(&mut self, problem: &Problem, queue: Option<&[StageModel]>) -> Result<()> {
         self.options.validate()?;
         self.signature = Signature::default();
-        self.ws = Some(Box::new(Workspace::new(problem, &self.options)?));
+        self.ws = Some(Box::new(Workspace::new(problem, &self.options, queue)?));
         self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
+        if let Some(q) = queue {
+            Receding::of(problem, q)?.reserve_rows(&mut self.solution.nus, problem.horizon());
+        }
         self.signature = Signature::of(problem);
         Ok(())
     }
@@ -561,14 +612,18 @@ impl Solver for Csqp {
         self.options.max_iters = max_iters;
         self.options.max_time = max_time;
     }
-    fn setup_receding(&mut self, _problem: &Problem, _queue: &[StageModel]) -> Result<()> {
-        Err(Error::InvalidModel(
-            "csqp does not run in a receding horizon yet (use proxddp or the DDP family)".into(),
-        ))
+    fn setup_receding(&mut self, problem: &Problem, queue: &[StageModel]) -> Result<()> {
+        self.setup_with(problem, Some(queue))
     }
-    fn shift(&mut self, _problem: &Problem, _slot: Option<usize>) -> Result<()> {
-        Err(Error::InvalidModel(
-            "csqp::shift: no receding horizon was set up".into(),
-        ))
+    fn shift(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
+        let ws = self
+            .ws
+            .as_mut()
+            .ok_or_else(|| Error::InvalidModel("csqp::shift called before setup_receding".into()))?;
+        ws.shift(problem, slot)?;
+        let n = problem.horizon();
+        super::skeleton::shift_rows(&mut self.solution.nus, n, problem.stages()[n - 1].nc());
+        self.signature.refresh(problem);
+        Ok(())
     }
 }
