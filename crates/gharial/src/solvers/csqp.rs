@@ -410,10 +410,7 @@ impl Csqp {
         self.options.validate()?;
         self.signature = Signature::default();
         self.ws = Some(Box::new(Workspace::new(problem, &self.options, queue)?));
-        self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
-        if let Some(q) = queue {
-            Receding::of(problem, q)?.reserve_rows(&mut self.solution.nus, problem.horizon());
-        }
+        self.solution = super::skeleton::solution_for(problem, self.options.max_iters, queue)?;
         self.signature = Signature::of(problem);
         Ok(())
     }
@@ -616,14 +613,9 @@ impl Solver for Csqp {
         self.setup_with(problem, Some(queue))
     }
     fn shift(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
-        let ws = self
-            .ws
-            .as_mut()
-            .ok_or_else(|| Error::InvalidModel("csqp::shift called before setup_receding".into()))?;
+        let ws = self.ws.as_mut().ok_or_else(|| super::skeleton::not_receding("csqp"))?;
         ws.shift(problem, slot)?;
-        let n = problem.horizon();
-        super::skeleton::shift_rows(&mut self.solution.nus, n, problem.stages()[n - 1].nc());
-        self.signature.refresh(problem);
+        super::skeleton::follow_shift(problem, &mut self.solution, &mut self.signature);
         Ok(())
     }
 }

@@ -156,6 +156,30 @@ impl Receding {
     }
 }
 
+/// The solution buffers of a solver set up for `problem` with room for the history of
+/// `max_iters` iterations; with `queue`, the path multipliers reserved for the stages of a
+/// receding horizon ([`Receding`]).
+pub(crate) fn solution_for(problem: &Problem, max_iters: usize, queue: Option<&[StageModel]>) -> Result<Solution> {
+    let mut sol = Solution::new(problem, max_iters.saturating_add(1));
+    if let Some(q) = queue {
+        Receding::of(problem, q)?.reserve_rows(&mut sol.nus, problem.horizon());
+    }
+    Ok(sol)
+}
+
+/// After a solver's workspace followed a receding-horizon shift: its solution's path
+/// multipliers and its setup signature follow the problem too.
+pub(crate) fn follow_shift(problem: &Problem, solution: &mut Solution, signature: &mut Signature) {
+    let n = problem.horizon();
+    shift_rows(&mut solution.nus, n, problem.stages()[n - 1].nc());
+    signature.refresh(problem);
+}
+
+/// The error of a shift asked of solver `name` before `setup_receding`.
+pub(crate) fn not_receding(name: &str) -> Error {
+    Error::InvalidModel(format!("{name}::shift called before setup_receding"))
+}
+
 /// After a shift of a horizon of `n` stages: the running entries of per-knot rows move
 /// one knot earlier and the last gets `nc_tail` zero rows (in place within the capacity
 /// of [`Receding::reserve_rows`]); the terminal entry stays.

@@ -53,11 +53,11 @@ use std::time::Instant;
 
 use workspace::{Expected, Workspace};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::lq::LqError;
 use crate::problem::{Problem, StageModel};
 use crate::solvers::log::{COST, Column, Format, ITER, Table};
-use crate::solvers::skeleton::{Receding, Signature, push_record, shift_rows, write_gains};
+use crate::solvers::skeleton::{Signature, follow_shift, not_receding, push_record, solution_for, write_gains};
 use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 
 /// The solve stalls when the expected decrease of the full step is at most this many
@@ -189,11 +189,7 @@ impl Ddp {
         self.options.validate()?;
         self.signature = Signature::default();
         self.ws = Some(Box::new(Workspace::new(problem, &self.options, queue)?));
-        self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
-        if let Some(q) = queue {
-            let n = problem.horizon();
-            Receding::of(problem, q)?.reserve_rows(&mut self.solution.nus, n);
-        }
+        self.solution = solution_for(problem, self.options.max_iters, queue)?;
         self.signature = Signature::of(problem);
         Ok(())
     }
@@ -201,14 +197,9 @@ impl Ddp {
     /// See [`Solver::shift`](crate::solvers::Solver::shift).
     fn shift_workspace(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
         let name = self.options.variant.name();
-        let ws = self
-            .ws
-            .as_mut()
-            .ok_or_else(|| Error::InvalidModel(format!("{name}::shift called before setup_receding")))?;
+        let ws = self.ws.as_mut().ok_or_else(|| not_receding(name))?;
         ws.shift(slot)?;
-        let n = problem.horizon();
-        shift_rows(&mut self.solution.nus, n, problem.stages()[n - 1].nc());
-        self.signature.refresh(problem);
+        follow_shift(problem, &mut self.solution, &mut self.signature);
         Ok(())
     }
 

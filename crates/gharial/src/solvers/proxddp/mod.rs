@@ -27,7 +27,7 @@ use crate::error::Result;
 use crate::problem::{Problem, StageModel};
 use crate::solvers::filter::Filter;
 use crate::solvers::log::{COST, Column, Format, ITER, Table};
-use crate::solvers::skeleton::{Receding, Signature, shift_rows};
+use crate::solvers::skeleton::{Signature, follow_shift, not_receding, solution_for};
 use crate::solvers::{Callback, InitialGuess, Solution};
 
 /// ProxDDP's iteration table.
@@ -157,11 +157,7 @@ impl ProxDdp {
         self.options.validate()?;
         self.signature = Signature::default();
         self.ws = Some(Box::new(Workspace::new(problem, &self.options, queue)?));
-        self.solution = Solution::new(problem, self.options.max_iters.saturating_add(1));
-        if let Some(q) = queue {
-            let n = problem.horizon();
-            Receding::of(problem, q)?.reserve_rows(&mut self.solution.nus, n);
-        }
+        self.solution = solution_for(problem, self.options.max_iters, queue)?;
         self.signature = Signature::of(problem);
         self.filter = Filter::new(self.options.max_iters.saturating_add(1), 1e-5, 1e-5);
         Ok(())
@@ -169,14 +165,9 @@ impl ProxDdp {
 
     /// See [`Solver::shift`](crate::solvers::Solver::shift).
     fn shift_workspace(&mut self, problem: &Problem, slot: Option<usize>) -> Result<()> {
-        let ws = self
-            .ws
-            .as_mut()
-            .ok_or_else(|| crate::error::Error::InvalidModel("ProxDdp::shift called before setup_receding".into()))?;
+        let ws = self.ws.as_mut().ok_or_else(|| not_receding("ProxDdp"))?;
         ws.shift(problem, slot)?;
-        let n = problem.horizon();
-        shift_rows(&mut self.solution.nus, n, problem.stages()[n - 1].nc());
-        self.signature.refresh(problem);
+        follow_shift(problem, &mut self.solution, &mut self.signature);
         Ok(())
     }
 
