@@ -138,6 +138,44 @@ fn check_memory(what: &str, n: usize, horizon: usize, bytes_per_entry: f64) -> R
     }
 }
 
+/// An output file of `gharial <command>`, created before any work (an unwritable output
+/// is invalid input: the error, printed, gives exit code 2).
+struct Output<'a> {
+    path: &'a str,
+    file: std::fs::File,
+}
+
+impl<'a> Output<'a> {
+    /// The file at `path`, if one is asked for.
+    fn create(command: &str, path: Option<&'a str>) -> Result<Option<Self>, i32> {
+        match path.map(|p| (p, std::fs::File::create(p))) {
+            None => Ok(None),
+            Some((path, Ok(file))) => Ok(Some(Self { path, file })),
+            Some((path, Err(e))) => {
+                eprintln!("gharial {command}: cannot write {path}: {e}");
+                Err(2)
+            }
+        }
+    }
+
+    /// Writes `doc` as pretty JSON and says so (`what`: the document's name); `false`
+    /// (with a message) if the write fails.
+    fn write_json(&mut self, command: &str, what: &str, doc: &serde_json::Value) -> bool {
+        use std::io::Write as _;
+        let text = serde_json::to_string_pretty(doc).expect("JSON of plain numbers");
+        match self.file.write_all(text.as_bytes()) {
+            Ok(()) => {
+                out!("{what:<9} written to {}", self.path);
+                true
+            }
+            Err(e) => {
+                eprintln!("gharial {command}: cannot write {}: {e}", self.path);
+                false
+            }
+        }
+    }
+}
+
 /// An integer in `lo..=hi`.
 fn count(lo: usize, hi: usize) -> impl Fn(&str) -> Result<usize, String> + Clone + Send + Sync + 'static {
     move |s: &str| match s.parse::<usize>() {

@@ -2,7 +2,6 @@
 //! of its cycle times, its iterations and statuses, its metrics, and optional JSON output.
 
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::time::Duration;
 
 use gharial::mpc::Record;
@@ -100,13 +99,9 @@ pub fn run(args: &SimulateArgs) -> i32 {
             return 2;
         }
     };
-    let mut output = match args.output.as_deref().map(|p| (p, std::fs::File::create(p))) {
-        None => None,
-        Some((path, Ok(file))) => Some((path, file)),
-        Some((path, Err(e))) => {
-            eprintln!("gharial simulate: cannot write {path}: {e}");
-            return 2;
-        }
+    let mut output = match crate::Output::create("simulate", args.output.as_deref()) {
+        Ok(o) => o,
+        Err(code) => return code,
     };
     if let Some(n) = args.solver.common.max_iters {
         sc.options.max_iters = n;
@@ -145,15 +140,10 @@ pub fn run(args: &SimulateArgs) -> i32 {
         }
     };
     print_summary(&rec, &metrics);
-    if let Some((path, file)) = output.as_mut() {
-        let text = serde_json::to_string_pretty(&record_json(&sc, &rec, &metrics)).expect("JSON of plain numbers");
-        if let Err(e) = file.write_all(text.as_bytes()) {
-            eprintln!("gharial simulate: cannot write {path}: {e}");
-            return 1;
-        }
-        out!("record    written to {path}");
-    }
-    0
+    let written = output
+        .as_mut()
+        .is_none_or(|o| o.write_json("simulate", "record", &record_json(&sc, &rec, &metrics)));
+    if written { 0 } else { 1 }
 }
 
 /// The `q`-quantile of sorted durations, in milliseconds.

@@ -63,14 +63,10 @@ pub fn run(args: &SolveArgs) -> i32 {
             return 2;
         }
     };
-    // An unwritable output is invalid input: refuse it before the solve.
-    let mut output = match args.output.as_deref().map(|p| (p, std::fs::File::create(p))) {
-        None => None,
-        Some((path, Ok(file))) => Some((path, file)),
-        Some((path, Err(e))) => {
-            eprintln!("gharial solve: cannot write {path}: {e}");
-            return 2;
-        }
+    // Unwritable outputs are invalid input: refuse them before the solve.
+    let mut output = match crate::Output::create("solve", args.output.as_deref()) {
+        Ok(o) => o,
+        Err(code) => return code,
     };
     if let Some(dir) = &args.figures
         && !std::path::Path::new(dir).is_dir()
@@ -114,20 +110,14 @@ pub fn run(args: &SolveArgs) -> i32 {
         print_table(table, &sol.history);
     }
     print_summary(config.kind(), sol);
-    if let Some((path, file)) = output.as_mut() {
-        let doc = solution_json(&example, &config, sol);
-        let text = serde_json::to_string_pretty(&doc).expect("JSON of plain numbers");
-        match file.write_all(text.as_bytes()) {
-            Ok(()) => out!("solution  written to {path}"),
-            Err(e) => {
-                eprintln!("gharial solve: cannot write {path}: {e}");
-                return 1;
-            }
-        }
-    }
-    if let Some(dir) = &args.figures
-        && !write_figures(example.name, sol, dir)
-    {
+    let written = output
+        .as_mut()
+        .is_none_or(|o| o.write_json("solve", "solution", &solution_json(&example, &config, sol)));
+    let figures = args
+        .figures
+        .as_ref()
+        .is_none_or(|dir| write_figures(example.name, sol, dir));
+    if !(written && figures) {
         return 1;
     }
     let code = if sol.status.converged() { 0 } else { 1 };
