@@ -228,6 +228,47 @@ fn model_with_mug(params: &Ur10BallisticParams, mount: Mount) -> Result<Model> {
     Ok(model)
 }
 
+/// The two phase spaces of the task and the dynamics of its three kinds of stage.
+struct Phases<'a> {
+    attached: &'a Arc<MultibodyPhaseSpace>,
+    flight: &'a Arc<MultibodyPhaseSpace>,
+    hold: Dynamics,
+    release: Dynamics,
+    fly: Dynamics,
+}
+
+impl Phases<'_> {
+    /// The problem: held stages, the release stage, flight stages (each with its costs
+    /// around `x0` or its flight image `x0_flight` and the torque limits), the terminal
+    /// cost and the terminal constraint on the mug's position.
+    fn problem(&self, params: &Ur10BallisticParams, x0: &[f64], x0_flight: &[f64], tau0: &[f64]) -> Result<Problem> {
+        let nc = params.contact_stages;
+        let arm_dofs: Vec<usize> = (0..NA).collect();
+        let mut stages = Vec::with_capacity(params.horizon);
+        for t in 0..params.horizon {
+            let (space, x_ref, dynamics) = match t {
+                t if t + 1 < nc => (self.attached, x0, self.hold.clone()),
+                t if t + 1 == nc => (self.attached, x0, self.release.clone()),
+                _ => (self.flight, x0_flight, self.fly.clone()),
+            };
+            let cost = running_cost(params, space, x_ref, tau0)?;
+            let mut stage = StageModel::new(Arc::new(cost), dynamics)?;
+            stage.add_constraint(effort_limits(space, &arm_dofs)?.with_scale(params.torque_scale))?;
+            stages.push(stage);
+        }
+        let terminal = state_cost(self.flight, x0_flight, params.terminal[0], params.terminal[1], 0, 1.0)?;
+        let mut problem = Problem::new(x0, stages, Arc::new(terminal))?;
+        let mug = FrameTranslationResidual::new(self.flight, MUG_FRAME, &params.target)?;
+        let landing: Arc<dyn StageFunction> = Arc::new(Unary::new(Arc::new(mug), 0));
+        problem.add_terminal_constraint(StageConstraint::new(
+            "mug position",
+            landing,
+            Arc::new(EqualityConstraintSet),
+        ))?;
+        Ok(problem)
+    }
+}
+
 impl Ur10Ballistic {
     /// Builds the task from `params`.
     ///
@@ -291,29 +332,15 @@ impl Ur10Ballistic {
             flight.configuration().clone(),
             params.dt,
         )?));
-        let release = Dynamics::Explicit(Arc::new(release));
+        let phases = Phases {
+            attached: &attached,
+            flight: &flight,
+            hold,
+            release: Dynamics::Explicit(Arc::new(release)),
+            fly,
+        };
+        let problem = phases.problem(&params, &x0, &x0_flight, &tau0)?;
         let nc = params.contact_stages;
-        let mut stages = Vec::with_capacity(params.horizon);
-        for t in 0..params.horizon {
-            let (space, x_ref, dynamics) = match t {
-                t if t + 1 < nc => (&attached, &x0, hold.clone()),
-                t if t + 1 == nc => (&attached, &x0, release.clone()),
-                _ => (&flight, &x0_flight, fly.clone()),
-            };
-            let cost = running_cost(&params, space, x_ref, &tau0)?;
-            let mut stage = StageModel::new(Arc::new(cost), dynamics)?;
-            stage.add_constraint(effort_limits(space, &arm_dofs)?.with_scale(params.torque_scale))?;
-            stages.push(stage);
-        }
-        let terminal = state_cost(&flight, &x0_flight, params.terminal[0], params.terminal[1], 0, 1.0)?;
-        let mut problem = Problem::new(&x0, stages, Arc::new(terminal))?;
-        let mug = FrameTranslationResidual::new(&flight, MUG_FRAME, &params.target)?;
-        let landing: Arc<dyn StageFunction> = Arc::new(Unary::new(Arc::new(mug), 0));
-        problem.add_terminal_constraint(StageConstraint::new(
-            "mug position",
-            landing,
-            Arc::new(EqualityConstraintSet),
-        ))?;
         let xs0 = (0..=params.horizon)
             .map(|t| if t < nc { x0.clone() } else { x0_flight.clone() })
             .collect();
