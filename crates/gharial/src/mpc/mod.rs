@@ -222,11 +222,12 @@ impl<S: Solver> Mpc<S> {
         guess.check(&problem)?;
         solver.set_limits(options.max_iters, options.max_time);
         solver.setup_receding(&problem, &queue)?;
+        let shaped = Solution::new(&problem, 0);
         let mut g = Guess {
             xs: guess.xs.to_vec(),
             us: guess.us.to_vec(),
-            lambdas: Solution::new(&problem, 0).lambdas,
-            nus: Solution::new(&problem, 0).nus,
+            lambdas: shaped.lambdas,
+            nus: shaped.nus,
         };
         if let Some(l) = guess.lambdas {
             skeleton::copy_trajectory(&mut g.lambdas, l);
