@@ -1,0 +1,343 @@
+//! Solver options as Python attributes: every field of the Rust options structs by name.
+
+use std::time::Duration;
+
+use gharial::solvers::HessianApprox;
+use gharial::solvers::csqp::CsqpOptions;
+use gharial::solvers::ddp::{DdpOptions, DdpVariant};
+use gharial::solvers::proxddp::{Merit, ProxDdpOptions, Rollout, StepAcceptance};
+use pyo3::IntoPyObjectExt;
+use pyo3::prelude::*;
+
+use crate::convert::value_error;
+
+/// The options of one solver.
+#[derive(Debug, Clone)]
+pub enum Options {
+    /// ProxDDP.
+    ProxDdp(ProxDdpOptions),
+    /// The DDP family and SQP.
+    Ddp(DdpOptions),
+    /// CSQP.
+    Csqp(CsqpOptions),
+}
+
+/// The solver names, as the command-line tool spells them.
+pub const SOLVER_NAMES: [&str; 7] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp"];
+
+impl Options {
+    /// The default options of the solver `name`.
+    pub fn default_for(name: &str) -> PyResult<Self> {
+        match name {
+            "proxddp" => Ok(Options::ProxDdp(ProxDdpOptions::default())),
+            "csqp" => Ok(Options::Csqp(CsqpOptions::default())),
+            _ => DdpVariant::from_name(name)
+                .map(|v| Options::Ddp(DdpOptions::new(v)))
+                .ok_or_else(|| value_error(format!("unknown solver `{name}` (one of {})", SOLVER_NAMES.join(", ")))),
+        }
+    }
+
+    /// The solver's name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Options::ProxDdp(_) => "proxddp",
+            Options::Ddp(o) => o.variant.name(),
+            Options::Csqp(_) => "csqp",
+        }
+    }
+
+    /// Checks the values (the solvers' own validation).
+    pub fn validate(&self) -> gharial::Result<()> {
+        match self {
+            Options::ProxDdp(o) => o.validate(),
+            Options::Ddp(o) => o.validate(),
+            Options::Csqp(o) => o.validate(),
+        }
+    }
+
+    /// A new Rust solver with these options.
+    pub fn build(&self) -> Box<dyn gharial::solvers::Solver> {
+        use gharial::solvers::{csqp::Csqp, ddp::Ddp, proxddp::ProxDdp};
+        match self {
+            Options::ProxDdp(o) => Box::new(ProxDdp::new(o.clone())),
+            Options::Ddp(o) => Box::new(Ddp::new(o.clone())),
+            Options::Csqp(o) => Box::new(Csqp::new(o.clone())),
+        }
+    }
+
+    /// Sets where the iteration log goes.
+    pub fn set_log(&mut self, log: gharial::solvers::log::LogSink) {
+        match self {
+            Options::ProxDdp(o) => o.log = log,
+            Options::Ddp(o) => o.log = log,
+            Options::Csqp(o) => o.log = log,
+        }
+    }
+
+    /// The option `name`, if the solver has it.
+    pub fn field(&mut self, name: &str) -> Option<Field<'_>> {
+        match self {
+            Options::ProxDdp(o) => proxddp_field(o, name),
+            Options::Ddp(o) => ddp_field(o, name),
+            Options::Csqp(o) => csqp_field(o, name),
+        }
+    }
+
+    /// Every option name.
+    pub fn names(&self) -> &'static [&'static str] {
+        match self {
+            Options::ProxDdp(_) => PROXDDP,
+            Options::Ddp(_) => DDP,
+            Options::Csqp(_) => CSQP,
+        }
+    }
+}
+
+/// A mutable reference to one option.
+pub enum Field<'a> {
+    /// A real number.
+    F64(&'a mut f64),
+    /// A count.
+    Usize(&'a mut usize),
+    /// A flag.
+    Bool(&'a mut bool),
+    /// An optional real number (`None` in Python).
+    OptF64(&'a mut Option<f64>),
+    /// A wall-time budget in seconds (`None`: no budget).
+    Time(&'a mut Option<Duration>),
+    /// ProxDDP's rollout.
+    Rollout(&'a mut Rollout),
+    /// ProxDDP's step acceptance.
+    Acceptance(&'a mut StepAcceptance),
+    /// ProxDDP's merit function.
+    Merit(&'a mut Merit),
+    /// The Hessian approximation.
+    Hessian(&'a mut HessianApprox),
+}
+
+const PROXDDP: &[&str] = &[
+    "tol",
+    "mu_init",
+    "mu_update_factor",
+    "mu_lower_bound",
+    "dyn_al_scale",
+    "bcl_alpha_omega",
+    "bcl_alpha_eta",
+    "bcl_beta_omega",
+    "bcl_beta_eta",
+    "max_iters",
+    "max_al_iters",
+    "rollout",
+    "step_acceptance",
+    "merit",
+    "hessian",
+    "ls_c1",
+    "ls_alpha_min",
+    "ls_max_trials",
+    "nonmonotone_eta",
+    "preg_min",
+    "preg_max",
+    "preg_increase",
+    "preg_decrease",
+    "implicit_newton_iters",
+    "implicit_newton_tol",
+    "dphi_thresh",
+    "watchdog_trigger",
+    "watchdog_trials",
+    "active_set_iters",
+    "max_time",
+    "num_threads",
+];
+
+fn proxddp_field<'a>(o: &'a mut ProxDdpOptions, name: &str) -> Option<Field<'a>> {
+    Some(match name {
+        "tol" => Field::F64(&mut o.tol),
+        "mu_init" => Field::F64(&mut o.mu_init),
+        "mu_update_factor" => Field::F64(&mut o.mu_update_factor),
+        "mu_lower_bound" => Field::F64(&mut o.mu_lower_bound),
+        "dyn_al_scale" => Field::F64(&mut o.dyn_al_scale),
+        "bcl_alpha_omega" => Field::F64(&mut o.bcl_alpha_omega),
+        "bcl_alpha_eta" => Field::F64(&mut o.bcl_alpha_eta),
+        "bcl_beta_omega" => Field::F64(&mut o.bcl_beta_omega),
+        "bcl_beta_eta" => Field::F64(&mut o.bcl_beta_eta),
+        "max_iters" => Field::Usize(&mut o.max_iters),
+        "max_al_iters" => Field::Usize(&mut o.max_al_iters),
+        "rollout" => Field::Rollout(&mut o.rollout),
+        "step_acceptance" => Field::Acceptance(&mut o.step_acceptance),
+        "merit" => Field::Merit(&mut o.merit),
+        "hessian" => Field::Hessian(&mut o.hessian),
+        "ls_c1" => Field::F64(&mut o.linesearch.c1),
+        "ls_alpha_min" => Field::F64(&mut o.linesearch.alpha_min),
+        "ls_max_trials" => Field::Usize(&mut o.linesearch.max_trials),
+        "nonmonotone_eta" => Field::F64(&mut o.nonmonotone_eta),
+        "preg_min" => Field::F64(&mut o.preg_min),
+        "preg_max" => Field::F64(&mut o.preg_max),
+        "preg_increase" => Field::F64(&mut o.preg_increase),
+        "preg_decrease" => Field::F64(&mut o.preg_decrease),
+        "implicit_newton_iters" => Field::Usize(&mut o.implicit_newton_iters),
+        "implicit_newton_tol" => Field::F64(&mut o.implicit_newton_tol),
+        "dphi_thresh" => Field::F64(&mut o.dphi_thresh),
+        "watchdog_trigger" => Field::Usize(&mut o.watchdog_trigger),
+        "watchdog_trials" => Field::Usize(&mut o.watchdog_trials),
+        "active_set_iters" => Field::Usize(&mut o.active_set_iters),
+        "max_time" => Field::Time(&mut o.max_time),
+        "num_threads" => Field::Usize(&mut o.num_threads),
+        _ => return None,
+    })
+}
+
+const DDP: &[&str] = &[
+    "tol",
+    "th_stop",
+    "max_iters",
+    "hessian",
+    "reg_init",
+    "reg_min",
+    "reg_max",
+    "reg_converged",
+    "reg_increase",
+    "reg_decrease",
+    "step_decrease_reg",
+    "step_increase_reg",
+    "linesearch_steps",
+    "th_accept",
+    "th_accept_neg",
+    "th_grad",
+    "gap_tol",
+    "filter_size",
+    "filter_linesearch",
+    "box_qp_max_iters",
+    "implicit_newton_iters",
+    "implicit_newton_tol",
+    "max_time",
+    "num_threads",
+];
+
+fn ddp_field<'a>(o: &'a mut DdpOptions, name: &str) -> Option<Field<'a>> {
+    Some(match name {
+        "tol" => Field::F64(&mut o.tol),
+        "th_stop" => Field::OptF64(&mut o.th_stop),
+        "max_iters" => Field::Usize(&mut o.max_iters),
+        "hessian" => Field::Hessian(&mut o.hessian),
+        "reg_init" => Field::F64(&mut o.reg_init),
+        "reg_min" => Field::F64(&mut o.reg_min),
+        "reg_max" => Field::F64(&mut o.reg_max),
+        "reg_converged" => Field::F64(&mut o.reg_converged),
+        "reg_increase" => Field::F64(&mut o.reg_increase),
+        "reg_decrease" => Field::F64(&mut o.reg_decrease),
+        "step_decrease_reg" => Field::F64(&mut o.step_decrease_reg),
+        "step_increase_reg" => Field::F64(&mut o.step_increase_reg),
+        "linesearch_steps" => Field::Usize(&mut o.linesearch_steps),
+        "th_accept" => Field::F64(&mut o.th_accept),
+        "th_accept_neg" => Field::F64(&mut o.th_accept_neg),
+        "th_grad" => Field::F64(&mut o.th_grad),
+        "gap_tol" => Field::F64(&mut o.gap_tol),
+        "filter_size" => Field::Usize(&mut o.filter_size),
+        "filter_linesearch" => Field::Bool(&mut o.filter_linesearch),
+        "box_qp_max_iters" => Field::Usize(&mut o.box_qp.max_iters),
+        "implicit_newton_iters" => Field::Usize(&mut o.implicit.max_iters),
+        "implicit_newton_tol" => Field::F64(&mut o.implicit.tol),
+        "max_time" => Field::Time(&mut o.max_time),
+        "num_threads" => Field::Usize(&mut o.num_threads),
+        _ => return None,
+    })
+}
+
+const CSQP: &[&str] = &[
+    "tol",
+    "max_iters",
+    "rho_init",
+    "admm_alpha",
+    "eps_abs",
+    "eps_rel",
+    "max_qp_iters",
+    "rho_update_interval",
+    "check_interval",
+    "warm_qp",
+    "linesearch_steps",
+    "filter_size",
+    "max_time",
+];
+
+fn csqp_field<'a>(o: &'a mut CsqpOptions, name: &str) -> Option<Field<'a>> {
+    Some(match name {
+        "tol" => Field::F64(&mut o.tol),
+        "max_iters" => Field::Usize(&mut o.max_iters),
+        "rho_init" => Field::F64(&mut o.admm.rho_init),
+        "admm_alpha" => Field::F64(&mut o.admm.alpha),
+        "eps_abs" => Field::F64(&mut o.admm.eps_abs),
+        "eps_rel" => Field::F64(&mut o.admm.eps_rel),
+        "max_qp_iters" => Field::Usize(&mut o.admm.max_iters),
+        "rho_update_interval" => Field::Usize(&mut o.admm.rho_update_interval),
+        "check_interval" => Field::Usize(&mut o.admm.check_interval),
+        "warm_qp" => Field::Bool(&mut o.warm_qp),
+        "linesearch_steps" => Field::Usize(&mut o.linesearch_steps),
+        "filter_size" => Field::Usize(&mut o.filter_size),
+        "max_time" => Field::Time(&mut o.max_time),
+        _ => return None,
+    })
+}
+
+fn pick<T: Copy>(what: &str, value: &str, table: &[(&str, T)]) -> PyResult<T> {
+    table.iter().find(|(n, _)| *n == value).map(|(_, v)| *v).ok_or_else(|| {
+        let names: Vec<_> = table.iter().map(|(n, _)| *n).collect();
+        value_error(format!("{what}: unknown value `{value}` (one of {})", names.join(", ")))
+    })
+}
+
+fn name_of<T: PartialEq + Copy>(value: T, table: &[(&'static str, T)]) -> &'static str {
+    table.iter().find(|(_, v)| *v == value).map_or("?", |(n, _)| n)
+}
+
+const ROLLOUTS: &[(&str, Rollout)] = &[("linear", Rollout::Linear), ("nonlinear", Rollout::Nonlinear)];
+const ACCEPTANCES: &[(&str, StepAcceptance)] = &[
+    ("filter", StepAcceptance::Filter),
+    ("linesearch", StepAcceptance::Linesearch),
+    ("nonmonotone", StepAcceptance::NonmonotoneLinesearch),
+];
+const MERITS: &[(&str, Merit)] = &[("primal-dual", Merit::PrimalDual), ("primal", Merit::Primal)];
+const HESSIANS: &[(&str, HessianApprox)] = &[
+    ("gauss-newton", HessianApprox::GaussNewton),
+    ("exact", HessianApprox::Exact),
+];
+
+impl Field<'_> {
+    /// The value as a Python object.
+    pub fn get(&self, py: Python<'_>) -> PyResult<Py<PyAny>> {
+        match self {
+            Field::F64(v) => (**v).into_py_any(py),
+            Field::Usize(v) => (**v).into_py_any(py),
+            Field::Bool(v) => (**v).into_py_any(py),
+            Field::OptF64(v) => (**v).into_py_any(py),
+            Field::Time(v) => v.map(|d| d.as_secs_f64()).into_py_any(py),
+            Field::Rollout(v) => name_of(**v, ROLLOUTS).into_py_any(py),
+            Field::Acceptance(v) => name_of(**v, ACCEPTANCES).into_py_any(py),
+            Field::Merit(v) => name_of(**v, MERITS).into_py_any(py),
+            Field::Hessian(v) => name_of(**v, HESSIANS).into_py_any(py),
+        }
+    }
+
+    /// Sets the value from a Python object (`name` for messages).
+    pub fn set(&mut self, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let bad = |e: PyErr| value_error(format!("option `{name}`: {e}"));
+        match self {
+            Field::F64(v) => **v = value.extract().map_err(bad)?,
+            Field::Usize(v) => **v = value.extract().map_err(bad)?,
+            Field::Bool(v) => **v = value.extract().map_err(bad)?,
+            Field::OptF64(v) => **v = value.extract().map_err(bad)?,
+            Field::Time(v) => {
+                let s: Option<f64> = value.extract().map_err(bad)?;
+                **v = match s {
+                    Some(s) if s.is_finite() && s >= 0.0 => Some(Duration::from_secs_f64(s)),
+                    Some(s) => return Err(value_error(format!("option `{name}`: {s} is not a time in seconds"))),
+                    None => None,
+                };
+            }
+            Field::Rollout(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, ROLLOUTS)?,
+            Field::Acceptance(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, ACCEPTANCES)?,
+            Field::Merit(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, MERITS)?,
+            Field::Hessian(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, HESSIANS)?,
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,155 @@
+"""Solving from Python: every solver against a dense KKT solve, the catalogue against the
+Rust command-line tool bit for bit, options, warm starts and results."""
+
+import json
+import os
+import subprocess
+
+import numpy as np
+import pytest
+from conftest import lqr_kkt, lqr_problem
+
+import gharial
+
+ALL = gharial.solver_names()
+
+
+@pytest.mark.parametrize("name", ALL)
+def test_every_solver_reaches_the_dense_kkt_optimum(name):
+    problem = lqr_problem()
+    xs_ref, us_ref = lqr_kkt()
+    s = gharial.solver(name, tol=1e-10, max_iters=200)
+    assert s.run(problem), s.results
+    r = s.results
+    assert r.status == "converged"
+    np.testing.assert_allclose(np.array(r.us), np.array(us_ref), atol=1e-7)
+    np.testing.assert_allclose(np.array(r.xs), np.array(xs_ref), atol=1e-7)
+
+
+def test_named_classes_match_the_names():
+    for cls, name in [
+        (gharial.SolverProxDDP, "proxddp"),
+        (gharial.SolverDDP, "ddp"),
+        (gharial.SolverFDDP, "fddp"),
+        (gharial.SolverBoxDDP, "box-ddp"),
+        (gharial.SolverBoxFDDP, "box-fddp"),
+        (gharial.SolverSQP, "sqp"),
+        (gharial.SolverCSQP, "csqp"),
+    ]:
+        s = cls(tol=1e-7, max_iters=50)
+        assert s.name == name and s.tol == 1e-7 and s.max_iters == 50
+        assert isinstance(s, gharial.Solver)
+
+
+def cli(args, tmp_path):
+    exe = os.environ.get("GHARIAL_CLI")
+    if not exe:
+        pytest.skip("GHARIAL_CLI (the gharial binary) is not set; tools/test sets it")
+    out = tmp_path / "cli.json"
+    subprocess.run([exe, "solve", *args, "--output", str(out)], check=False, capture_output=True)
+    return json.loads(out.read_text())
+
+
+@pytest.mark.parametrize(
+    "problem,solver",
+    [("pendulum", "proxddp"), ("ur5", "proxddp"), ("ur5", "fddp"), ("ur5", "sqp"), ("lqr-bounds-term", "proxddp"),
+     ("ur5-box", "csqp"), ("ur5-box", "box-fddp")],
+)
+def test_catalogue_solves_equal_the_command_line_bit_for_bit(problem, solver, tmp_path):
+    ref = cli([problem, "--solver", solver], tmp_path)
+    ex = gharial.problems.build(problem)
+    s = ex.solver(solver)
+    s.run(ex.problem, ex.xs0, ex.us0)
+    r = s.results
+    assert r.num_iters == ref["iterations"]
+    assert r.traj_cost == ref["cost"]
+    assert [list(x) for x in r.xs] == ref["xs"]
+    assert [list(u) for u in r.us] == ref["us"]
+
+
+def test_results_have_the_solution_shapes(lqr):
+    s = gharial.SolverProxDDP(tol=1e-8)
+    s.run(lqr)
+    r = s.results
+    assert len(r.xs) == 21 and len(r.us) == 20 and len(r.lams) == 21 and len(r.vs) == 21
+    assert all(k.shape == (2, 4) for k in r.gains)
+    assert r.history["prim_err"].shape == (r.num_iters,) or r.history["prim_err"].shape == (r.num_iters + 1,)
+    d = r.to_dict()
+    assert d["status"] == "converged" and d["traj_cost"] == r.traj_cost
+    assert "converged" in repr(r)
+
+
+def test_feedback_gains_are_the_lqr_gains(lqr):
+    """K_0 of the last backward pass maps a perturbation of x0 to the change of u0."""
+    s = gharial.SolverProxDDP(tol=1e-10)
+    s.run(lqr)
+    k0 = s.results.gains[0]
+    dx = np.array([1e-3, -2e-3, 0.5e-3, 1e-3])
+    x0 = np.array([1.0, -0.5, 0.0, 0.2])
+    _, us_ref = lqr_kkt(x0=tuple(x0 + dx))
+    np.testing.assert_allclose(s.results.us[0] + k0 @ dx, us_ref[0], atol=1e-9)
+
+
+def test_warm_start_from_the_solution_converges_at_once():
+    problem = lqr_problem(bounds=0.3)
+    s = gharial.SolverProxDDP(tol=1e-8)
+    s.run(problem)
+    r = s.results
+    assert r.conv and r.num_iters > 1
+    s.run(problem, r.xs, r.us, r.lams, r.vs)
+    assert s.results.conv and s.results.num_iters <= 1
+
+
+def test_bounds_hold_and_options_change_the_solve():
+    problem = lqr_problem(bounds=0.3)
+    s = gharial.SolverProxDDP(tol=1e-8)
+    assert s.run(problem)
+    assert max(abs(u).max() for u in s.results.us) <= 0.3 + 1e-7
+    s.max_iters = 1
+    s.run(problem)
+    assert s.results.status == "max_iterations" and not s.results.conv
+
+
+def test_x0_can_change_between_solves(lqr):
+    s = gharial.SolverFDDP(tol=1e-10)
+    lqr.x0_init = np.array([0.5, 0.5, 0.0, 0.0])
+    s.run(lqr)
+    xs_ref, _ = lqr_kkt(x0=(0.5, 0.5, 0.0, 0.0))
+    np.testing.assert_allclose(s.results.xs[-1], xs_ref[-1], atol=1e-7)
+
+
+def test_cost_stack_weights_change_between_solves():
+    space = gharial.manifolds.VectorSpace(4)
+    problem = lqr_problem()
+    s = gharial.SolverProxDDP(tol=1e-9)
+    s.run(problem)
+    cost_before = s.results.traj_cost
+    stack = gharial.CostStack(space, 2)
+    assert stack.names == []
+    for stage in problem.stages:
+        assert stage.nu == 2
+    # the stacks of lqr_problem are not reachable; build one and change its weight
+    stack.addCost("control", gharial.QuadraticControlCost(space, np.zeros(2), [1.0, 1.0]), 1.0)
+    stack.set_weight("control", 2.0)
+    assert stack.weight("control") == 2.0
+    u = np.array([1.0, 2.0])
+    assert stack.value(np.zeros(4), u) == pytest.approx(2.0 * 0.5 * 5.0)
+    assert cost_before > 0
+
+
+def test_rollout_follows_the_dynamics(lqr):
+    us = [np.array([0.1, -0.1])] * 20
+    xs = lqr.rollout(us)
+    a = np.eye(4)
+    a[0, 2] = a[1, 3] = 0.1
+    b = np.zeros((4, 2))
+    b[2, 0] = b[3, 1] = 0.1
+    for t in range(20):
+        np.testing.assert_allclose(xs[t + 1], a @ xs[t] + b @ us[t], atol=1e-14)
+
+
+def test_verbose_prints_the_iteration_table(lqr, capsys):
+    s = gharial.SolverProxDDP(tol=1e-8, verbose=True)
+    s.run(lqr)
+    out = capsys.readouterr().out
+    assert "iter" in out and "prim_err" in out
