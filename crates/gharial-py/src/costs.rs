@@ -136,11 +136,19 @@ impl PyCost {
     }
 }
 
-/// A weight matrix from a vector (its diagonal) or a square matrix of size `n`.
-fn weights(obj: &Bound<'_, PyAny>, what: &str, n: usize) -> PyResult<Mat<f64>> {
-    match vector(obj, what, Some(n)) {
-        Ok(d) => Ok(Mat::from_fn(n, n, |i, j| if i == j { d[i] } else { 0.0 })),
-        Err(_) => matrix(obj, what, Some((n, n))),
+/// Weights: a vector (the diagonal, kept as such by the diagonal constructors) or a
+/// square matrix of size `n`.
+enum Weights {
+    Diagonal(Vec<f64>),
+    Full(Mat<f64>),
+}
+
+fn weights(obj: &Bound<'_, PyAny>, what: &str, n: usize) -> PyResult<Weights> {
+    let ndim: usize = obj.py().import("numpy")?.call_method1("ndim", (obj,))?.extract()?;
+    if ndim == 1 {
+        Ok(Weights::Diagonal(vector(obj, what, Some(n))?))
+    } else {
+        Ok(Weights::Full(matrix(obj, what, Some((n, n)))?))
     }
 }
 
@@ -190,8 +198,11 @@ impl PyQuadraticStateCost {
     ) -> PyResult<PyClassInitializer<Self>> {
         let space = space.get().inner.clone();
         let target = vector(target, "QuadraticStateCost target", Some(space.nx()))?;
-        let w = self::weights(weights, "QuadraticStateCost weights", space.ndx())?;
-        let c = QuadraticStateCost::new(space, &target, w.as_ref(), nu).map_err(err)?;
+        let c = match self::weights(weights, "QuadraticStateCost weights", space.ndx())? {
+            Weights::Diagonal(w) => QuadraticStateCost::diagonal(space, &target, &w, nu),
+            Weights::Full(w) => QuadraticStateCost::new(space, &target, w.as_ref(), nu),
+        }
+        .map_err(err)?;
         Ok(PyClassInitializer::from(PyCost::rust(Arc::new(c), Vec::new())).add_subclass(Self))
     }
 }
@@ -209,8 +220,12 @@ impl PyQuadraticControlCost {
         weights: &Bound<'_, PyAny>,
     ) -> PyResult<PyClassInitializer<Self>> {
         let target = vector(target, "QuadraticControlCost target", None)?;
-        let w = self::weights(weights, "QuadraticControlCost weights", target.len())?;
-        let c = QuadraticControlCost::new(space.get().inner.as_ref(), &target, w.as_ref()).map_err(err)?;
+        let space = space.get().inner.clone();
+        let c = match self::weights(weights, "QuadraticControlCost weights", target.len())? {
+            Weights::Diagonal(w) => QuadraticControlCost::diagonal(space.as_ref(), &target, &w),
+            Weights::Full(w) => QuadraticControlCost::new(space.as_ref(), &target, w.as_ref()),
+        }
+        .map_err(err)?;
         Ok(PyClassInitializer::from(PyCost::rust(Arc::new(c), Vec::new())).add_subclass(Self))
     }
 }
@@ -236,8 +251,11 @@ impl PyQuadraticResidualCost {
                 space.get().inner.nx()
             )));
         }
-        let w = self::weights(weights, "QuadraticResidualCost weights", f.nr())?;
-        let c = QuadraticResidualCost::new(f, w.as_ref()).map_err(err)?;
+        let c = match self::weights(weights, "QuadraticResidualCost weights", f.nr())? {
+            Weights::Diagonal(w) => QuadraticResidualCost::diagonal(f, &w),
+            Weights::Full(w) => QuadraticResidualCost::new(f, w.as_ref()),
+        }
+        .map_err(err)?;
         Ok(PyClassInitializer::from(PyCost::rust(Arc::new(c), slots)).add_subclass(Self))
     }
 }

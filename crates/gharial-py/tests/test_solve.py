@@ -4,6 +4,7 @@ Rust command-line tool bit for bit, options, warm starts and results."""
 import json
 import os
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -153,3 +154,42 @@ def test_verbose_prints_the_iteration_table(lqr, capsys):
     s.run(lqr)
     out = capsys.readouterr().out
     assert "iter" in out and "prim_err" in out
+
+
+def test_ur5_reach_built_in_python_equals_the_catalogue_bit_for_bit():
+    """examples/ur5_reach.py's problem, built from the URDF with the Python API."""
+    from gharial import robots
+
+    model = robots.load_builtin("ur5")
+    space, dt, q0 = robots.MultibodyPhaseSpace(model), 0.01, np.array([0, -1, 1, -0.5, -0.5, 0.0])
+    x0 = np.concatenate([q0, np.zeros(6)])
+    step = gharial.dynamics.IntegratorSemiImplEuler(robots.MultibodyFreeFwdDynamics(space), dt)
+
+    def cost(nu, wv, wee, scale):
+        c = gharial.CostStack(space, nu)
+        c.addCost("state", gharial.QuadraticStateCost(space, nu, x0, [1e-2] * 6 + [wv] * 6), scale)
+        if nu:
+            c.addCost("control", gharial.QuadraticControlCost(space, np.zeros(nu), [1e-4] * nu), scale)
+        ee = robots.FrameTranslationResidual(space, nu, "tool0", [0.3, 0.5, 0.5])
+        c.addCost("ee", gharial.QuadraticResidualCost(space, ee, [wee] * 3), scale)
+        return c
+
+    problem = gharial.TrajOptProblem(x0, [gharial.StageModel(cost(6, 0.1, 10.0, dt), step)] * 100, cost(0, 1.0, 1000.0, 1.0))
+    us = [robots.generalized_gravity(model, q0)] * 100
+    xs = problem.rollout(us)
+    ex = gharial.problems.build("ur5")
+    assert all(np.array_equal(a, b) for a, b in zip(xs, ex.xs0))
+    for name in ("proxddp", "fddp"):
+        mine, ref = ex.solver(name), ex.solver(name)
+        mine.run(problem, xs, us)
+        ref.run(ex.problem, ex.xs0, ex.us0)
+        assert mine.results.num_iters == ref.results.num_iters
+        assert mine.results.traj_cost == ref.results.traj_cost
+        assert all(np.array_equal(a, b) for a, b in zip(mine.results.us, ref.results.us))
+
+
+@pytest.mark.parametrize("example", ["quickstart.py", "ur5_reach.py", "python_cost.py"])
+def test_examples_run(example):
+    path = os.path.join(os.path.dirname(__file__), "..", "examples", example)
+    out = subprocess.run([sys.executable, path], capture_output=True, text=True, check=True).stdout
+    assert "status=converged" in out

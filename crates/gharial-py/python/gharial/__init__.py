@@ -4,7 +4,7 @@ The solvers, models and robots are Rust (the extension module ``gharial._gharial
 this package arranges them under ALIGATOR's names. See the package README.
 """
 
-from . import constraints, dynamics, manifolds, problems  # noqa: F401
+from . import constraints, dynamics, manifolds, problems, robots  # noqa: F401
 from .batch import solve_batch  # noqa: F401
 from ._gharial import (  # noqa: F401
     ControlErrorResidual,
