@@ -98,7 +98,7 @@ pub struct PyProblem {
     terminal_cost: Arc<dyn Cost>,
     terminal_slots: Slots,
     terminal_constraints: Vec<StageConstraint>,
-    cached: Option<Problem>,
+    cached: Option<Arc<Problem>>,
     generation: u64,
 }
 
@@ -126,13 +126,13 @@ impl PyProblem {
             terminal_cost: p.terminal_cost().clone(),
             terminal_slots: Vec::new(),
             terminal_constraints: p.terminal_constraints().to_vec(),
-            cached: Some(p.clone()),
+            cached: Some(Arc::new(p.clone())),
             generation: GENERATION.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
     }
 
     /// The Rust problem (built once after each change).
-    pub fn problem(&mut self) -> PyResult<Problem> {
+    pub fn problem(&mut self) -> PyResult<Arc<Problem>> {
         if let Some(p) = &self.cached {
             return Ok(p.clone());
         }
@@ -141,6 +141,7 @@ impl PyProblem {
         for c in &self.terminal_constraints {
             p.add_terminal_constraint(c.clone()).map_err(err)?;
         }
+        let p = Arc::new(p);
         self.cached = Some(p.clone());
         self.generation = GENERATION.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         Ok(p)
@@ -271,7 +272,7 @@ impl PyProblem {
     fn set_x0_init(&mut self, x0: &Bound<'_, PyAny>) -> PyResult<()> {
         let x0 = vector(x0, "x0", None)?;
         if let Some(p) = &mut self.cached {
-            p.set_x0(&x0).map_err(err)?;
+            Arc::make_mut(p).set_x0(&x0).map_err(err)?;
         }
         self.init = InitialCondition::Fixed(x0);
         Ok(())

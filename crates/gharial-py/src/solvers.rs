@@ -26,7 +26,8 @@ pub struct PySolver {
     dirty: bool,
     /// The problem generation the solver was set up for.
     setup_for: u64,
-    results: Option<Solution>,
+    /// Whether a solve has run on the current Rust solver (its solution is the results).
+    has_results: bool,
 }
 
 /// The `snake_case` name of a status.
@@ -55,7 +56,7 @@ impl PySolver {
             solver: Mutex::new(None),
             dirty: true,
             setup_for: 0,
-            results: None,
+            has_results: false,
         };
         if let Some(kw) = kwargs {
             for (k, v) in kw.iter() {
@@ -103,6 +104,7 @@ impl PySolver {
         let mut solver = self.effective_options().build();
         solver.setup(problem).map_err(err)?;
         self.setup_for = generation;
+        self.has_results = false;
         *self
             .solver
             .get_mut()
@@ -118,7 +120,8 @@ pub type Trajectory = Vec<Vec<f64>>;
 /// Co-states and path multipliers of a warm start.
 pub type Duals<'a> = (&'a [Vec<f64>], &'a [Vec<f64>]);
 
-/// Solves `problem` with a set-up `solver` from the guess, without the GIL.
+/// Solves `problem` with a set-up `solver` from the guess, without the GIL; returns
+/// whether it converged (the solution stays in the solver).
 pub fn solve_detached(
     py: Python<'_>,
     solver: &mut dyn Solver,
@@ -126,14 +129,14 @@ pub fn solve_detached(
     xs: &[Vec<f64>],
     us: &[Vec<f64>],
     duals: Option<Duals<'_>>,
-) -> gharial::Result<Solution> {
+) -> gharial::Result<bool> {
     py.detach(|| {
         let mut guess = InitialGuess::primal(xs, us);
         if let Some((l, n)) = duals {
             guess.lambdas = Some(l);
             guess.nus = Some(n);
         }
-        solver.solve(problem, guess).cloned()
+        solver.solve(problem, guess).map(|s| s.status.converged())
     })
 }
 
@@ -247,19 +250,22 @@ impl PySolver {
             *slot = Some(solver);
         }
         problem.borrow().raise_python_errors(py)?;
-        let solution = result.map_err(err)?;
-        let converged = solution.status.converged();
-        s.results = Some(solution);
+        let converged = result.map_err(err)?;
+        s.has_results = true;
         Ok(converged)
     }
 
     /// The results of the last `run`.
     #[getter]
     fn results(&self) -> PyResult<PyResults> {
-        self.results
-            .clone()
-            .map(|s| PyResults { s })
-            .ok_or_else(|| PyRuntimeError::new_err("no results: call run() first"))
+        if !self.has_results {
+            return Err(PyRuntimeError::new_err("no results: call run() first"));
+        }
+        let solver = self.solver.lock().map_err(|_| PyRuntimeError::new_err("solver lock poisoned"))?;
+        let solver = solver
+            .as_ref()
+            .ok_or_else(|| PyRuntimeError::new_err("the solver is running in another thread"))?;
+        Ok(PyResults { s: solver.solution().clone() })
     }
 }
 
