@@ -261,11 +261,16 @@ impl PySolver {
         if !self.has_results {
             return Err(PyRuntimeError::new_err("no results: call run() first"));
         }
-        let solver = self.solver.lock().map_err(|_| PyRuntimeError::new_err("solver lock poisoned"))?;
+        let solver = self
+            .solver
+            .lock()
+            .map_err(|_| PyRuntimeError::new_err("solver lock poisoned"))?;
         let solver = solver
             .as_ref()
             .ok_or_else(|| PyRuntimeError::new_err("the solver is running in another thread"))?;
-        Ok(PyResults { s: solver.solution().clone() })
+        Ok(PyResults {
+            s: solver.solution().clone(),
+        })
     }
 }
 
