@@ -11,7 +11,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::convert::{array1, array2, err, matrix, value_error, vector};
-use crate::functions::{function_of, init_args};
+use crate::functions::{function_of, subclass_init};
 use crate::pymodel::{PyCostModel, Slots};
 use crate::spaces::PyManifold;
 
@@ -74,9 +74,8 @@ impl PyCost {
         if self.inner.is_some() {
             return Ok(());
         }
-        let a = init_args(args, kwargs, &["space", "nu"], "CostAbstract")?;
-        let space = a[0].cast::<PyManifold>()?.get().inner.clone();
-        self.py_dims = Some((space, a[1].extract()?));
+        let (space, n) = subclass_init(args, kwargs, &["nu"], "CostAbstract")?;
+        self.py_dims = Some((space, n[0]));
         Ok(())
     }
 

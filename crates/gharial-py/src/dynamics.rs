@@ -2,6 +2,8 @@
 
 use std::sync::Arc;
 
+use faer::Mat;
+
 use gharial::dynamics::{
     Dynamics, ExplicitDynamics, ExplicitRungeKutta, ImplicitEuler, ImplicitMidpoint, LinearDiscreteDynamics, LinearOde,
     Ode, RkMethod, SemiImplicitEuler,
@@ -13,7 +15,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::convert::{array1, array2, err, matrix, value_error, vector};
-use crate::functions::init_args;
+use crate::functions::subclass_init;
 use crate::pymodel::{PyOdeModel, Slots};
 use crate::spaces::PyManifold;
 
@@ -84,9 +86,8 @@ impl PyOde {
         if self.inner.is_some() {
             return Ok(());
         }
-        let a = init_args(args, kwargs, &["space", "nu"], "ODEAbstract")?;
-        let space = a[0].cast::<PyManifold>()?.get().inner.clone();
-        self.py_dims = Some((space, a[1].extract()?));
+        let (space, n) = subclass_init(args, kwargs, &["nu"], "ODEAbstract")?;
+        self.py_dims = Some((space, n[0]));
         Ok(())
     }
 
@@ -111,6 +112,22 @@ impl PyOde {
     }
 }
 
+/// `(A, B, c)` of a linear model (`c` zero when absent).
+fn linear_parts(
+    a: &Bound<'_, PyAny>,
+    b: &Bound<'_, PyAny>,
+    c: Option<&Bound<'_, PyAny>>,
+    what: &str,
+) -> PyResult<(Mat<f64>, Mat<f64>, Vec<f64>)> {
+    let a = matrix(a, &format!("{what} A"), None)?;
+    let b = matrix(b, &format!("{what} B"), None)?;
+    let c = match c {
+        Some(c) => vector(c, &format!("{what} c"), Some(a.nrows()))?,
+        None => vec![0.0; a.nrows()],
+    };
+    Ok((a, b, c))
+}
+
 /// `ẋ = A x + B u + c` (ALIGATOR's `LinearODE`).
 #[pyclass(extends = PyOde, name = "LinearODE", module = "gharial.dynamics")]
 pub struct PyLinearOde;
@@ -124,12 +141,7 @@ impl PyLinearOde {
         b: &Bound<'_, PyAny>,
         c: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let a = matrix(a, "LinearODE A", None)?;
-        let b = matrix(b, "LinearODE B", None)?;
-        let c = match c {
-            Some(c) => vector(c, "LinearODE c", Some(a.nrows()))?,
-            None => vec![0.0; a.nrows()],
-        };
+        let (a, b, c) = linear_parts(a, b, c, "LinearODE")?;
         let ode = LinearOde::new(a.as_ref(), b.as_ref(), &c).map_err(err)?;
         Ok(PyClassInitializer::from(PyOde::rust(Arc::new(ode), None)).add_subclass(Self))
     }
@@ -222,12 +234,7 @@ impl PyLinearDiscrete {
         b: &Bound<'_, PyAny>,
         c: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<PyClassInitializer<Self>> {
-        let a = matrix(a, "LinearDiscreteDynamics A", None)?;
-        let b = matrix(b, "LinearDiscreteDynamics B", None)?;
-        let c = match c {
-            Some(c) => vector(c, "LinearDiscreteDynamics c", Some(a.nrows()))?,
-            None => vec![0.0; a.nrows()],
-        };
+        let (a, b, c) = linear_parts(a, b, c, "LinearDiscreteDynamics")?;
         let d = LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &c).map_err(err)?;
         Ok(PyClassInitializer::from(explicit(d, Vec::new())).add_subclass(Self))
     }

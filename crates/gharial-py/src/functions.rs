@@ -2,7 +2,6 @@
 
 use std::sync::Arc;
 
-use faer::Col;
 use gharial::functions::{ControlError, LinearComposition, LinearFunction, Slice, StageFunction, StateError};
 use numpy::PyArray1;
 use pyo3::PyClassInitializer;
@@ -14,25 +13,27 @@ use crate::convert::{array1, err, matrix, vector};
 use crate::pymodel::{PyFunctionModel, Slots};
 use crate::spaces::PyManifold;
 
-/// The arguments of a Python subclass's `super().__init__(...)`, by position or name.
-pub fn init_args<'py>(
-    args: &Bound<'py, PyTuple>,
-    kwargs: Option<&Bound<'py, PyDict>>,
-    names: &[&str],
+/// The arguments `(space, sizes...)` of a Python subclass's `super().__init__(...)`,
+/// by position or name: the space and the sizes named in `sizes`.
+pub fn subclass_init(
+    args: &Bound<'_, PyTuple>,
+    kwargs: Option<&Bound<'_, PyDict>>,
+    sizes: &[&str],
     class: &str,
-) -> PyResult<Vec<Bound<'py, PyAny>>> {
-    names
+) -> PyResult<(Arc<dyn gharial::spaces::Manifold>, Vec<usize>)> {
+    let arg = |i: usize, name: &str| {
+        args.get_item(i)
+            .ok()
+            .or_else(|| kwargs.and_then(|k| k.get_item(name).ok().flatten()))
+            .ok_or_else(|| PyTypeError::new_err(format!("{class}.__init__: missing argument `{name}`")))
+    };
+    let space = arg(0, "space")?.cast::<PyManifold>()?.get().inner.clone();
+    let sizes = sizes
         .iter()
         .enumerate()
-        .map(|(i, name)| {
-            if let Ok(a) = args.get_item(i) {
-                return Ok(a);
-            }
-            kwargs
-                .and_then(|k| k.get_item(name).ok().flatten())
-                .ok_or_else(|| PyTypeError::new_err(format!("{class}.__init__: missing argument `{name}`")))
-        })
-        .collect()
+        .map(|(i, name)| arg(i + 1, name)?.extract())
+        .collect::<PyResult<_>>()?;
+    Ok((space, sizes))
 }
 
 /// A function `r(x, u)` of a state and a control (base class of residuals).
@@ -101,9 +102,8 @@ impl PyStageFunction {
         if self.inner.is_some() {
             return Ok(());
         }
-        let a = init_args(args, kwargs, &["space", "nu", "nr"], "StageFunction")?;
-        let space = a[0].cast::<PyManifold>()?.get().inner.clone();
-        self.py_dims = Some((space, a[1].extract()?, a[2].extract()?));
+        let (space, n) = subclass_init(args, kwargs, &["nu", "nr"], "StageFunction")?;
+        self.py_dims = Some((space, n[0], n[1]));
         Ok(())
     }
 
@@ -281,7 +281,7 @@ impl PyLinearComposition {
         let a = matrix(a, "LinearFunctionComposition A", None)?;
         let b = match b {
             Some(b) => vector(b, "LinearFunctionComposition b", Some(a.nrows()))?,
-            None => Col::<f64>::zeros(a.nrows()).iter().copied().collect(),
+            None => vec![0.0; a.nrows()],
         };
         let g = LinearComposition::new(f, a.as_ref(), &b).map_err(err)?;
         Ok(PyClassInitializer::from(PyStageFunction::rust(Arc::new(g), slots)).add_subclass(Self))

@@ -152,19 +152,30 @@ fn buffers(shapes: &[(&str, usize, Option<usize>)]) -> Vec<Vec<f64>> {
     shapes.iter().map(|(_, r, c)| vec![0.0; r * c.unwrap_or(1)]).collect()
 }
 
-/// One call into Python with the GIL held; an exception is recorded in `slot` and
-/// `on_error` runs instead.
-fn guarded(slot: &Slot, f: impl FnOnce(Python<'_>) -> PyResult<()>, on_error: impl FnOnce()) {
+/// One call into Python with the GIL held: `None` if the model failed before, or if
+/// the call raises (the exception is kept in `slot`).
+fn attach_guarded<T>(slot: &Slot, f: impl FnOnce(Python<'_>) -> PyResult<T>) -> Option<T> {
     if slot.failed() {
-        on_error();
-        return;
+        return None;
     }
-    Python::attach(|py| {
-        if let Err(e) = f(py) {
-            slot.record(e);
-            on_error();
-        }
-    });
+    Python::attach(|py| f(py).map_err(|e| slot.record(e)).ok())
+}
+
+/// The arrays `obj.method(x, u)` returns, shapes checked, or NaN arrays when the model
+/// failed (see [`attach_guarded`]).
+fn call_guarded(
+    slot: &Slot,
+    obj: &Py<PyAny>,
+    method: &str,
+    x: &[f64],
+    u: &[f64],
+    shapes: &[(&str, usize, Option<usize>)],
+) -> Vec<Vec<f64>> {
+    let mut bufs = buffers(shapes);
+    if attach_guarded(slot, |py| call_arrays(obj.bind(py), method, x, u, shapes, &mut bufs)).is_none() {
+        bufs.iter_mut().for_each(|b| b.fill(f64::NAN));
+    }
+    bufs
 }
 
 fn neutral(space: &dyn Manifold) -> Vec<f64> {
@@ -228,37 +239,17 @@ impl Cost for PyCostModel {
         self.dims.nu
     }
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-        let mut value = f64::NAN;
-        guarded(
-            &self.slot,
-            |py| {
-                let v = self
-                    .obj
-                    .bind(py)
-                    .call_method1("evaluate", (array1(py, x), array1(py, u)))?;
-                value = v.extract::<f64>()?;
-                Ok(())
-            },
-            || {},
-        );
-        data.value = value;
+        data.value = attach_guarded(&self.slot, |py| {
+            let v = self
+                .obj
+                .bind(py)
+                .call_method1("evaluate", (array1(py, x), array1(py, u)))?;
+            v.extract::<f64>()
+        })
+        .unwrap_or(f64::NAN);
     }
     fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-        let shapes = self.shapes();
-        let mut bufs = buffers(&shapes);
-        let mut ok = false;
-        guarded(
-            &self.slot,
-            |py| {
-                call_arrays(self.obj.bind(py), "derivatives", x, u, &shapes, &mut bufs)?;
-                ok = true;
-                Ok(())
-            },
-            || {},
-        );
-        if !ok {
-            bufs.iter_mut().for_each(|b| b.fill(f64::NAN));
-        }
+        let bufs = call_guarded(&self.slot, &self.obj, "derivatives", x, u, &self.shapes());
         write_col(&mut data.lx, &bufs[0]);
         write_col(&mut data.lu, &bufs[1]);
         write_mat(&mut data.lxx, &bufs[2]);
@@ -317,37 +308,11 @@ impl StageFunction for PyFunctionModel {
         self.dims.nr
     }
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
-        let mut buf = [vec![f64::NAN; self.dims.nr]];
-        guarded(
-            &self.slot,
-            |py| {
-                call_arrays(
-                    self.obj.bind(py),
-                    "evaluate",
-                    x,
-                    u,
-                    &[("r", self.dims.nr, None)],
-                    &mut buf,
-                )
-            },
-            || {},
-        );
-        if self.slot.failed() {
-            buf[0].fill(f64::NAN);
-        }
-        write_col(&mut data.value, &buf[0]);
+        let r = call_guarded(&self.slot, &self.obj, "evaluate", x, u, &[("r", self.dims.nr, None)]);
+        write_col(&mut data.value, &r[0]);
     }
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
-        let shapes = self.shapes();
-        let mut bufs = buffers(&shapes);
-        guarded(
-            &self.slot,
-            |py| call_arrays(self.obj.bind(py), "jacobians", x, u, &shapes, &mut bufs),
-            || {},
-        );
-        if self.slot.failed() {
-            bufs.iter_mut().for_each(|b| b.fill(f64::NAN));
-        }
+        let bufs = call_guarded(&self.slot, &self.obj, "jacobians", x, u, &self.shapes());
         write_mat(&mut data.jx, &bufs[0]);
         write_mat(&mut data.ju, &bufs[1]);
     }
@@ -393,29 +358,12 @@ impl Ode for PyOdeModel {
         self.nu
     }
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
-        let ndx = self.space.ndx();
-        let mut buf = [vec![f64::NAN; ndx]];
-        guarded(
-            &self.slot,
-            |py| call_arrays(self.obj.bind(py), "forward", x, u, &[("xdot", ndx, None)], &mut buf),
-            || {},
-        );
-        if self.slot.failed() {
-            buf[0].fill(f64::NAN);
-        }
-        write_col(&mut data.xdot, &buf[0]);
+        let shape = [("xdot", self.space.ndx(), None)];
+        let xdot = call_guarded(&self.slot, &self.obj, "forward", x, u, &shape);
+        write_col(&mut data.xdot, &xdot[0]);
     }
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
-        let shapes = self.shapes();
-        let mut bufs = buffers(&shapes);
-        guarded(
-            &self.slot,
-            |py| call_arrays(self.obj.bind(py), "jacobians", x, u, &shapes, &mut bufs),
-            || {},
-        );
-        if self.slot.failed() {
-            bufs.iter_mut().for_each(|b| b.fill(f64::NAN));
-        }
+        let bufs = call_guarded(&self.slot, &self.obj, "jacobians", x, u, &self.shapes());
         write_mat(&mut data.jx, &bufs[0]);
         write_mat(&mut data.ju, &bufs[1]);
     }
