@@ -34,20 +34,22 @@ enum Solver {
 }
 
 impl Solver {
-    fn backward(&mut self, p: &LqProblem) {
+    /// The backward pass; the solver's error as text.
+    fn backward(&mut self, p: &LqProblem) -> Result<(), String> {
         match self {
             Solver::Serial(s) => s.backward(p, 0.0),
             Solver::Parallel(s) => s.backward(p, 0.0),
         }
-        .expect("backward pass")
+        .map_err(|e| format!("backward pass: {e}"))
     }
 
-    fn forward(&mut self, p: &LqProblem, sol: &mut LqSolution) {
+    /// The forward pass; the solver's error as text.
+    fn forward(&mut self, p: &LqProblem, sol: &mut LqSolution) -> Result<(), String> {
         match self {
             Solver::Serial(s) => s.forward(p, sol),
             Solver::Parallel(s) => s.forward(p, sol),
         }
-        .expect("forward pass")
+        .map_err(|e| format!("forward pass: {e}"))
     }
 }
 
@@ -74,8 +76,10 @@ fn min(v: &[f64]) -> f64 {
     v.iter().copied().fold(f64::INFINITY, f64::min)
 }
 
-/// Runs the benchmark and prints one table per thread count.
-pub fn run(b: &RiccatiBench) {
+/// Runs the benchmark and prints one table per thread count. A case the LQ solver
+/// refuses (for example a constraint without control at `mu = 0`) is an error, found by
+/// one solve of every case before any timing.
+pub fn run(b: &RiccatiBench) -> Result<(), String> {
     let mut cases: Vec<(usize, usize, usize, usize)> =
         b.horizons.iter().map(|&n| (b.dims.0, b.dims.1, b.dims.2, n)).collect();
     cases.extend(b.extra.iter().copied());
@@ -97,7 +101,19 @@ pub fn run(b: &RiccatiBench) {
                 let legs = s.num_legs();
                 (Solver::Parallel(s), legs)
             };
-            let sol = LqSolution::new(&problem);
+            let mut sol = LqSolution::new(&problem);
+            let mut solver = solver;
+            solver
+                .backward(&problem)
+                .and_then(|()| solver.forward(&problem, &mut sol))
+                .map_err(|e| {
+                    let hint = if b.mu == 0.0 {
+                        " (at mu = 0 a constraint without control makes the stage system singular; take mu > 0)"
+                    } else {
+                        ""
+                    };
+                    format!("case {nx}:{nu}:{nc}:{n}, mu = {:e}: {e}{hint}", b.mu)
+                })?;
             runs.push(Run {
                 problem: problem.clone(),
                 n,
@@ -122,16 +138,16 @@ pub fn run(b: &RiccatiBench) {
         for i in order {
             let r = &mut runs[i];
             for _ in 0..if round == 0 { 3 } else { 1 } {
-                r.solver.backward(&r.problem);
-                r.solver.forward(&r.problem, &mut r.sol);
+                r.solver.backward(&r.problem)?;
+                r.solver.forward(&r.problem, &mut r.sol)?;
             }
             let start = Instant::now();
             let mut reps = 0;
             while reps < 3 || start.elapsed().as_secs_f64() < per_round {
                 let t0 = Instant::now();
-                r.solver.backward(&r.problem);
+                r.solver.backward(&r.problem)?;
                 let t1 = Instant::now();
-                r.solver.forward(&r.problem, &mut r.sol);
+                r.solver.forward(&r.problem, &mut r.sol)?;
                 let t2 = Instant::now();
                 r.tb.push((t1 - t0).as_secs_f64() * 1e6);
                 r.tf.push((t2 - t1).as_secs_f64() * 1e6);
@@ -179,4 +195,5 @@ pub fn run(b: &RiccatiBench) {
             );
         }
     }
+    Ok(())
 }

@@ -290,7 +290,7 @@ fn main() {
                     std::process::exit(2);
                 }
             };
-            bench::run(&bench::RiccatiBench {
+            let bench = bench::RiccatiBench {
                 dims: (d[0], d[1], d[2]),
                 horizons,
                 extra,
@@ -300,7 +300,11 @@ fn main() {
                 budget,
                 rounds,
                 refine,
-            });
+            };
+            if let Err(e) = bench::run(&bench) {
+                eprintln!("gharial bench riccati: {e}");
+                std::process::exit(2);
+            }
         }
     }
 }
