@@ -14,6 +14,9 @@ use crate::solvers::PySolver;
 #[pyclass(name = "Example", module = "gharial.problems")]
 pub struct PyExample {
     example: Example,
+    /// The problem as one `TrajOptProblem` object, so that repeated solves of
+    /// `ex.problem` reuse the solver's set-up.
+    problem: Py<PyProblem>,
 }
 
 #[pymethods]
@@ -36,10 +39,10 @@ impl PyExample {
         self.example.dt
     }
 
-    /// The problem, as a `TrajOptProblem`.
+    /// The problem, as a `TrajOptProblem` (the same object at every access).
     #[getter]
-    fn problem(&self) -> PyProblem {
-        PyProblem::from_rust(&self.example.problem)
+    fn problem(&self, py: Python<'_>) -> Py<PyProblem> {
+        self.problem.clone_ref(py)
     }
 
     /// Initial state guess.
@@ -70,10 +73,10 @@ impl PyExample {
 
 /// Builds the catalogue problem `name` (see `names()`).
 #[pyfunction]
-fn build(name: &str) -> PyResult<PyExample> {
-    Ok(PyExample {
-        example: gharial_problems::build(name).map_err(err)?,
-    })
+fn build(py: Python<'_>, name: &str) -> PyResult<PyExample> {
+    let example = gharial_problems::build(name).map_err(err)?;
+    let problem = Py::new(py, PyProblem::from_rust(&example.problem))?;
+    Ok(PyExample { example, problem })
 }
 
 /// The catalogue's problem names.

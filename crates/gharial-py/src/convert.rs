@@ -49,11 +49,8 @@ fn real_array<'py>(obj: &Bound<'py, PyAny>, what: &str) -> PyResult<Bound<'py, P
 
 /// A vector of real numbers (a 1-D array-like; `n`: the required length).
 pub fn vector(obj: &Bound<'_, PyAny>, what: &str, n: Option<usize>) -> PyResult<Vec<f64>> {
-    if let Ok(a) = obj.cast::<PyArray1<f64>>()
-        && let Ok(ro) = a.try_readonly()
-        && let Ok(s) = ro.as_slice()
-    {
-        return check_len(s.to_vec(), what, n);
+    if let Some(v) = contiguous_f64(obj) {
+        return check_len(v, what, n);
     }
     let arr = real_array(obj, what)?;
     let a = arr.cast::<PyArray1<f64>>().map_err(|_| {
@@ -63,6 +60,12 @@ pub fn vector(obj: &Bound<'_, PyAny>, what: &str, n: Option<usize>) -> PyResult<
     let v = a.try_readonly().map_err(|e| value_error(format!("{what}: {e}")))?;
     let v = v.as_slice().map_err(|e| value_error(format!("{what}: {e}")))?.to_vec();
     check_len(v, what, n)
+}
+
+/// The entries of a contiguous float64 1-D numpy array, copied without any conversion
+/// (the fast path); `None` for anything else.
+fn contiguous_f64(obj: &Bound<'_, PyAny>) -> Option<Vec<f64>> {
+    obj.cast::<PyArray1<f64>>().ok()?.to_vec().ok()
 }
 
 fn check_len(v: Vec<f64>, what: &str, n: Option<usize>) -> PyResult<Vec<f64>> {
@@ -94,15 +97,47 @@ pub fn matrix(obj: &Bound<'_, PyAny>, what: &str, shape: Option<(usize, usize)>)
 
 /// A list of vectors (a sequence of 1-D array-likes or a 2-D array, one row each).
 pub fn vectors(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Vec<f64>>> {
-    let items: Vec<Bound<'_, PyAny>> = obj
+    let mut out = Vec::new();
+    vectors_into(obj, what, &mut out)?;
+    Ok(out)
+}
+
+/// Reads a list of vectors into `out` as [`vectors`] does, reusing its buffers: a list
+/// of the shape `out` already has is read without allocation. On error `out` holds a
+/// partial read.
+pub fn vectors_into(obj: &Bound<'_, PyAny>, what: &str, out: &mut Vec<Vec<f64>>) -> PyResult<()> {
+    if let Ok(a) = obj.cast::<PyArray2<f64>>()
+        && let Ok(ro) = a.try_readonly()
+        && let Ok(s) = ro.as_slice()
+    {
+        let (r, c) = (a.shape()[0], a.shape()[1]);
+        out.resize_with(r, Vec::new);
+        for (i, v) in out.iter_mut().enumerate() {
+            v.clear();
+            v.extend_from_slice(&s[i * c..(i + 1) * c]);
+        }
+        return Ok(());
+    }
+    let items = obj
         .try_iter()
-        .map_err(|_| value_error(format!("{what}: expected a sequence of vectors")))?
-        .collect::<PyResult<_>>()?;
-    items
-        .iter()
-        .enumerate()
-        .map(|(i, item)| vector(item, &format!("{what}[{i}]"), None))
-        .collect()
+        .map_err(|_| value_error(format!("{what}: expected a sequence of vectors")))?;
+    let mut n = 0;
+    for (i, item) in items.enumerate() {
+        let item = item?;
+        if i == out.len() {
+            out.push(Vec::new());
+        }
+        if let Ok(a) = item.cast::<PyArray1<f64>>()
+            && let Ok(v) = a.to_vec()
+        {
+            out[i] = v;
+        } else {
+            out[i] = vector(&item, &format!("{what}[{i}]"), None)?;
+        }
+        n = i + 1;
+    }
+    out.truncate(n);
+    Ok(())
 }
 
 /// A 1-D numpy array copied from `v`.

@@ -2,7 +2,7 @@
 
 use std::sync::{Arc, Mutex};
 
-use gharial::problem::Problem;
+use gharial::problem::{Problem, ProblemData};
 use gharial::solvers::log::LogSink;
 use gharial::solvers::{InitialGuess, IterationRecord, Solution, Solver};
 use pyo3::PyClassInitializer;
@@ -10,7 +10,7 @@ use pyo3::exceptions::{PyAttributeError, PyRuntimeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::convert::{array1, array2, arrays1, err, value_error, vectors};
+use crate::convert::{array1, array2, arrays1, err, value_error, vectors_into};
 use crate::options::{Options, SOLVER_NAMES};
 use crate::problem::PyProblem;
 
@@ -28,6 +28,10 @@ pub struct PySolver {
     setup_for: u64,
     /// Whether a solve has run on the current Rust solver (its solution is the results).
     has_results: bool,
+    /// The results of the last solve, copied from the solver at the first access.
+    results: Option<Py<PyResults>>,
+    /// The guess of the next solve, read into buffers kept between solves.
+    guess: GuessBuffers,
 }
 
 /// The `snake_case` name of a status.
@@ -57,6 +61,8 @@ impl PySolver {
             dirty: true,
             setup_for: 0,
             has_results: false,
+            results: None,
+            guess: GuessBuffers::default(),
         };
         if let Some(kw) = kwargs {
             for (k, v) in kw.iter() {
@@ -105,6 +111,7 @@ impl PySolver {
         solver.setup(problem).map_err(err)?;
         self.setup_for = generation;
         self.has_results = false;
+        self.results = None;
         *self
             .solver
             .get_mut()
@@ -140,18 +147,82 @@ pub fn solve_detached(
     })
 }
 
-/// The default guess: zero controls and their rollout.
-pub fn default_guess(problem: &Problem) -> gharial::Result<(Trajectory, Trajectory)> {
-    let n = problem.horizon();
-    let us: Vec<Vec<f64>> = (0..n).map(|t| vec![0.0; problem.nu(t)]).collect();
-    let mut xs: Vec<Vec<f64>> = (0..=n).map(|t| vec![0.0; problem.space(t).nx()]).collect();
-    match problem.x0() {
-        Some(x0) => xs[0].copy_from_slice(x0),
-        None => problem.space(0).neutral(&mut xs[0]),
+/// The guess of a solve (states, controls, multipliers), kept between solves so that a
+/// guess of the same shape is read without allocation.
+#[derive(Default)]
+pub struct GuessBuffers {
+    /// States.
+    pub xs: Trajectory,
+    /// Controls.
+    pub us: Trajectory,
+    /// Co-states (warm start).
+    pub lambdas: Trajectory,
+    /// Path multipliers (warm start).
+    pub nus: Trajectory,
+    /// The evaluation buffers of the default guess's rollout and the problem generation
+    /// they were made for.
+    rollout: Option<(u64, ProblemData)>,
+}
+
+impl GuessBuffers {
+    /// Reads `[xs, us, lams, vs]` (each optional, given in pairs; no states and controls:
+    /// zero controls and their rollout); returns whether multipliers were given.
+    pub fn fill(
+        &mut self,
+        problem: &Bound<'_, PyProblem>,
+        p: &Problem,
+        [xs, us, lams, vs]: [Option<&Bound<'_, PyAny>>; 4],
+    ) -> PyResult<bool> {
+        match (xs, us) {
+            (Some(xs), Some(us)) => {
+                vectors_into(xs, "xs_init", &mut self.xs)?;
+                vectors_into(us, "us_init", &mut self.us)?;
+            }
+            (None, None) => self.rollout_zero_controls(problem, p)?,
+            _ => return Err(value_error("give both xs_init and us_init, or neither")),
+        }
+        match (lams, vs) {
+            (Some(l), Some(v)) => {
+                vectors_into(l, "lams_init", &mut self.lambdas)?;
+                vectors_into(v, "vs_init", &mut self.nus)?;
+                Ok(true)
+            }
+            (None, None) => Ok(false),
+            _ => Err(value_error("give both lams_init and vs_init, or neither")),
+        }
     }
-    let mut data = gharial::problem::ProblemData::new(problem, 1)?;
-    data.rollout(problem, &mut xs, &us)?;
-    Ok((xs, us))
+
+    /// The default guess: zero controls and their rollout from the initial state (the
+    /// neutral point under an initial constraint), without the GIL.
+    fn rollout_zero_controls(&mut self, problem: &Bound<'_, PyProblem>, p: &Problem) -> PyResult<()> {
+        let generation = problem.borrow().generation();
+        let (xs, us) = (&mut self.xs, &mut self.us);
+        let cached = self.rollout.take().filter(|(g, _)| *g == generation).map(|(_, d)| d);
+        let rolled = problem.py().detach(|| {
+            let n = p.horizon();
+            us.resize_with(n, Vec::new);
+            xs.resize_with(n + 1, Vec::new);
+            for (t, u) in us.iter_mut().enumerate() {
+                u.clear();
+                u.resize(p.nu(t), 0.0);
+            }
+            for (t, x) in xs.iter_mut().enumerate() {
+                x.resize(p.space(t).nx(), 0.0);
+            }
+            match p.x0() {
+                Some(x0) => xs[0].copy_from_slice(x0),
+                None => p.space(0).neutral(&mut xs[0]),
+            }
+            let mut data = match cached {
+                Some(d) => d,
+                None => ProblemData::new(p, 1)?,
+            };
+            data.rollout(p, xs, us).map(|()| data)
+        });
+        problem.borrow().raise_python_errors(problem.py())?;
+        self.rollout = Some((generation, rolled.map_err(err)?));
+        Ok(())
+    }
 }
 
 #[pymethods]
@@ -217,20 +288,10 @@ impl PySolver {
         let py = slf.py();
         let p = problem.borrow_mut().problem()?;
         let generation = problem.borrow().generation();
-        let (xs, us) = match (xs_init, us_init) {
-            (Some(xs), Some(us)) => (vectors(xs, "xs_init")?, vectors(us, "us_init")?),
-            (None, None) => {
-                let guess = py.detach(|| default_guess(&p));
-                problem.borrow().raise_python_errors(py)?;
-                guess.map_err(err)?
-            }
-            _ => return Err(value_error("give both xs_init and us_init, or neither")),
-        };
-        let duals = match (lams_init, vs_init) {
-            (Some(l), Some(v)) => Some((vectors(l, "lams_init")?, vectors(v, "vs_init")?)),
-            (None, None) => None,
-            _ => return Err(value_error("give both lams_init and vs_init, or neither")),
-        };
+        let mut guess = std::mem::take(&mut slf.borrow_mut().guess);
+        let filled = guess.fill(problem, &p, [xs_init, us_init, lams_init, vs_init]);
+        slf.borrow_mut().guess = guess;
+        let with_duals = filled?;
         let mut solver = {
             let mut s = slf.borrow_mut();
             let missing = s.solver.get_mut().map(|o| o.is_none()).unwrap_or(true);
@@ -243,12 +304,15 @@ impl PySolver {
                 .and_then(|o| o.take())
                 .ok_or_else(|| PyRuntimeError::new_err("the solver is running in another thread"))?
         };
-        let duals_ref = duals.as_ref().map(|(l, v)| (l.as_slice(), v.as_slice()));
-        let result = solve_detached(py, solver.as_mut(), &p, &xs, &us, duals_ref);
+        let g = std::mem::take(&mut slf.borrow_mut().guess);
+        let duals = with_duals.then_some((g.lambdas.as_slice(), g.nus.as_slice()));
+        let result = solve_detached(py, solver.as_mut(), &p, &g.xs, &g.us, duals);
         let mut s = slf.borrow_mut();
+        s.guess = g;
         if let Ok(slot) = s.solver.get_mut() {
             *slot = Some(solver);
         }
+        s.results = None;
         problem.borrow().raise_python_errors(py)?;
         let converged = result.map_err(err)?;
         s.has_results = true;
@@ -257,20 +321,27 @@ impl PySolver {
 
     /// The results of the last `run`.
     #[getter]
-    fn results(&self) -> PyResult<PyResults> {
+    fn results(&mut self, py: Python<'_>) -> PyResult<Py<PyResults>> {
+        if let Some(r) = &self.results {
+            return Ok(r.clone_ref(py));
+        }
         if !self.has_results {
             return Err(PyRuntimeError::new_err("no results: call run() first"));
         }
         let solver = self
             .solver
-            .lock()
-            .map_err(|_| PyRuntimeError::new_err("solver lock poisoned"))?;
-        let solver = solver
+            .get_mut()
+            .map_err(|_| PyRuntimeError::new_err("solver lock poisoned"))?
             .as_ref()
             .ok_or_else(|| PyRuntimeError::new_err("the solver is running in another thread"))?;
-        Ok(PyResults {
-            s: solver.solution().clone(),
-        })
+        let r = Py::new(
+            py,
+            PyResults {
+                s: solver.solution().clone(),
+            },
+        )?;
+        self.results = Some(r.clone_ref(py));
+        Ok(r)
     }
 }
 

@@ -101,6 +101,36 @@ def test_warm_start_from_the_solution_converges_at_once():
     assert s.results.conv and s.results.num_iters <= 1
 
 
+def test_guesses_as_lists_2d_arrays_or_python_lists_solve_alike(lqr):
+    ex = gharial.problems.build("peers-lqr")
+    assert ex.problem is ex.problem  # one object: repeated solves reuse the set-up
+    s = ex.solver("proxddp")
+    runs = []
+    for xs, us in [
+        (ex.xs0, ex.us0),
+        (np.array(ex.xs0), np.array(ex.us0)),
+        ([[float(v) for v in x] for x in ex.xs0], [[float(v) for v in u] for u in ex.us0]),
+        (ex.xs0, ex.us0),
+    ]:
+        assert s.run(ex.problem, xs, us)
+        assert s.results is s.results  # copied once per solve
+        runs.append((s.results.xs, s.results.us, s.results.num_iters))
+    for xs, us, iters in runs[1:]:
+        assert iters == runs[0][2]
+        assert all(np.array_equal(a, b) for a, b in zip(xs + us, runs[0][0] + runs[0][1]))
+    # The same solver on a problem of other dimensions: the guess buffers follow.
+    fresh = gharial.SolverProxDDP(tol=1e-9)
+    s = gharial.SolverProxDDP(tol=1e-9)
+    s.run(ex.problem, ex.xs0, ex.us0)
+    for solver in (fresh, s):
+        assert solver.run(lqr)
+    assert all(np.array_equal(a, b) for a, b in zip(s.results.xs, fresh.results.xs))
+    xs_short, us_short = fresh.results.xs[:5], fresh.results.us[:4]
+    with pytest.raises(gharial.GharialError, match="number of states"):
+        s.run(lqr, xs_short, us_short)
+    assert s.run(lqr, fresh.results.xs, fresh.results.us)
+
+
 def test_bounds_hold_and_options_change_the_solve():
     problem = lqr_problem(bounds=0.3)
     s = gharial.SolverProxDDP(tol=1e-8)
