@@ -28,8 +28,11 @@ pub struct PySolver {
     setup_for: u64,
     /// Whether a solve has run on the current Rust solver (its solution is the results).
     has_results: bool,
-    /// The results of the last solve, copied from the solver at the first access.
+    /// The results, copied from the solver at the first access after a solve; the copy
+    /// of an earlier solve is released by that access, not by the solve.
     results: Option<Py<PyResults>>,
+    /// Whether `results` is the copy of the last solve.
+    results_current: bool,
     /// The guess of the next solve, read into buffers kept between solves.
     guess: GuessBuffers,
 }
@@ -62,6 +65,7 @@ impl PySolver {
             setup_for: 0,
             has_results: false,
             results: None,
+            results_current: false,
             guess: GuessBuffers::default(),
         };
         if let Some(kw) = kwargs {
@@ -312,7 +316,7 @@ impl PySolver {
         if let Ok(slot) = s.solver.get_mut() {
             *slot = Some(solver);
         }
-        s.results = None;
+        s.results_current = false;
         problem.borrow().raise_python_errors(py)?;
         let converged = result.map_err(err)?;
         s.has_results = true;
@@ -322,7 +326,9 @@ impl PySolver {
     /// The results of the last `run`.
     #[getter]
     fn results(&mut self, py: Python<'_>) -> PyResult<Py<PyResults>> {
-        if let Some(r) = &self.results {
+        if let Some(r) = &self.results
+            && self.results_current
+        {
             return Ok(r.clone_ref(py));
         }
         if !self.has_results {
@@ -341,6 +347,7 @@ impl PySolver {
             },
         )?;
         self.results = Some(r.clone_ref(py));
+        self.results_current = true;
         Ok(r)
     }
 }
