@@ -148,6 +148,9 @@ pub struct ProfileArgs {
     /// CSV file for the curves (default: standard output).
     #[arg(long)]
     pub output: Option<String>,
+    /// Draw the curves into this image file (`.png` or `.svg`).
+    #[arg(long)]
+    pub plot: Option<String>,
 }
 
 /// The iterations each solver took to converge on each instance (`None`: not within
@@ -222,6 +225,36 @@ fn csv(solvers: &[ProfileSolver], outcomes: &[Outcome], max_budget: usize) -> St
     text
 }
 
+/// Draws the curves into `path`; `false` (with a message) if that fails.
+fn plot(args: &ProfileArgs, outcomes: &[Outcome], path: &str) -> bool {
+    let curves: Vec<gharial_viz::ProfileCurve> = args
+        .solvers
+        .iter()
+        .zip(outcomes)
+        .map(|(s, o)| gharial_viz::ProfileCurve {
+            label: s.name().to_string(),
+            budget: (1..=args.max_budget).map(|b| b as f64).collect(),
+            solved: (1..=args.max_budget).map(|b| fraction(o, b)).collect(),
+        })
+        .collect();
+    let title = format!(
+        "{} family, {} instances, tol {}",
+        args.family,
+        args.count,
+        Num(args.tol)
+    );
+    match gharial_viz::profile(&curves, &title, std::path::Path::new(path)) {
+        Ok(_) => {
+            eprintln!("plot written to {path}");
+            true
+        }
+        Err(e) => {
+            eprintln!("gharial bench profile: {e}");
+            false
+        }
+    }
+}
+
 /// The summary: the fractions at the paper's marks and the time per solve.
 fn print_summary(args: &ProfileArgs, outcomes: &[Outcome]) {
     let marks: Vec<usize> = [1, 5, 10, 20, 50, 100, 200, 500, 1000]
@@ -254,6 +287,12 @@ fn print_summary(args: &ProfileArgs, outcomes: &[Outcome]) {
 /// `gharial bench profile`: exit code 0, 1 if the CSV file cannot be written, 2 for bad
 /// input (an unknown family, a solver that refuses the family's problems).
 pub fn run(args: &ProfileArgs) -> i32 {
+    if let Some(path) = &args.plot
+        && !(path.ends_with(".png") || path.ends_with(".svg"))
+    {
+        eprintln!("gharial bench profile: --plot {path}: the file name must end in .png or .svg");
+        return 2;
+    }
     let instances = match profiles::family(&args.family, args.seed, args.count) {
         Ok(v) => v,
         Err(e) => {
@@ -270,6 +309,11 @@ pub fn run(args: &ProfileArgs) -> i32 {
                 return 2;
             }
         }
+    }
+    if let Some(path) = &args.plot
+        && !plot(args, &outcomes, path)
+    {
+        return 1;
     }
     let table = csv(&args.solvers, &outcomes, args.max_budget);
     match &args.output {

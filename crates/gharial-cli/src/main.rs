@@ -14,6 +14,7 @@ macro_rules! out {
 mod bench;
 mod bench_profile;
 mod bench_solve;
+mod plot;
 mod simulate;
 mod solve;
 mod solver_choice;
@@ -33,6 +34,8 @@ enum Command {
     List,
     /// Solve a built-in problem: iteration table, summary, optional JSON output.
     Solve(solve::SolveArgs),
+    /// Draw the convergence and trajectory plots of a solution file (PNG or SVG).
+    Plot(plot::PlotArgs),
     /// Run a receding-horizon scenario in closed loop: cycle times, iterations,
     /// statuses, the scenario's metrics, optional JSON output.
     Simulate(simulate::SimulateArgs),
@@ -242,6 +245,7 @@ fn main() {
         Command::List => solve::list(),
         Command::Solve(args) => std::process::exit(solve::run(&args)),
         Command::Simulate(args) => std::process::exit(simulate::run(&args)),
+        Command::Plot(args) => std::process::exit(plot::run(&args)),
         Command::Bench {
             which: BenchCommand::Solve(args),
         } => std::process::exit(bench_solve::examples(&args)),

@@ -23,6 +23,12 @@ pub struct SolveArgs {
     /// Write the solution, settings and history to this JSON file.
     #[arg(long)]
     pub output: Option<String>,
+    /// Draw the convergence and trajectory plots into this directory.
+    #[arg(long)]
+    pub plot: Option<String>,
+    /// Image format of `--plot`.
+    #[arg(long, value_enum, default_value = "png")]
+    pub plot_format: crate::plot::Format,
     /// Write the data of the paper's figures as CSV files into this directory (for the
     /// experiments that have them: ur10-ballistic, solo-jump).
     #[arg(long)]
@@ -68,11 +74,13 @@ pub fn run(args: &SolveArgs) -> i32 {
         Ok(o) => o,
         Err(code) => return code,
     };
-    if let Some(dir) = &args.figures
-        && !std::path::Path::new(dir).is_dir()
-    {
-        eprintln!("gharial solve: --figures {dir}: not a directory");
-        return 2;
+    for (option, dir) in [("--figures", &args.figures), ("--plot", &args.plot)] {
+        if let Some(dir) = dir
+            && !std::path::Path::new(dir).is_dir()
+        {
+            eprintln!("gharial solve: {option} {dir}: not a directory");
+            return 2;
+        }
     }
     let mut config = args.solver.config(&example);
     if args.verbose {
@@ -110,14 +118,21 @@ pub fn run(args: &SolveArgs) -> i32 {
         print_table(table, &sol.history);
     }
     print_summary(config.kind(), sol);
+    let doc = (output.is_some() || args.plot.is_some()).then(|| solution_json(&example, &config, sol));
     let written = output
         .as_mut()
-        .is_none_or(|o| o.write_json("solve", "solution", &solution_json(&example, &config, sol)));
+        .zip(doc.as_ref())
+        .is_none_or(|(o, doc)| o.write_json("solve", "solution", doc));
+    let plotted = args
+        .plot
+        .as_ref()
+        .zip(doc.as_ref())
+        .is_none_or(|(dir, doc)| crate::plot::draw_document(doc, dir, args.plot_format));
     let figures = args
         .figures
         .as_ref()
         .is_none_or(|dir| write_figures(example.name, sol, dir));
-    if !(written && figures) {
+    if !(written && figures && plotted) {
         return 1;
     }
     let code = if sol.status.converged() { 0 } else { 1 };
@@ -207,6 +222,12 @@ pub fn solution_json(example: &Example, config: &SolverConfig, sol: &Solution) -
         .iter()
         .map(|k| (0..k.nrows()).map(|i| k[i]).collect())
         .collect();
+    // The control bounds where the path constraints are bounds on the controls (JSON
+    // writes the infinite ones as null).
+    let (u_lower, u_upper) = match gharial::solvers::ddp::control_bounds(&example.problem, &sol.xs, &sol.us) {
+        Ok((lb, ub)) => (json!(lb), json!(ub)),
+        Err(_) => (serde_json::Value::Null, serde_json::Value::Null),
+    };
     json!({
         "problem": example.name,
         "solver": config.kind().name(),
@@ -228,5 +249,7 @@ pub fn solution_json(example: &Example, config: &SolverConfig, sol: &Solution) -
         "feedforward": feedforward,
         "feedback": gains,
         "history": history,
+        "u_lower": u_lower,
+        "u_upper": u_upper,
     })
 }

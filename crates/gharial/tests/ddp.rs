@@ -152,6 +152,34 @@ fn bounds_from_orthant_constraints_and_negative_coefficients() {
     assert!(kkt.max() < 1e-6, "{kkt:?}");
 }
 
+/// `control_bounds` reads the box of the half-space pair above (written with negative
+/// coefficients) as the box itself, leaves unbounded problems at infinity, and refuses a
+/// bound on the state.
+#[test]
+fn control_bounds_read_the_boxes_of_the_path_constraints() {
+    let lq = random_lq(3, 2, 6, 8);
+    let umax = 0.2;
+    let boxed = ocp(&lq, Some(umax), None);
+    let (_, us) = zero_guess(&boxed);
+    let xs = rollout(&boxed, &us);
+    let (lb, ub) = gharial::solvers::ddp::control_bounds(&boxed, &xs, &us).unwrap();
+    assert_eq!((lb.len(), ub.len()), (6, 6));
+    assert!(lb.iter().flatten().all(|&v| v == -umax) && ub.iter().flatten().all(|&v| v == umax));
+    let free = ocp(&lq, None, None);
+    let (lb, ub) = gharial::solvers::ddp::control_bounds(&free, &xs, &us).unwrap();
+    assert!(lb.iter().flatten().all(|&v| v == f64::NEG_INFINITY) && ub.iter().flatten().all(|&v| v == f64::INFINITY));
+    let mut stage = free.stages()[0].clone();
+    let f = Arc::new(Unary::new(Arc::new(StateError::new(space(&lq), &[0.0; 3]).unwrap()), 2));
+    let set = Arc::new(BoxConstraint::new(&[-1.0; 3], &[1.0; 3]).unwrap());
+    stage.add_constraint(StageConstraint::new("x_box", f, set)).unwrap();
+    let p = Problem::new(&lq.x0, vec![stage; 6], free.terminal_cost().clone()).unwrap();
+    let err = gharial::solvers::ddp::control_bounds(&p, &xs, &us)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("x_box"), "{err}");
+    assert!(gharial::solvers::ddp::control_bounds(&boxed, &xs[..3], &us).is_err());
+}
+
 /// Problems a variant cannot solve are refused at setup with an error naming the reason.
 #[test]
 fn unsupported_problems_are_refused_with_a_clear_error() {

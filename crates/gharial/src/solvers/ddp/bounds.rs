@@ -97,6 +97,25 @@ fn stage_rows(stage: &StageModel, what: &str, solver: &str, max_nr: &mut usize) 
     Ok(stage_rows)
 }
 
+/// Lower and upper bounds per stage.
+pub type StageBounds = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
+/// The bounds `lb_t ≤ u_t ≤ ub_t` (`∓∞` where none) that the path constraints of
+/// `problem` put on the controls at the trajectory `(xs, us)`, as the box solvers read
+/// them (for plots and reports).
+///
+/// # Errors
+/// If the trajectory does not fit the problem, a constraint is not a bound on the
+/// controls (see the module documentation), or the bounds of a control are empty.
+pub fn control_bounds(problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Result<StageBounds> {
+    problem.check_trajectory(xs, us)?;
+    let mut bounds = ControlBounds::new(problem, &[], "control_bounds")?;
+    let mut data = ProblemData::new(problem, 1)?;
+    data.evaluate(problem, xs, us);
+    bounds.refresh(problem, &data, us)?;
+    Ok((bounds.lb, bounds.ub))
+}
+
 impl ControlBounds {
     /// Recognises every path constraint of `problem` and of the stages `queue`d to enter
     /// its horizon as a control bound, or names the first that is not one. `solver` names

@@ -47,6 +47,7 @@ mod bounds;
 mod options;
 mod workspace;
 
+pub use bounds::{StageBounds, control_bounds};
 pub use options::{DdpOptions, DdpVariant};
 
 use std::time::Instant;
