@@ -18,6 +18,7 @@ mod plot;
 mod simulate;
 mod solve;
 mod solver_choice;
+mod view;
 
 use clap::{Parser, Subcommand};
 
@@ -36,6 +37,9 @@ enum Command {
     Solve(solve::SolveArgs),
     /// Draw the convergence and trajectory plots of a solution file (PNG or SVG).
     Plot(plot::PlotArgs),
+    /// Write the 3D viewer page of a solution of a robot problem (one self-contained HTML
+    /// file), optionally serving it on localhost.
+    View(view::ViewArgs),
     /// Run a receding-horizon scenario in closed loop: cycle times, iterations,
     /// statuses, the scenario's metrics, optional JSON output.
     Simulate(simulate::SimulateArgs),
@@ -246,6 +250,7 @@ fn main() {
         Command::Solve(args) => std::process::exit(solve::run(&args)),
         Command::Simulate(args) => std::process::exit(simulate::run(&args)),
         Command::Plot(args) => std::process::exit(plot::run(&args)),
+        Command::View(args) => std::process::exit(view::run(&args)),
         Command::Bench {
             which: BenchCommand::Solve(args),
         } => std::process::exit(bench_solve::examples(&args)),

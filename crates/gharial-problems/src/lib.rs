@@ -47,6 +47,8 @@ pub mod peers;
 pub mod pendulum;
 pub mod profiles;
 pub mod quadrotor;
+pub mod robots;
+pub mod scenes;
 pub mod se2_car;
 pub mod solo_com_circle;
 pub mod solo_jump;

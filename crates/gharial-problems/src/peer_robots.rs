@@ -40,12 +40,7 @@ use gharial_robotics::{Actuation, MultibodyFreeFwdDynamics, MultibodyPhaseSpace,
 
 use crate::Example;
 use crate::lqr::terminal_state;
-
-/// The UR5 of example-robot-data 5.0.0 (sha256 `cede880f...`).
-const UR5_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/ur5_robot.urdf");
-/// The double pendulum of example-robot-data 5.0.0 (sha256 `da35e784...`).
-pub(crate) const DOUBLE_PENDULUM_URDF: &str =
-    include_str!("../../gharial-multibody/tests/data/robots/double_pendulum.urdf");
+use crate::robots::{DOUBLE_PENDULUM_URDF, UR5_URDF};
 
 /// Time step and horizon of every robot problem of the harness.
 const DT: f64 = 0.01;

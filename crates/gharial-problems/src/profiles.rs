@@ -57,8 +57,9 @@ use gharial_robotics::{
     contacts_at_frames, gravity_compensation, set_contact_references,
 };
 
-use crate::peer_robots::{DOUBLE_PENDULUM_URDF, Ur5Variant, ur5_from};
+use crate::peer_robots::{Ur5Variant, ur5_from};
 use crate::quadrotor::{QuadrotorOde, at, space};
+use crate::robots::{DOUBLE_PENDULUM_URDF, G1_URDF};
 use crate::{Example, ProblemInfo};
 
 /// Most instances [`family`] builds at once (a larger count is an error, not an
@@ -279,8 +280,6 @@ fn quadrotor(rng: &mut SplitMix64) -> Result<Example> {
     })
 }
 
-/// The Unitree G1 (29 joints) of the multibody crate's test data.
-const G1_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/g1_29dof_rev_1_0.urdf");
 /// Time step and horizon of the `humanoid` family.
 const HUMANOID_DT: f64 = 0.03;
 const HUMANOID_HORIZON: usize = 30;

@@ -62,6 +62,7 @@ use gharial::solvers::proxddp::{ProxDdpOptions, Rollout};
 use gharial::spaces::{CartesianProduct, Manifold, SE3, VectorSpace};
 
 use crate::lqr::{control_box, terminal_state};
+use crate::robots::HECTOR_URDF;
 use crate::{Example, rollout};
 
 /// Time step (s).
@@ -108,10 +109,6 @@ pub struct QuadrotorOde {
     /// Gravity (m/s²).
     pub gravity: f64,
 }
-
-/// The Hector quadrotor's URDF (example-robot-data; licence in the multibody crate's
-/// test data).
-const HECTOR_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/quadrotor_base.urdf");
 
 impl QuadrotorOde {
     /// The Hector quadrotor: mass and inertia of the base link of its URDF, the rotor

@@ -95,11 +95,7 @@ use gharial_robotics::{
 };
 
 use crate::Example;
-
-/// The Solo-12 of example-robot-data 5.0.0.
-const SOLO_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/solo12.urdf");
-/// Its SRDF (reference configurations `standing`, `straight_standing`).
-const SOLO_SRDF: &str = include_str!("../../gharial-multibody/tests/data/robots/solo.srdf");
+use crate::robots::{SOLO_SRDF, SOLO_URDF};
 
 /// The standing posture of the SRDF used for `x0` and the state regularisation.
 pub const STANDING: &str = "straight_standing";

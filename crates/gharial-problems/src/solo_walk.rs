@@ -110,11 +110,7 @@ use gharial_robotics::{Actuation, ContactSpec, MultibodyConstraintFwdDynamics, M
 
 use crate::Example;
 use crate::mpc::{Metric, MpcScenario};
-
-/// The Solo-12 of example-robot-data 5.0.0.
-const SOLO_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/solo12.urdf");
-/// Its SRDF (reference configurations).
-const SOLO_SRDF: &str = include_str!("../../gharial-multibody/tests/data/robots/solo.srdf");
+use crate::robots::{SOLO_SRDF, SOLO_URDF};
 
 /// The standing posture of the SRDF (lowered onto the ground).
 pub const STANDING: &str = "straight_standing";

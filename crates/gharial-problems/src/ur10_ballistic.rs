@@ -75,9 +75,7 @@ use gharial_robotics::residuals::{FrameTranslationResidual, FrameVelocityResidua
 use gharial_robotics::{Actuation, MultibodyFreeFwdDynamics, MultibodyPhaseSpace, MultibodyWeldFwdDynamics};
 
 use crate::Example;
-
-/// The UR10 of example-robot-data 5.0.0.
-const UR10_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/ur10_robot.urdf");
+use crate::robots::UR10_URDF;
 
 /// Name of the mug's free-flyer joint and of its frame (at the mug's centre).
 pub const MUG_JOINT: &str = "mug_joint";

@@ -105,9 +105,7 @@ use gharial_robotics::residuals::{FrameTranslationResidual, GravityCompensationR
 use gharial_robotics::{Actuation, MultibodyFreeFwdDynamics, MultibodyPhaseSpace, gravity_compensation};
 
 use crate::Example;
-
-/// The UR5 of example-robot-data 5.0.0, the URDF of [`crate::peer_robots`].
-const UR5_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/ur5_robot.urdf");
+use crate::robots::UR5_URDF;
 
 /// The tracked frame.
 const FRAME: &str = "tool0";

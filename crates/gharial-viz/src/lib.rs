@@ -8,6 +8,8 @@
 //! - [`profile`]: the fraction of instances solved against the iteration budget (the
 //!   stagewise-SQP paper's Fig. 1).
 //!
+//! - [`viewer`]: the 3D trajectory viewer, one self-contained HTML page.
+//!
 //! Each plot is written as PNG or SVG, chosen by the file's extension, with an embedded
 //! font (no system font needed), and returns the [`Figure`] it drew: the axis ranges of
 //! each panel. The inputs are plain data ([`Run`], [`Trajectory`], [`ProfileCurve`]),
@@ -19,6 +21,7 @@ mod data;
 mod figure;
 mod profile;
 mod trajectory;
+pub mod viewer;
 
 pub use convergence::convergence;
 pub use data::{HistoryRow, ProfileCurve, Run, SolutionFile, Trajectory};
