@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::ValueEnum;
-use gharial_viz::{SolutionFile, convergence, trajectory};
+use gharial_viz::{Cylinder, SolutionFile, convergence, frame_paths, paths, trajectory};
 
 /// Image format of the plots.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -37,8 +37,9 @@ pub struct PlotArgs {
     pub format: Format,
 }
 
-/// Draws `<problem>-convergence` and `<problem>-trajectory` of `doc` into `dir`; the files
-/// written, or the first error.
+/// Draws `<problem>-convergence`, `<problem>-trajectory` and, for robot problems,
+/// `<problem>-path` (the paths of the end effector or the base and feet) of `doc` into
+/// `dir`; the files written, or the first error.
 pub fn draw(doc: &SolutionFile, dir: &Path, format: Format) -> Result<Vec<PathBuf>, String> {
     let file = |what: &str| dir.join(format!("{}-{what}.{}", doc.problem, format.ext()));
     let (c, t) = (file("convergence"), file("trajectory"));
@@ -48,7 +49,23 @@ pub fn draw(doc: &SolutionFile, dir: &Path, format: Format) -> Result<Vec<PathBu
     }
     convergence(&[doc.run()], &title, &c).map_err(|e| e.to_string())?;
     trajectory(&doc.trajectory(), &t).map_err(|e| e.to_string())?;
-    Ok(vec![c, t])
+    let mut files = vec![c, t];
+    if let Some((spec, model, qs)) = crate::view::robot_of(doc)? {
+        let p = file("path");
+        let tracks = frame_paths(&model, &qs, &spec.frames).map_err(|e| e.to_string())?;
+        let cylinders: Vec<Cylinder> = spec
+            .cylinders
+            .iter()
+            .map(|c| Cylinder {
+                centre: c.centre,
+                radius: c.radius,
+                z: c.z,
+            })
+            .collect();
+        paths(&tracks, &spec.targets, &cylinders, &title, &p).map_err(|e| e.to_string())?;
+        files.push(p);
+    }
+    Ok(files)
 }
 
 /// Draws the plots of a solve's JSON document (`gharial solve --plot`); `false` (with a

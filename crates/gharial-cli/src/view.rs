@@ -6,7 +6,7 @@ use std::net::TcpListener;
 use std::path::Path;
 
 use gharial_multibody::Model;
-use gharial_problems::scenes::robot_scene;
+use gharial_problems::scenes::{RobotScene, robot_scene};
 use gharial_viz::SolutionFile;
 use gharial_viz::viewer::{MeshSearch, Pose, Scene, Shape, page};
 
@@ -26,14 +26,14 @@ pub struct ViewArgs {
     pub port: u16,
 }
 
-/// The scene of a solution of a robot problem.
-fn scene_of(doc: &SolutionFile) -> Result<(Scene, Vec<String>), String> {
-    let spec = robot_scene(&doc.problem).ok_or_else(|| {
-        format!(
-            "`{}` has no robot to show (the viewer shows ur5, double-pendulum, quadrotor, solo and their variants)",
-            doc.problem
-        )
-    })?;
+/// A problem's robot: its scene, its model and its configurations along a solution.
+pub type Robot = (RobotScene, Model, Vec<Vec<f64>>);
+
+/// The robot of a solution's problem (`None` for problems without a robot).
+pub fn robot_of(doc: &SolutionFile) -> Result<Option<Robot>, String> {
+    let Some(spec) = robot_scene(&doc.problem) else {
+        return Ok(None);
+    };
     let model = Model::from_urdf_str(spec.urdf, spec.root).map_err(|e| e.to_string())?;
     let nq = model.nq();
     if let Some((t, x)) = doc.xs.iter().enumerate().find(|(_, x)| x.len() < nq) {
@@ -42,7 +42,18 @@ fn scene_of(doc: &SolutionFile) -> Result<(Scene, Vec<String>), String> {
             x.len()
         ));
     }
-    let qs: Vec<Vec<f64>> = doc.xs.iter().map(|x| x[..nq].to_vec()).collect();
+    let qs = doc.xs.iter().map(|x| x[..nq].to_vec()).collect();
+    Ok(Some((spec, model, qs)))
+}
+
+/// The scene of a solution of a robot problem, and the meshes it could not load.
+fn scene_of(doc: &SolutionFile) -> Result<(Scene, Vec<String>), String> {
+    let (spec, model, qs) = robot_of(doc)?.ok_or_else(|| {
+        format!(
+            "`{}` has no robot to show (the viewer shows ur5, double-pendulum, quadrotor, solo and their variants)",
+            doc.problem
+        )
+    })?;
     let mut scene = Scene::new(format!("{} ({})", doc.problem, doc.solver), doc.dt.unwrap_or(0.05));
     let report = scene
         .add_robot(&model, &qs, &MeshSearch::from_env())

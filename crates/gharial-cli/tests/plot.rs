@@ -91,6 +91,9 @@ fn solve_plot_and_plot_of_the_file_draw_the_same_images() {
     let o = gharial(&["plot", json2.to_str().unwrap(), "--out", b.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(png(&b.join("ur5-trajectory.png")).dimensions(), (900, 720));
+    // A robot problem also gets the path of its end effector.
+    assert_eq!(png(&b.join("ur5-path.png")).dimensions(), (1200, 440));
+    assert!(!b.join("lqr-bounds-path.png").exists());
     std::fs::remove_dir_all(&d).ok();
 }
 

@@ -3,6 +3,8 @@
 
 /// Universal Robots UR5.
 pub const UR5_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/ur5_robot.urdf");
+/// The UR5's SRDF (reference configurations).
+pub const UR5_SRDF: &str = include_str!("../../gharial-multibody/tests/data/robots/ur5.srdf");
 /// Universal Robots UR10.
 pub const UR10_URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/ur10_robot.urdf");
 /// The double pendulum of example-robot-data.

@@ -217,11 +217,7 @@ fn the_release_stage_allocates_nothing() {
 fn the_quasi_static_torque_carries_the_mug() {
     let t = task();
     // Independent: the UR10 with the mug's inertia welded to the wrist at the grasp.
-    let mut welded = Model::from_urdf_str(
-        include_str!("../../gharial-multibody/tests/data/robots/ur10_robot.urdf"),
-        RootJoint::Fixed,
-    )
-    .unwrap();
+    let mut welded = Model::from_urdf_str(gharial_problems::robots::UR10_URDF, RootJoint::Fixed).unwrap();
     let tool = welded.frames()[welded.frame_id("tool0").unwrap()].clone();
     let grasp = tool
         .placement

@@ -30,7 +30,7 @@ use gharial_problems::ur5_circle::{
 };
 use gharial_robotics::{Actuation, MultibodyFreeFwdDynamics, MultibodyPhaseSpace, gravity_compensation};
 
-const URDF: &str = include_str!("../../gharial-multibody/tests/data/robots/ur5_robot.urdf");
+const URDF: &str = gharial_problems::robots::UR5_URDF;
 
 /// The UR5 and its `tool0` frame, evaluated directly with the multibody crate.
 struct Kinematics {

@@ -14,6 +14,7 @@ mod pymodel;
 mod robots;
 mod solvers;
 mod spaces;
+mod viz;
 
 use pyo3::prelude::*;
 
@@ -31,5 +32,6 @@ fn _gharial(m: &Bound<'_, PyModule>) -> PyResult<()> {
     solvers::register(m)?;
     robots::register(m)?;
     catalogue::register(m)?;
+    viz::register(m)?;
     Ok(())
 }

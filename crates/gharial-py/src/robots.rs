@@ -21,45 +21,24 @@ use crate::convert::{array1, array2, err, matrix, mb_err, value_error, vector};
 use crate::dynamics::PyOde;
 use crate::functions::PyStageFunction;
 use crate::spaces::PyManifold;
+use gharial_problems::robots;
 
 /// A built-in robot: name, URDF, SRDF and root joint.
 type Builtin = (&'static str, &'static str, Option<&'static str>, RootJoint);
 
 /// The robots embedded in the package (example-robot-data 5.0.0).
 const BUILTIN: [Builtin; 5] = [
-    (
-        "ur5",
-        include_str!("../../gharial-multibody/tests/data/robots/ur5_robot.urdf"),
-        Some(UR5_SRDF),
-        RootJoint::Fixed,
-    ),
-    (
-        "ur10",
-        include_str!("../../gharial-multibody/tests/data/robots/ur10_robot.urdf"),
-        None,
-        RootJoint::Fixed,
-    ),
-    (
-        "double_pendulum",
-        include_str!("../../gharial-multibody/tests/data/robots/double_pendulum.urdf"),
-        None,
-        RootJoint::Fixed,
-    ),
+    ("ur5", robots::UR5_URDF, Some(robots::UR5_SRDF), RootJoint::Fixed),
+    ("ur10", robots::UR10_URDF, None, RootJoint::Fixed),
+    ("double_pendulum", robots::DOUBLE_PENDULUM_URDF, None, RootJoint::Fixed),
     (
         "solo12",
-        include_str!("../../gharial-multibody/tests/data/robots/solo12.urdf"),
-        Some(SOLO_SRDF),
+        robots::SOLO_URDF,
+        Some(robots::SOLO_SRDF),
         RootJoint::FreeFlyer,
     ),
-    (
-        "quadrotor",
-        include_str!("../../gharial-multibody/tests/data/robots/quadrotor_base.urdf"),
-        None,
-        RootJoint::FreeFlyer,
-    ),
+    ("quadrotor", robots::HECTOR_URDF, None, RootJoint::FreeFlyer),
 ];
-const UR5_SRDF: &str = include_str!("../../gharial-multibody/tests/data/robots/ur5.srdf");
-const SOLO_SRDF: &str = include_str!("../../gharial-multibody/tests/data/robots/solo.srdf");
 
 /// A multibody model (Pinocchio's `Model`, with its own `Data` inside).
 #[pyclass(frozen, name = "RobotModel", module = "gharial.robots")]
@@ -73,6 +52,11 @@ impl PyRobotModel {
     fn wrap(model: Arc<Model>) -> Self {
         let data = Mutex::new(model.create_data());
         Self { model, data }
+    }
+
+    /// The multibody model.
+    pub fn model(&self) -> &Model {
+        &self.model
     }
 
     /// The model's `Data` (a panic in an earlier call leaves it usable).

@@ -518,6 +518,21 @@ impl PyResults {
     fn solve_time(&self) -> f64 {
         self.s.solve_time.as_secs_f64()
     }
+    /// Draws `<name>-convergence` and `<name>-trajectory` (PNG or SVG) into `directory`:
+    /// the residuals per iteration, and the states and controls (against time when `dt`
+    /// is given; with the control bounds when `problem`'s path constraints bound the
+    /// controls). Returns the files written.
+    #[pyo3(signature = (directory, name = "solution", dt = None, problem = None, format = "png"))]
+    fn plot(
+        &self,
+        directory: &str,
+        name: &str,
+        dt: Option<f64>,
+        problem: Option<&Bound<'_, PyProblem>>,
+        format: &str,
+    ) -> PyResult<Vec<String>> {
+        crate::viz::plot_solution(&self.s, directory, name, dt, problem, format)
+    }
     /// The iteration history: one numpy array per column.
     #[getter]
     fn history<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {

@@ -5,6 +5,8 @@
 //!   solves on one plot (the ProxDDP paper's convergence figures).
 //! - [`trajectory`]: states and controls over time, the controls with their bounds (the
 //!   ProxDDP paper's Figs. 4-11), as piecewise-constant steps.
+//! - [`paths`]: points (an end effector, a base, the feet) in three projections, with
+//!   targets and obstacles; [`frame_paths`] computes them for a robot.
 //! - [`profile`]: the fraction of instances solved against the iteration budget (the
 //!   stagewise-SQP paper's Fig. 1).
 //!
@@ -19,6 +21,7 @@
 mod convergence;
 mod data;
 mod figure;
+mod paths;
 mod profile;
 mod trajectory;
 pub mod viewer;
@@ -26,6 +29,7 @@ pub mod viewer;
 pub use convergence::convergence;
 pub use data::{HistoryRow, ProfileCurve, Run, SolutionFile, Trajectory};
 pub use figure::{Figure, Panel};
+pub use paths::{Cylinder, PointPath, frame_paths, paths};
 pub use profile::profile;
 pub use trajectory::trajectory;
 

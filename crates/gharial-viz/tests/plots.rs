@@ -8,7 +8,9 @@ use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant, control_bounds};
 use gharial::solvers::proxddp::ProxDdp;
 use gharial::solvers::{InitialGuess, Solution, Solver};
 use gharial_problems::Example;
-use gharial_viz::{Error, Figure, ProfileCurve, Run, Trajectory, convergence, profile, trajectory};
+use gharial_viz::{
+    Cylinder, Error, Figure, ProfileCurve, Run, Trajectory, convergence, frame_paths, paths, profile, trajectory,
+};
 
 /// A fresh directory for this test's files.
 fn out_dir(name: &str) -> PathBuf {
@@ -353,5 +355,50 @@ fn bad_inputs_are_errors() {
             .to_string()
             .contains("[0, 1]")
     );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The quadrotor's path in three projections: it starts at x0, ends at the target, the
+/// axes have equal scales and hold the path and the cylinders.
+#[test]
+fn paths_of_the_quadrotor_slalom_with_its_obstacles() {
+    let dir = out_dir("paths");
+    let ex = gharial_problems::build("quadrotor-slalom").unwrap();
+    let sol = proxddp(&ex);
+    let scene = gharial_problems::scenes::robot_scene("quadrotor-slalom").unwrap();
+    let model = gharial_multibody::Model::from_urdf_str(scene.urdf, scene.root).unwrap();
+    let qs: Vec<Vec<f64>> = sol.xs.iter().map(|x| x[..model.nq()].to_vec()).collect();
+    let tracks = frame_paths(&model, &qs, &scene.frames).unwrap();
+    let end = *tracks[0].points.last().unwrap();
+    let target = scene.targets[0];
+    assert!((0..3).all(|i| (end[i] - target[i]).abs() < 1e-3), "{end:?}");
+    assert!((0..3).all(|i| (tracks[0].points[0][i] - sol.xs[0][i]).abs() < 1e-12));
+    let cylinders: Vec<Cylinder> = scene
+        .cylinders
+        .iter()
+        .map(|c| Cylinder {
+            centre: c.centre,
+            radius: c.radius,
+            z: c.z,
+        })
+        .collect();
+    let fig = paths(&tracks, &scene.targets, &cylinders, "slalom", &dir.join("p.png")).unwrap();
+    assert_eq!(fig.panels.len(), 3);
+    for (p, (i, j)) in fig.panels.iter().zip([(0, 1), (0, 2), (1, 2)]) {
+        assert!((p.x.1 - p.x.0 - (p.y.1 - p.y.0)).abs() < 1e-12, "unequal scales {p:?}");
+        let (lo_i, hi_i) = minmax(tracks[0].points.iter().map(|q| &q[i]));
+        let (lo_j, hi_j) = minmax(tracks[0].points.iter().map(|q| &q[j]));
+        assert!(
+            p.x.0 <= lo_i && hi_i <= p.x.1 && p.y.0 <= lo_j && hi_j <= p.y.1,
+            "{p:?}"
+        );
+        if j == 2 {
+            assert!(p.y.0 <= 0.0 && p.y.1 >= 2.0, "the cylinders' heights: {p:?}");
+        }
+    }
+    let img = png_pixels(&dir.join("p.png"), (1200, 440));
+    assert!(pixels_of(&img, series_rgb(0)) > 200);
+    let e = frame_paths(&model, &qs, &["no_such_frame"]).unwrap_err();
+    assert!(e.to_string().contains("no_such_frame"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }

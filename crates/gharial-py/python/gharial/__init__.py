@@ -31,6 +31,8 @@ from ._gharial import (  # noqa: F401
     StageModel,
     StateErrorResidual,
     TrajOptProblem,
+    plot_convergence,
     solver,
     solver_names,
+    view,
 )
