@@ -16,6 +16,7 @@ mod bench_profile;
 mod bench_solve;
 mod plot;
 mod simulate;
+mod sketch;
 mod solve;
 mod solver_choice;
 mod view;

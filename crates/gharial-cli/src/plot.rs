@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use clap::ValueEnum;
-use gharial_viz::{Cylinder, SolutionFile, convergence, frame_paths, paths, trajectory};
+use gharial_viz::{Cylinder, SolutionFile, convergence, frame_paths, paths, ratios, ratios_from_harness, trajectory};
 
 /// Image format of the plots.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -27,7 +27,8 @@ impl Format {
 /// The arguments of `gharial plot`.
 #[derive(clap::Args, Debug, Clone)]
 pub struct PlotArgs {
-    /// A solution file written by `gharial solve --output`.
+    /// A solution file written by `gharial solve --output`, or the merged JSON lines of a
+    /// peer-harness run (`.jsonl`: the time ratios against the peers).
     pub solution: String,
     /// Directory of the plots (created if missing).
     #[arg(long, default_value = ".")]
@@ -95,6 +96,9 @@ fn report(command: &str, result: Result<Vec<PathBuf>, String>) -> bool {
 /// Runs `gharial plot`; returns the exit code (0 written, 1 a plot failed, 2 a file that
 /// cannot be read or a directory that cannot be made).
 pub fn run(args: &PlotArgs) -> i32 {
+    if args.solution.ends_with(".jsonl") {
+        return run_harness(args);
+    }
     let doc = match SolutionFile::read(Path::new(&args.solution)) {
         Ok(d) => d,
         Err(e) => {
@@ -111,4 +115,28 @@ pub fn run(args: &PlotArgs) -> i32 {
     } else {
         1
     }
+}
+
+/// `gharial plot results.jsonl`: the time ratios against the peers of one harness run
+/// (its merged JSON lines), as `peers-ratios.<format>`.
+fn run_harness(args: &PlotArgs) -> i32 {
+    let bars = std::fs::read_to_string(&args.solution)
+        .map_err(|e| format!("reading `{}`: {e}", args.solution))
+        .and_then(|text| ratios_from_harness(&text).map_err(|e| e.to_string()));
+    let bars = match bars {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("gharial plot: {e}");
+            return 2;
+        }
+    };
+    if let Err(e) = std::fs::create_dir_all(&args.out) {
+        eprintln!("gharial plot: cannot make {}: {e}", args.out);
+        return 2;
+    }
+    let file = Path::new(&args.out).join(format!("peers-ratios.{}", args.format.ext()));
+    let result = ratios(&bars, "solve time against the peers (one harness run)", &file)
+        .map(|_| vec![file])
+        .map_err(|e| e.to_string());
+    if report("plot", result) { 0 } else { 1 }
 }

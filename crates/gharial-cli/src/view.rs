@@ -46,15 +46,20 @@ pub fn robot_of(doc: &SolutionFile) -> Result<Option<Robot>, String> {
     Ok(Some((spec, model, qs)))
 }
 
-/// The scene of a solution of a robot problem, and the meshes it could not load.
+/// The scene of a solution: its robot, or the sketch of a problem without one; and the
+/// meshes it could not load.
 fn scene_of(doc: &SolutionFile) -> Result<(Scene, Vec<String>), String> {
-    let (spec, model, qs) = robot_of(doc)?.ok_or_else(|| {
-        format!(
-            "`{}` has no robot to show (the viewer shows ur5, double-pendulum, quadrotor, solo and their variants)",
-            doc.problem
-        )
-    })?;
     let mut scene = Scene::new(format!("{} ({})", doc.problem, doc.solver), doc.dt.unwrap_or(0.05));
+    let Some((spec, model, qs)) = robot_of(doc)? else {
+        if crate::sketch::sketch(&doc.problem, &doc.xs, &mut scene) {
+            return Ok((scene, Vec::new()));
+        }
+        return Err(format!(
+            "`{}` has nothing to show: the viewer shows the robot problems (ur5, double-pendulum, quadrotor, \
+             solo and their variants) and sketches pendulum, cartpole, acrobot and se2-car",
+            doc.problem
+        ));
+    };
     let report = scene
         .add_robot(&model, &qs, &MeshSearch::from_env())
         .map_err(|e| e.to_string())?;

@@ -208,12 +208,53 @@ fn problems_without_a_robot_and_bad_files_exit_with_code_2() {
         Some(0)
     );
     for (args, needle) in [
-        (vec!["view", json.to_str().unwrap()], "no robot"),
+        (vec!["view", json.to_str().unwrap()], "nothing to show"),
         (vec!["view", "/no/such.json"], "no/such"),
     ] {
         let o = gharial(&args);
         assert_eq!(o.status.code(), Some(2));
         assert!(String::from_utf8_lossy(&o.stderr).contains(needle), "{args:?}");
+    }
+    std::fs::remove_dir_all(&d).ok();
+}
+
+/// The scene JSON embedded in a viewer page.
+fn scene_json(html: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(html).unwrap();
+    let start = text.find(r#"<script id="scene" type="application/json">"#).unwrap();
+    let rest = &text[start..];
+    serde_json::from_str(&rest[rest.find('>').unwrap() + 1..rest.find("</script>").unwrap()]).unwrap()
+}
+
+/// Problems without a robot get a sketch; the pendulum's bob ends where its terminal
+/// constraint puts the tip, (0, 0, 1).
+#[test]
+fn sketches_of_the_problems_without_a_robot() {
+    let d = dir("sketch");
+    for name in ["pendulum", "cartpole", "acrobot", "se2-car"] {
+        let (json, html) = (d.join(format!("{name}.json")), d.join(format!("{name}.html")));
+        let o = gharial(&["solve", name, "--output", json.to_str().unwrap()]);
+        assert!(o.status.code().is_some_and(|c| c <= 1), "{name}");
+        let o = gharial(&["view", json.to_str().unwrap(), "--out", html.to_str().unwrap()]);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let scene = scene_json(&html);
+        let solution: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let frames = solution["xs"].as_array().unwrap().len();
+        assert_eq!(scene["frames"], frames, "{name}");
+        assert!(!scene["bodies"].as_array().unwrap().is_empty(), "{name}");
+        if name == "pendulum" {
+            let bob = &scene["bodies"][1]["poses"][frames - 1];
+            let p: Vec<f64> = (9..12).map(|i| bob[i].as_f64().unwrap()).collect();
+            assert!(
+                p[0].abs() < 1e-9 && p[1].abs() < 1e-4 && (p[2] - 1.0).abs() < 1e-4,
+                "{p:?}"
+            );
+        }
     }
     std::fs::remove_dir_all(&d).ok();
 }

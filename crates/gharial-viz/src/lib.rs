@@ -8,7 +8,8 @@
 //! - [`paths`]: points (an end effector, a base, the feet) in three projections, with
 //!   targets and obstacles; [`frame_paths`] computes them for a robot.
 //! - [`profile`]: the fraction of instances solved against the iteration budget (the
-//!   stagewise-SQP paper's Fig. 1).
+//!   stagewise-SQP paper's Fig. 1); [`ratios`]: gharial's solve times over the peers'
+//!   from one run of the peer harness ([`ratios_from_harness`]).
 //!
 //! - [`viewer`]: the 3D trajectory viewer, one self-contained HTML page.
 //!
@@ -23,6 +24,7 @@ mod data;
 mod figure;
 mod paths;
 mod profile;
+mod ratios;
 mod trajectory;
 pub mod viewer;
 
@@ -31,6 +33,7 @@ pub use data::{HistoryRow, ProfileCurve, Run, SolutionFile, Trajectory};
 pub use figure::{Figure, Panel};
 pub use paths::{Cylinder, PointPath, frame_paths, paths};
 pub use profile::profile;
+pub use ratios::{Ratio, ratios, ratios_from_harness};
 pub use trajectory::trajectory;
 
 /// What can go wrong when drawing.

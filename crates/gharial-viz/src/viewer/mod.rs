@@ -38,6 +38,27 @@ impl Pose {
         }
     }
 
+    /// The pose of a capsule from `a` to `b` (centred between them, z along `b - a`),
+    /// and its length.
+    pub fn between(a: [f64; 3], b: [f64; 3]) -> (Self, f64) {
+        let (a, b) = (Vec3::from(a), Vec3::from(b));
+        (segment_pose(&a, &b), (b - a).norm())
+    }
+
+    /// The rotation by `angle` about the axis `x`, `y` or `z` (0, 1, 2), at `p`.
+    pub fn rotated(axis: usize, angle: f64, p: [f64; 3]) -> Self {
+        let (c, s) = (angle.cos(), angle.sin());
+        let rotation = match axis {
+            0 => [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]],
+            1 => [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]],
+            _ => [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]],
+        };
+        Self {
+            rotation,
+            translation: p,
+        }
+    }
+
     fn from_se3(m: &Se3) -> Self {
         let r = &m.rotation;
         Self {
@@ -321,6 +342,16 @@ impl Scene {
             added += 1;
         }
         added
+    }
+
+    /// Adds a moving body of `shape` with one pose per frame (coloured like a robot).
+    pub fn add_body(&mut self, name: impl Into<String>, shape: Shape, poses: Vec<Pose>) {
+        self.bodies.push(Body {
+            name: name.into(),
+            shape,
+            color: ROBOT_COLOR,
+            poses,
+        });
     }
 
     /// Adds a target: a translucent green sphere at `p`.
