@@ -4,7 +4,11 @@
 use std::path::{Path, PathBuf};
 
 use clap::ValueEnum;
-use gharial_viz::{Cylinder, SolutionFile, convergence, frame_paths, paths, ratios, ratios_from_harness, trajectory};
+use gharial_problems::scenes::contact_forces;
+use gharial_viz::{
+    Cylinder, FootForces, SolutionFile, convergence, forces, frame_paths, paths, ratios, ratios_from_harness,
+    trajectory,
+};
 
 /// Image format of the plots.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -38,9 +42,10 @@ pub struct PlotArgs {
     pub format: Format,
 }
 
-/// Draws `<problem>-convergence`, `<problem>-trajectory` and, for robot problems,
-/// `<problem>-path` (the paths of the end effector or the base and feet) of `doc` into
-/// `dir`; the files written, or the first error.
+/// Draws `<problem>-convergence`, `<problem>-trajectory`, for robot problems
+/// `<problem>-path` (the paths of the end effector or the base and feet) and for legged
+/// ones `<problem>-forces` (contact forces and friction-cone ratios) of `doc` into `dir`;
+/// the files written, or the first error.
 pub fn draw(doc: &SolutionFile, dir: &Path, format: Format) -> Result<Vec<PathBuf>, String> {
     let file = |what: &str| dir.join(format!("{}-{what}.{}", doc.problem, format.ext()));
     let (c, t) = (file("convergence"), file("trajectory"));
@@ -65,6 +70,21 @@ pub fn draw(doc: &SolutionFile, dir: &Path, format: Format) -> Result<Vec<PathBu
             .collect();
         paths(&tracks, &spec.targets, &cylinders, &title, &p).map_err(|e| e.to_string())?;
         files.push(p);
+    }
+    if let Some(contacts) = contact_forces(&doc.problem, &doc.xs, &doc.us) {
+        let contacts = contacts.map_err(|e| e.to_string())?;
+        let f = file("forces");
+        let feet: Vec<FootForces> = contacts
+            .feet
+            .iter()
+            .enumerate()
+            .map(|(k, name)| FootForces {
+                label: (*name).to_string(),
+                forces: contacts.forces.iter().map(|stage| stage[k]).collect(),
+            })
+            .collect();
+        forces(&feet, doc.dt, contacts.mu, &title, &f).map_err(|e| e.to_string())?;
+        files.push(f);
     }
     Ok(files)
 }

@@ -6,9 +6,9 @@ use std::net::TcpListener;
 use std::path::Path;
 
 use gharial_multibody::Model;
-use gharial_problems::scenes::{RobotScene, robot_scene};
-use gharial_viz::SolutionFile;
-use gharial_viz::viewer::{MeshSearch, Pose, Scene, Shape, page};
+use gharial_problems::scenes::{ContactForces, RobotScene, contact_forces, robot_scene};
+use gharial_viz::viewer::{Arrow, MeshSearch, Pose, Scene, Shape, page};
+use gharial_viz::{SolutionFile, frame_paths};
 
 /// The arguments of `gharial view`.
 #[derive(clap::Args, Debug, Clone)]
@@ -63,8 +63,11 @@ fn scene_of(doc: &SolutionFile) -> Result<(Scene, Vec<String>), String> {
     let report = scene
         .add_robot(&model, &qs, &MeshSearch::from_env())
         .map_err(|e| e.to_string())?;
-    for p in spec.targets {
-        scene.add_target(p, 0.04);
+    for p in &spec.targets {
+        scene.add_target(*p, 0.04);
+    }
+    if let Some(contacts) = contact_forces(&doc.problem, &doc.xs, &doc.us) {
+        add_force_arrows(&mut scene, &model, &qs, &contacts.map_err(|e| e.to_string())?)?;
     }
     for c in spec.cylinders {
         let shape = Shape::Cylinder {
@@ -74,6 +77,34 @@ fn scene_of(doc: &SolutionFile) -> Result<(Scene, Vec<String>), String> {
         scene.add_obstacle(shape, Pose::at([c.centre[0], c.centre[1], 0.5 * (c.z.0 + c.z.1)]));
     }
     Ok((scene, report.missing))
+}
+
+/// Arrows of the contact forces from the feet, the largest 0.3 m long (none at the last
+/// node, which has no control).
+fn add_force_arrows(scene: &mut Scene, model: &Model, qs: &[Vec<f64>], contacts: &ContactForces) -> Result<(), String> {
+    let feet = frame_paths(model, qs, &contacts.feet).map_err(|e| e.to_string())?;
+    let largest = contacts
+        .forces
+        .iter()
+        .flatten()
+        .map(|f| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt())
+        .fold(0.0, f64::max);
+    let scale = if largest > 0.0 { 0.3 / largest } else { 0.0 };
+    scene.arrows = (0..qs.len())
+        .map(|t| match contacts.forces.get(t) {
+            Some(stage) => stage
+                .iter()
+                .zip(&feet)
+                .filter(|(f, _)| f[2] > 1e-9)
+                .map(|(f, foot)| Arrow {
+                    from: foot.points[t],
+                    vector: f.map(|v| v * scale),
+                })
+                .collect(),
+            None => Vec::new(),
+        })
+        .collect();
+    Ok(())
 }
 
 /// Runs `gharial view`; returns the exit code (0 written, 2 bad input or an unwritable

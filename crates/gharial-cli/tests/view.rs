@@ -258,3 +258,38 @@ fn sketches_of_the_problems_without_a_robot() {
     }
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// A legged problem: the plots include the contact forces with their cone ratios, and
+/// the viewer draws an arrow at each foot in contact, pointing up (the ground pushes).
+#[test]
+fn legged_problems_get_force_plots_and_arrows() {
+    let d = dir("legged");
+    let (json, html) = (d.join("s.json"), d.join("s.html"));
+    let o = gharial(&[
+        "solve",
+        "solo-com-circle",
+        "--max-iters",
+        "1",
+        "--output",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        o.status.code().is_some_and(|c| c <= 1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let o = gharial(&["plot", json.to_str().unwrap(), "--out", d.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(d.join("solo-com-circle-forces.png")).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (900, 820), "two panels: forces and cone ratios");
+    let o = gharial(&["view", json.to_str().unwrap(), "--out", html.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}", String::from_utf8_lossy(&o.stderr));
+    let scene = scene_json(&html);
+    let arrows = scene["arrows"].as_array().unwrap();
+    assert_eq!(arrows.len(), scene["frames"].as_u64().unwrap() as usize);
+    let first = arrows[0].as_array().unwrap();
+    assert_eq!(first.len(), 4);
+    assert!(first.iter().all(|a| a["vector"][2].as_f64().unwrap() > 0.0));
+    assert!(arrows.last().unwrap().as_array().unwrap().is_empty());
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -2,6 +2,7 @@
 //! configuration `q` leads the problem's state `x = (q, v)`, and fixed markers (targets,
 //! obstacles).
 
+use gharial::Result;
 use gharial_multibody::RootJoint;
 
 use crate::quadrotor::{CYLINDER_RADIUS, CYLINDERS};
@@ -83,6 +84,61 @@ pub fn robot_scene(name: &str) -> Option<RobotScene> {
     })
 }
 
+/// The contact forces along a solution of a legged problem.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactForces {
+    /// The feet (frames), in the order of the forces.
+    pub feet: Vec<&'static str>,
+    /// Per stage `t < N`, per foot: the force of the ground on the robot (N, world axes;
+    /// zero for a foot in the air).
+    pub forces: Vec<Vec<[f64; 3]>>,
+    /// Friction coefficient of the problem's cones, if it has some.
+    pub mu: Option<f64>,
+}
+
+/// The contact forces of the catalogue problem `name` along `(xs, us)`, recomputed from
+/// its contact dynamics (`None` for problems without contacts).
+///
+/// # Errors
+/// A trajectory that does not fit the problem, or a state at which the contact dynamics
+/// fail.
+pub fn contact_forces(name: &str, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Option<Result<ContactForces>> {
+    let feet = crate::solo_walk::FEET.to_vec();
+    match name {
+        "solo-jump" => Some((|| {
+            let setup = crate::solo_jump::JumpSetup::new(&Default::default())?;
+            Ok(ContactForces {
+                forces: setup.contact_forces(xs, us)?,
+                mu: setup.params().friction,
+                feet,
+            })
+        })()),
+        "solo-com-circle" => Some((|| {
+            let s = crate::solo_com_circle::setup(&crate::solo_com_circle::CircleParams {
+                horizon: us.len().max(1),
+                ..Default::default()
+            })?;
+            s.problem.check_trajectory(xs, us)?;
+            let mut data = s.dynamics.create_contact_data();
+            let mut forces = Vec::with_capacity(us.len());
+            for (x, u) in xs.iter().zip(us) {
+                let lambda = s.dynamics.contact_forces(x, u, &mut data)?;
+                forces.push(
+                    (0..feet.len())
+                        .map(|k| [lambda[3 * k], lambda[3 * k + 1], lambda[3 * k + 2]])
+                        .collect(),
+                );
+            }
+            Ok(ContactForces {
+                forces,
+                mu: Some(s.mu),
+                feet,
+            })
+        })()),
+        _ => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -109,5 +165,32 @@ mod tests {
             seen += 1;
         }
         assert_eq!(seen, 12);
+    }
+}
+
+#[cfg(test)]
+mod force_tests {
+    use super::*;
+
+    /// Standing still (the guess of `solo-com-circle`: the quasi-static torques), the
+    /// feet carry the robot's weight: the vertical forces sum to m g, the horizontal ones
+    /// to zero, and every force is inside its friction cone.
+    #[test]
+    fn standing_feet_carry_the_weight() {
+        let ex = crate::build("solo-com-circle").unwrap();
+        let (xs, us) = (&ex.xs0[..3], &ex.us0[..2]);
+        let f = contact_forces("solo-com-circle", xs, us).unwrap().unwrap();
+        assert_eq!((f.forces.len(), f.feet.len()), (2, 4));
+        let model = gharial_multibody::Model::from_urdf_str(crate::robots::SOLO_URDF, RootJoint::FreeFlyer).unwrap();
+        let weight = model.inertias().iter().map(|i| i.mass).sum::<f64>() * 9.81;
+        let sum: Vec<f64> = (0..3).map(|a| f.forces[0].iter().map(|p| p[a]).sum()).collect();
+        assert!((sum[2] - weight).abs() < 1e-6 * weight, "{sum:?} vs {weight}");
+        assert!(sum[0].abs() < 1e-6 && sum[1].abs() < 1e-6, "{sum:?}");
+        let mu = f.mu.unwrap();
+        for p in &f.forces[0] {
+            assert!(p[0].hypot(p[1]) <= mu * p[2], "{p:?}");
+        }
+        assert!(contact_forces("ur5", xs, us).is_none());
+        assert!(contact_forces("solo-com-circle", &xs[..1], us).unwrap().is_err());
     }
 }

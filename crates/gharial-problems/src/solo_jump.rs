@@ -90,8 +90,8 @@ use gharial_robotics::residuals::{
     FlyHighResidual, FrameTranslationResidual, FrictionCone, FrictionConeResidual, effort_limits,
 };
 use gharial_robotics::{
-    Actuation, ContactDynamicsData, ContactSpec, MultibodyConstraintFwdDynamics, MultibodyFreeFwdDynamics,
-    MultibodyPhaseSpace, set_contact_references,
+    Actuation, ContactSpec, MultibodyConstraintFwdDynamics, MultibodyFreeFwdDynamics, MultibodyPhaseSpace,
+    set_contact_references,
 };
 
 use crate::Example;
@@ -100,8 +100,8 @@ use crate::robots::{SOLO_SRDF, SOLO_URDF};
 /// The standing posture of the SRDF used for `x0` and the state regularisation.
 pub const STANDING: &str = "straight_standing";
 
-/// The contact frames, in the order of the contact forces.
-pub const FEET: [&str; 4] = ["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"];
+/// The feet, in the order of the contact forces.
+pub use crate::solo_walk::FEET;
 
 /// Decay rate of the fly-high residual (1/m), the authors'.
 const FLY_HIGH_SLOPE: f64 = 50.0;
@@ -550,8 +550,8 @@ impl JumpSetup {
             }
         }
         csv.push('\n');
-        let (mut data, mut cdata) = (model.create_data(), self.contact.create_contact_data());
-        let n = us.len();
+        let mut data = model.create_data();
+        let forces = self.contact_forces(xs, us)?;
         for (t, x) in xs.iter().enumerate() {
             let phase = self.params.phase(t);
             let _ = write!(csv, "{t},{},{}", t as f64 * self.params.dt, phase.index());
@@ -561,25 +561,40 @@ impl JumpSetup {
             for z in feet_heights_with(model, &mut data, &self.feet, &x[..self.space.nq()])? {
                 let _ = write!(csv, ",{z}");
             }
-            if t < n {
-                self.write_stage_columns(&mut csv, x, &us[t], phase, &mut cdata)?;
-            } else {
-                csv.push_str(&",".repeat(2 * joints.len() + 3 * FEET.len()));
+            match (us.get(t), forces.get(t)) {
+                (Some(u), Some(f)) => self.write_stage_columns(&mut csv, u, f),
+                _ => csv.push_str(&",".repeat(2 * joints.len() + 3 * FEET.len())),
             }
             csv.push('\n');
         }
         Ok(csv)
     }
 
-    /// Torques, their limits and the contact forces (zero in flight) of stage `t`.
-    fn write_stage_columns(
-        &self,
-        csv: &mut String,
-        x: &[f64],
-        u: &[f64],
-        phase: Phase,
-        cdata: &mut ContactDynamicsData,
-    ) -> Result<()> {
+    /// The contact forces of the four feet ([`FEET`] order; N, world axes, environment on
+    /// the robot; zero in flight) at every stage of `(xs, us)`.
+    ///
+    /// # Errors
+    /// A trajectory that does not fit the problem, or a state at which the contact
+    /// dynamics fail.
+    pub fn contact_forces(&self, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Result<Vec<Vec<[f64; 3]>>> {
+        self.problem.check_trajectory(xs, us)?;
+        let mut cdata = self.contact.create_contact_data();
+        let mut out = Vec::with_capacity(us.len());
+        for (t, (x, u)) in xs.iter().zip(us).enumerate() {
+            let mut feet = vec![[0.0; 3]; FEET.len()];
+            if self.params.phase(t).in_contact() {
+                let lambda = self.contact.contact_forces(x, u, &mut cdata)?;
+                for (k, f) in feet.iter_mut().enumerate() {
+                    f.copy_from_slice(&lambda[3 * k..3 * k + 3]);
+                }
+            }
+            out.push(feet);
+        }
+        Ok(out)
+    }
+
+    /// Torques, their limits and the contact forces (zero in flight) of one stage.
+    fn write_stage_columns(&self, csv: &mut String, u: &[f64], forces: &[[f64; 3]]) {
         let model = self.space.model();
         for v in u {
             let _ = write!(csv, ",{v}");
@@ -587,14 +602,9 @@ impl JumpSetup {
         for k in 6..model.nv() {
             let _ = write!(csv, ",{}", model.effort_limit[k]);
         }
-        if phase.in_contact() {
-            for f in self.contact.contact_forces(x, u, cdata)? {
-                let _ = write!(csv, ",{f}");
-            }
-        } else {
-            csv.push_str(&",0".repeat(3 * FEET.len()));
+        for f in forces.iter().flatten() {
+            let _ = write!(csv, ",{f}");
         }
-        Ok(())
     }
 }
 

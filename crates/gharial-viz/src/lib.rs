@@ -7,6 +7,7 @@
 //!   ProxDDP paper's Figs. 4-11), as piecewise-constant steps.
 //! - [`paths`]: points (an end effector, a base, the feet) in three projections, with
 //!   targets and obstacles; [`frame_paths`] computes them for a robot.
+//! - [`forces`]: contact forces over time, with their friction-cone ratios.
 //! - [`profile`]: the fraction of instances solved against the iteration budget (the
 //!   stagewise-SQP paper's Fig. 1); [`ratios`]: gharial's solve times over the peers'
 //!   from one run of the peer harness ([`ratios_from_harness`]).
@@ -22,6 +23,7 @@
 mod convergence;
 mod data;
 mod figure;
+mod forces;
 mod paths;
 mod profile;
 mod ratios;
@@ -31,6 +33,7 @@ pub mod viewer;
 pub use convergence::convergence;
 pub use data::{HistoryRow, ProfileCurve, Run, SolutionFile, Trajectory};
 pub use figure::{Figure, Panel};
+pub use forces::{FootForces, forces};
 pub use paths::{Cylinder, PointPath, frame_paths, paths};
 pub use profile::profile;
 pub use ratios::{Ratio, ratios, ratios_from_harness};

@@ -9,7 +9,8 @@ use gharial::solvers::proxddp::ProxDdp;
 use gharial::solvers::{InitialGuess, Solution, Solver};
 use gharial_problems::Example;
 use gharial_viz::{
-    Cylinder, Error, Figure, ProfileCurve, Run, Trajectory, convergence, frame_paths, paths, profile, trajectory,
+    Cylinder, Error, Figure, FootForces, ProfileCurve, Run, Trajectory, convergence, forces, frame_paths, paths,
+    profile, trajectory,
 };
 
 /// A fresh directory for this test's files.
@@ -400,5 +401,40 @@ fn paths_of_the_quadrotor_slalom_with_its_obstacles() {
     assert!(pixels_of(&img, series_rgb(0)) > 200);
     let e = frame_paths(&model, &qs, &["no_such_frame"]).unwrap_err();
     assert!(e.to_string().contains("no_such_frame"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The standing Solo's contact forces: each foot carries a quarter of the weight, and the
+/// cone ratios are drawn on an axis that holds them and the cone's edge.
+#[test]
+fn contact_forces_and_cone_ratios() {
+    let dir = out_dir("forces");
+    let ex = gharial_problems::build("solo-com-circle").unwrap();
+    let c = gharial_problems::scenes::contact_forces("solo-com-circle", &ex.xs0, &ex.us0)
+        .unwrap()
+        .unwrap();
+    let feet: Vec<FootForces> = c
+        .feet
+        .iter()
+        .enumerate()
+        .map(|(k, n)| FootForces {
+            label: n.to_string(),
+            forces: c.forces.iter().map(|s| s[k]).collect(),
+        })
+        .collect();
+    let fig = forces(&feet, ex.dt, c.mu, "standing", &dir.join("f.png")).unwrap();
+    assert_eq!(fig.panels.len(), 2);
+    let fz: Vec<f64> = feet.iter().flat_map(|f| f.forces.iter().map(|v| v[2])).collect();
+    let (lo, hi) = minmax(&fz);
+    assert_tight(fig.panels[0].y, lo, hi, 1.2);
+    assert!(fig.panels[1].y.0 <= 0.0 && fig.panels[1].y.1 >= 1.0);
+    assert_eq!(png_pixels(&dir.join("f.png"), (900, 820)).dimensions(), (900, 820));
+    // Without a friction coefficient, one panel.
+    let fig = forces(&feet, ex.dt, None, "standing", &dir.join("g.svg")).unwrap();
+    assert_eq!(fig.panels.len(), 1);
+    let mut bad = feet.clone();
+    bad[1].forces.pop();
+    assert!(forces(&bad, None, None, "x", &dir.join("h.png")).is_err());
+    assert!(forces(&feet, None, Some(0.0), "x", &dir.join("h.png")).is_err());
     std::fs::remove_dir_all(&dir).ok();
 }

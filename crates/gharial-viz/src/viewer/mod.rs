@@ -305,14 +305,13 @@ impl Scene {
         let longest = lengths.iter().copied().fold(0.0, f64::max);
         let radius = (0.08 * longest).clamp(0.01, 0.05);
         let mut added = 0;
-        // A body that ends no segment (a floating base without limbs): the box of its
-        // inertia.
+        // A floating base, and a body that ends no segment: the box of its inertia.
         for i in 1..model.njoints() {
             let carries = segments
                 .iter()
                 .zip(&lengths)
                 .any(|(&(p, _, c, _), &len)| len >= 1e-6 && (p == i || c == i));
-            if carries {
+            if carries && !floating(i) {
                 continue;
             }
             if let Some((shape, local)) = inertia_box(&model.inertias()[i]) {
@@ -439,7 +438,7 @@ impl Scene {
             "arrows": self.arrows.iter().map(|frame| frame.iter().map(|a| json!({
                 "from": a.from, "vector": a.vector,
             })).collect::<Vec<_>>()).collect::<Vec<_>>(),
-            "camera": {"target": centre, "distance": 1.4 * extent, "yaw": 0.9, "pitch": 0.45},
+            "camera": {"target": centre, "distance": 1.4 * extent + 0.3, "yaw": 0.9, "pitch": 0.45},
             "ground": {"z": lo[2].min(0.0), "half": (1.2 * extent).max(0.5)},
         })
     }
