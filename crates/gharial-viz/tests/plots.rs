@@ -10,7 +10,7 @@ use gharial::solvers::{InitialGuess, Solution, Solver};
 use gharial_problems::Example;
 use gharial_viz::{
     Cylinder, Error, Figure, FootForces, ProfileCurve, Run, Trajectory, convergence, forces, frame_paths, paths,
-    profile, trajectory,
+    profile, ratios, ratios_from_harness, trajectory,
 };
 
 /// A fresh directory for this test's files.
@@ -436,5 +436,48 @@ fn contact_forces_and_cone_ratios() {
     bad[1].forces.pop();
     assert!(forces(&bad, None, None, "x", &dir.join("h.png")).is_err());
     assert!(forces(&feet, None, Some(0.0), "x", &dir.join("h.png")).is_err());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The ratios of a real harness run (`tests/data/peers-run.jsonl`: the fields the ratios
+/// use of the merged records of one run of the peer harness with gharial, 2026-12-03):
+/// each bar is gharial's median time over the same-named peer solver's, only where both
+/// converged.
+#[test]
+fn time_ratios_of_a_harness_run() {
+    let dir = out_dir("ratios");
+    let text = include_str!("data/peers-run.jsonl");
+    let bars = ratios_from_harness(text).unwrap();
+    let rows: Vec<serde_json::Value> = text.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    let time = |problem: &str, lib: &str, solver: &str| {
+        let r = rows
+            .iter()
+            .find(|r| r["problem"] == problem && r["lib"] == lib && r["solver"] == solver)
+            .unwrap();
+        (r["time_ms"].as_f64().unwrap(), r["converged"].as_bool().unwrap())
+    };
+    let fddp = bars
+        .iter()
+        .find(|b| b.problem == "ur5" && b.pair == "FDDP / crocoddyl")
+        .unwrap();
+    assert_eq!(
+        fddp.ratio,
+        time("ur5", "gharial", "FDDP").0 / time("ur5", "crocoddyl", "FDDP").0
+    );
+    // mim_solvers' CSQP did not converge on pendulum_box_term: no bar.
+    assert!(!time("pendulum_box_term", "mim_solvers", "CSQP").1);
+    assert!(
+        !bars
+            .iter()
+            .any(|b| b.problem == "pendulum_box_term" && b.pair == "CSQP / mim_solvers")
+    );
+    let fig = ratios(&bars, "one harness run", &dir.join("r.png")).unwrap();
+    let lo = bars.iter().map(|b| b.ratio).fold(f64::INFINITY, f64::min);
+    let hi = bars.iter().map(|b| b.ratio).fold(0.0, f64::max);
+    let y = fig.panels[0].y;
+    assert!(y.0 <= lo && hi <= y.1 && y.1 >= 2.0, "{y:?}");
+    assert!(pixels_of(&png_pixels(&dir.join("r.png"), (1000, 520)), series_rgb(0)) > 100);
+    assert!(ratios_from_harness("{\"a\": 1}").is_err());
+    assert!(ratios_from_harness(&rows[0].to_string()).is_err(), "no gharial record");
     std::fs::remove_dir_all(&dir).ok();
 }

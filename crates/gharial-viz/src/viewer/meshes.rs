@@ -1,5 +1,6 @@
 //! Mesh files of URDF visuals: finding them (`package://` and relative paths) and reading
-//! STL (binary and ASCII) and Wavefront OBJ, simplified to a size a canvas draws fast.
+//! STL (binary and ASCII), Wavefront OBJ and COLLADA (the triangles and polygons of the
+//! geometries its visual scene instantiates), simplified to a size a canvas draws fast.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -35,7 +36,12 @@ impl MeshSearch {
                 roots.extend(std::env::split_paths(&v).filter(|p| !p.as_os_str().is_empty()));
             }
         }
-        roots.extend(example_robot_data());
+        // Its robots directory, for `package://<robot>_description/...`, and the package
+        // directory above it, for `package://example-robot-data/robots/...`.
+        if let Some(dir) = example_robot_data() {
+            roots.extend(dir.parent().map(Path::to_path_buf));
+            roots.push(dir);
+        }
         Self { roots }
     }
 
@@ -76,7 +82,8 @@ impl MeshSearch {
         let (mut vertices, triangles) = match ext.as_str() {
             "stl" => read_stl(&bytes),
             "obj" => read_obj(&String::from_utf8_lossy(&bytes)),
-            other => Err(format!("`.{other}` meshes are not read (STL and OBJ are)")),
+            "dae" => read_dae(&String::from_utf8_lossy(&bytes)),
+            other => Err(format!("`.{other}` meshes are not read (STL, OBJ and COLLADA are)")),
         }
         .map_err(|e| format!("{}: {e}", path.display()))?;
         for v in &mut vertices {
@@ -99,7 +106,8 @@ fn example_robot_data() -> Option<PathBuf> {
     let out = std::process::Command::new("python3")
         .args([
             "-c",
-            "from example_robot_data.path import EXAMPLE_ROBOT_DATA_MODEL_DIR as d; print(d)",
+            "import os; from example_robot_data import getModelPath as m; \
+             print(os.path.realpath(m('ur_description/urdf/ur5_robot.urdf')))",
         ])
         .stderr(std::process::Stdio::null())
         .output()
@@ -195,6 +203,187 @@ fn read_obj(text: &str) -> Result<Triangles, String> {
     Ok((vertices, triangles))
 }
 
+/// A 4 x 4 transform, row-major.
+type Transform = [[f64; 4]; 4];
+
+const IDENTITY: Transform = [
+    [1.0, 0.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0, 0.0],
+    [0.0, 0.0, 1.0, 0.0],
+    [0.0, 0.0, 0.0, 1.0],
+];
+
+fn compose(a: &Transform, b: &Transform) -> Transform {
+    let mut c = [[0.0; 4]; 4];
+    for (i, row) in c.iter_mut().enumerate() {
+        for (j, v) in row.iter_mut().enumerate() {
+            *v = (0..4).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    c
+}
+
+fn numbers(text: &str) -> Vec<f64> {
+    text.split_whitespace().filter_map(|s| s.parse().ok()).collect()
+}
+
+/// The transform of a COLLADA `<node>`: its `matrix`, `translate`, `rotate` (axis,
+/// degrees) and `scale` children, in order.
+fn node_transform(node: roxmltree::Node<'_, '_>) -> Transform {
+    let mut m = IDENTITY;
+    for child in node.children().filter(roxmltree::Node::is_element) {
+        let v = numbers(child.text().unwrap_or(""));
+        let t = match (child.tag_name().name(), v.len()) {
+            ("matrix", 16) => [0, 1, 2, 3].map(|i| [v[4 * i], v[4 * i + 1], v[4 * i + 2], v[4 * i + 3]]),
+            ("translate", 3) => {
+                let mut t = IDENTITY;
+                (0..3).for_each(|i| t[i][3] = v[i]);
+                t
+            }
+            ("scale", 3) => {
+                let mut t = IDENTITY;
+                (0..3).for_each(|i| t[i][i] = v[i]);
+                t
+            }
+            ("rotate", 4) => {
+                let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().max(1e-12);
+                let (x, y, z) = (v[0] / n, v[1] / n, v[2] / n);
+                let (s, c) = v[3].to_radians().sin_cos();
+                let k = 1.0 - c;
+                [
+                    [c + x * x * k, x * y * k - z * s, x * z * k + y * s, 0.0],
+                    [y * x * k + z * s, c + y * y * k, y * z * k - x * s, 0.0],
+                    [z * x * k - y * s, z * y * k + x * s, c + z * z * k, 0.0],
+                    [0.0, 0.0, 0.0, 1.0],
+                ]
+            }
+            _ => continue,
+        };
+        m = compose(&m, &t);
+    }
+    m
+}
+
+/// COLLADA: the triangles and polygons (fanned) of every geometry that the visual scene
+/// instantiates, with the nodes' transforms, in metres, z up. Without a visual scene,
+/// every geometry as it is.
+fn read_dae(text: &str) -> Result<Triangles, String> {
+    let doc = roxmltree::Document::parse(text).map_err(|e| format!("not XML: {e}"))?;
+    let by_id = |id: &str| {
+        doc.descendants()
+            .find(|n| n.attribute("id") == Some(id.trim_start_matches('#')))
+    };
+    let unit = doc
+        .descendants()
+        .find(|n| n.has_tag_name("unit"))
+        .and_then(|n| n.attribute("meter"))
+        .and_then(|m| m.parse::<f64>().ok())
+        .unwrap_or(1.0);
+    let y_up = doc
+        .descendants()
+        .find(|n| n.has_tag_name("up_axis"))
+        .is_some_and(|n| n.text() == Some("Y_UP"));
+    // The geometries to read, with their world transforms.
+    let mut instances: Vec<(roxmltree::Node<'_, '_>, Transform)> = Vec::new();
+    fn walk<'a, 'i>(node: roxmltree::Node<'a, 'i>, parent: Transform, out: &mut Vec<(String, Transform)>) {
+        let m = compose(&parent, &node_transform(node));
+        for child in node.children().filter(roxmltree::Node::is_element) {
+            match child.tag_name().name() {
+                "instance_geometry" => out.push((child.attribute("url").unwrap_or("").to_string(), m)),
+                "node" => walk(child, m, out),
+                _ => {}
+            }
+        }
+    }
+    let mut urls = Vec::new();
+    if let Some(scene) = doc.descendants().find(|n| n.has_tag_name("visual_scene")) {
+        for node in scene.children().filter(|n| n.has_tag_name("node")) {
+            walk(node, IDENTITY, &mut urls);
+        }
+        for (url, m) in urls {
+            if let Some(g) = by_id(&url) {
+                instances.push((g, m));
+            }
+        }
+    } else {
+        instances = doc
+            .descendants()
+            .filter(|n| n.has_tag_name("geometry"))
+            .map(|g| (g, IDENTITY))
+            .collect();
+    }
+    let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
+    for (geometry, m) in instances {
+        for prims in geometry
+            .descendants()
+            .filter(|n| n.has_tag_name("triangles") || n.has_tag_name("polylist"))
+        {
+            let inputs: Vec<_> = prims.children().filter(|n| n.has_tag_name("input")).collect();
+            let stride = inputs
+                .iter()
+                .filter_map(|i| i.attribute("offset")?.parse::<usize>().ok())
+                .max()
+                .unwrap_or(0)
+                + 1;
+            let vertex_input = inputs
+                .iter()
+                .find(|i| i.attribute("semantic") == Some("VERTEX"))
+                .ok_or("a primitive without VERTEX input")?;
+            let offset: usize = vertex_input
+                .attribute("offset")
+                .and_then(|o| o.parse().ok())
+                .unwrap_or(0);
+            let positions_id = by_id(vertex_input.attribute("source").unwrap_or(""))
+                .and_then(|v| v.children().find(|i| i.attribute("semantic") == Some("POSITION")))
+                .and_then(|i| i.attribute("source"))
+                .ok_or("VERTEX input without POSITION")?;
+            let floats = by_id(positions_id)
+                .and_then(|s| s.descendants().find(|n| n.has_tag_name("float_array")))
+                .map(|a| numbers(a.text().unwrap_or("")))
+                .ok_or("POSITION source without float_array")?;
+            let base = vertices.len() as u32;
+            for p in floats.chunks_exact(3) {
+                let w = [0, 1, 2].map(|i| unit * (m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3]));
+                vertices.push(if y_up { [w[0], -w[2], w[1]] } else { w });
+            }
+            let count = (floats.len() / 3) as u32;
+            let idx: Vec<u32> = prims
+                .children()
+                .find(|n| n.has_tag_name("p"))
+                .map(|p| {
+                    p.text()
+                        .unwrap_or("")
+                        .split_whitespace()
+                        .filter_map(|s| s.parse().ok())
+                        .collect()
+                })
+                .unwrap_or_default();
+            let corners: Vec<u32> = idx.iter().skip(offset).step_by(stride).copied().collect();
+            if corners.iter().any(|&i| i >= count) {
+                return Err("a vertex index out of range".into());
+            }
+            let sizes: Vec<usize> = match prims.children().find(|n| n.has_tag_name("vcount")) {
+                Some(v) => v
+                    .text()
+                    .unwrap_or("")
+                    .split_whitespace()
+                    .filter_map(|s| s.parse().ok())
+                    .collect(),
+                None => vec![3; corners.len() / 3],
+            };
+            let mut at = 0;
+            for n in sizes {
+                let poly = corners.get(at..at + n).ok_or("fewer indices than the polygon sizes")?;
+                for k in 1..n.saturating_sub(1) {
+                    triangles.push([base + poly[0], base + poly[k], base + poly[k + 1]]);
+                }
+                at += n;
+            }
+        }
+    }
+    Ok((vertices, triangles))
+}
+
 /// Merges vertices that share a cell of a grid over the bounding box, finer until the
 /// mesh has at most [`MAX_TRIANGLES`] triangles (or the finest grid is reached), and
 /// drops the triangles that collapse.
@@ -285,6 +474,41 @@ mod tests {
         assert!(read_stl(b"garbage").is_err());
         assert!(read_obj("v 0 0\n").is_err());
         assert!(read_obj("v 0 0 0\nf 1 2 3\n").is_err());
+    }
+
+    /// A COLLADA square (a quad in a polylist) in centimetres, moved by its node, and a
+    /// triangle of another geometry, both instantiated by the visual scene.
+    #[test]
+    fn collada_geometries_with_their_node_transforms() {
+        let dae = r##"<?xml version="1.0"?>
+<COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+  <asset><unit name="centimeter" meter="0.01"/><up_axis>Z_UP</up_axis></asset>
+  <library_geometries>
+    <geometry id="sq"><mesh>
+      <source id="sq-pos"><float_array id="sq-arr" count="12">0 0 0 100 0 0 100 100 0 0 100 0</float_array></source>
+      <vertices id="sq-v"><input semantic="POSITION" source="#sq-pos"/></vertices>
+      <polylist count="1"><input semantic="VERTEX" source="#sq-v" offset="0"/><input semantic="NORMAL" source="#n" offset="1"/>
+        <vcount>4</vcount><p>0 0 1 0 2 0 3 0</p></polylist>
+    </mesh></geometry>
+    <geometry id="tri"><mesh>
+      <source id="tri-pos"><float_array id="tri-arr" count="9">0 0 0 0 0 100 0 100 0</float_array></source>
+      <vertices id="tri-v"><input semantic="POSITION" source="#tri-pos"/></vertices>
+      <triangles count="1"><input semantic="VERTEX" source="#tri-v" offset="0"/><p>0 1 2</p></triangles>
+    </mesh></geometry>
+  </library_geometries>
+  <library_visual_scenes><visual_scene id="s">
+    <node id="a"><translate>0 0 50</translate><instance_geometry url="#sq"/></node>
+    <node id="b"><matrix>1 0 0 200 0 1 0 0 0 0 1 0 0 0 0 1</matrix><instance_geometry url="#tri"/></node>
+  </visual_scene></library_visual_scenes>
+</COLLADA>"##;
+        let (v, t) = read_dae(dae).unwrap();
+        assert_eq!((v.len(), t.len()), (7, 3));
+        assert_eq!(v[2], [1.0, 1.0, 0.5]);
+        assert_eq!(t[..2], [[0, 1, 2], [0, 2, 3]]);
+        assert_eq!(v[5], [2.0, 0.0, 1.0]);
+        assert_eq!(t[2], [4, 5, 6]);
+        assert!(read_dae("<COLLADA/>").unwrap().1.is_empty());
+        assert!(read_dae("not xml").is_err());
     }
 
     #[test]

@@ -6,7 +6,8 @@
 //! A [`Scene`] holds bodies (a shape and one pose per frame), fixed markers (targets,
 //! obstacles) and arrows per frame (contact forces). [`Scene::add_robot`] places the
 //! visual geometry of a multibody model along a configuration trajectory by forward
-//! kinematics: boxes, cylinders and spheres as written in the URDF, meshes when their
+//! kinematics: boxes, cylinders and spheres as written in the URDF, meshes (STL, OBJ,
+//! COLLADA) when their
 //! files resolve ([`MeshSearch`]), and capsules between the joint frames for what does
 //! not.
 
