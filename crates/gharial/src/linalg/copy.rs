@@ -1,0 +1,133 @@
+//! Copies: [`copy`], [`copy_transposed`], the lower-triangle copy of the
+//! factorizations, and [`negate`].
+
+use faer::prelude::ReborrowMut;
+use faer::{MatMut, MatRef};
+
+/// `dst = src` (same shape), column by column.
+#[inline]
+pub fn copy(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
+    debug_assert_eq!((dst.nrows(), dst.ncols()), (src.nrows(), src.ncols()));
+    if src.row_stride() == 1 && dst.row_stride() == 1 && with_fixed_len!(src.nrows(), copy_fixed, (dst.rb_mut(), src)) {
+        return;
+    }
+    for j in 0..src.ncols() {
+        let pair = (
+            src.col(j).try_as_col_major(),
+            dst.rb_mut().col_mut(j).try_as_col_major_mut(),
+        );
+        if let (Some(s), Some(d)) = pair {
+            d.as_slice_mut().copy_from_slice(s.as_slice());
+            continue;
+        }
+        for i in 0..src.nrows() {
+            dst[(i, j)] = src[(i, j)];
+        }
+    }
+}
+
+/// [`copy`] of column-major matrices with `M` rows: fixed-size column moves instead of
+/// a `memcpy` call per column.
+#[inline]
+fn copy_fixed<const M: usize>(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
+    for j in 0..src.ncols() {
+        let s: &[f64; M] = src
+            .col(j)
+            .try_as_col_major()
+            .expect("checked")
+            .as_slice()
+            .try_into()
+            .expect("M rows");
+        let d: &mut [f64; M] = dst
+            .rb_mut()
+            .col_mut(j)
+            .try_as_col_major_mut()
+            .expect("checked")
+            .as_slice_mut()
+            .try_into()
+            .expect("M rows");
+        *d = *s;
+    }
+}
+
+/// `dst = srcᵀ` (`dst` is `src.ncols() x src.nrows()`), reading `src` by columns.
+#[inline]
+pub(crate) fn copy_transposed(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
+    debug_assert_eq!((dst.nrows(), dst.ncols()), (src.ncols(), src.nrows()));
+    for j in 0..src.ncols() {
+        match src.col(j).try_as_col_major() {
+            Some(s) => {
+                for (i, v) in s.as_slice().iter().enumerate() {
+                    dst[(j, i)] = *v;
+                }
+            }
+            None => {
+                for i in 0..src.nrows() {
+                    dst[(j, i)] = src[(i, j)];
+                }
+            }
+        }
+    }
+}
+
+/// Copies the lower triangle (diagonal included) of `src` into `dst`.
+#[inline]
+pub(super) fn copy_lower(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
+    let n = src.nrows();
+    for j in 0..n {
+        let pair = (
+            src.col(j).try_as_col_major(),
+            dst.rb_mut().col_mut(j).try_as_col_major_mut(),
+        );
+        if let (Some(s), Some(d)) = pair {
+            d.as_slice_mut()[j..].copy_from_slice(&s.as_slice()[j..]);
+            continue;
+        }
+        for i in j..n {
+            dst[(i, j)] = src[(i, j)];
+        }
+    }
+}
+
+/// `m = -m`.
+#[inline]
+pub fn negate(mut m: MatMut<'_, f64>) {
+    for j in 0..m.ncols() {
+        match m.rb_mut().col_mut(j).try_as_col_major_mut() {
+            Some(c) => c.as_slice_mut().iter_mut().for_each(|v| *v = -*v),
+            None => {
+                for i in 0..m.nrows() {
+                    m[(i, j)] = -m[(i, j)];
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use faer::Mat;
+
+    use super::{copy, copy_transposed, negate};
+    use crate::linalg::dot;
+    use crate::linalg::tests::filled;
+
+    #[test]
+    fn copies_negation_and_dot() {
+        let a = filled(5, 3, 1);
+        let mut t = Mat::<f64>::zeros(3, 5);
+        copy_transposed(t.as_mut(), a.as_ref());
+        let mut c = Mat::<f64>::zeros(5, 3);
+        copy(c.as_mut(), t.transpose());
+        negate(c.as_mut());
+        for j in 0..3 {
+            for i in 0..5 {
+                assert_eq!(t[(j, i)], a[(i, j)]);
+                assert_eq!(c[(i, j)], -a[(i, j)]);
+            }
+        }
+        let x: Vec<f64> = (0..11).map(|i| i as f64 - 3.0).collect();
+        let y: Vec<f64> = (0..11).map(|i| 0.5 * i as f64).collect();
+        assert_eq!(dot(&x, &y), x.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>());
+    }
+}

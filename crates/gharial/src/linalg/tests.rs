@@ -1,0 +1,151 @@
+//! Shared helpers of the tests of the module, and the tests that run every factorization
+//! on the same systems.
+
+use faer::{Accum, Mat, MatMut, MatRef};
+
+use super::{BunchKaufman, FactorError, Inertia, Ldlt, Llt, Lu, matmul, norm_max};
+
+pub(super) fn spd(n: usize, seed: u64) -> Mat<f64> {
+    let mut s = seed;
+    let mut next = || {
+        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((s >> 11) as f64) / ((1u64 << 53) as f64) - 0.5
+    };
+    let l = Mat::from_fn(n, n, |_, _| next());
+    let mut a = Mat::<f64>::identity(n, n);
+    matmul(a.as_mut(), Accum::Add, l.as_ref(), l.transpose(), 1.0);
+    a
+}
+
+pub(super) fn residual(a: MatRef<'_, f64>, x: MatRef<'_, f64>, b: MatRef<'_, f64>) -> f64 {
+    let mut r = b.to_owned();
+    matmul(r.as_mut(), Accum::Add, a, x, -1.0);
+    norm_max(r.as_ref())
+}
+
+/// Entry-by-entry product, the reference of the kernel tests.
+pub(super) fn naive(lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>) -> Mat<f64> {
+    Mat::from_fn(lhs.nrows(), rhs.ncols(), |i, j| {
+        (0..lhs.ncols()).map(|l| lhs[(i, l)] * rhs[(l, j)]).sum()
+    })
+}
+
+pub(super) fn filled(m: usize, n: usize, seed: usize) -> Mat<f64> {
+    Mat::from_fn(m, n, |i, j| (((i * 31 + j * 17 + seed * 7) % 23) as f64 - 11.0) / 7.0)
+}
+
+/// Solves `a x = b` in place with `solve`, and the strided system whose right-hand
+/// sides are the rows of `filled(cols, n, cols)`, and checks both residuals.
+pub(super) fn assert_solves_system(
+    mut solve: impl FnMut(MatMut<'_, f64>),
+    a: MatRef<'_, f64>,
+    b: &Mat<f64>,
+    cols: usize,
+    tol: f64,
+) {
+    let n = a.nrows();
+    let mut x = b.clone();
+    solve(x.as_mut());
+    assert!(residual(a, x.as_ref(), b.as_ref()) < tol, "n {n}, {cols} columns");
+    let bt = filled(cols, n, cols);
+    let mut xt = bt.clone();
+    solve(xt.as_mut().transpose_mut());
+    assert!(residual(a, xt.transpose(), bt.transpose()) < tol, "n {n}, transposed");
+}
+
+/// Solves `b` (contiguous right-hand sides) and `btᵀ` (strided ones) in place with
+/// `solve` and compares them with the reference solutions `x_ref` and `xt_ref`.
+pub(super) fn assert_solves_match(
+    mut solve: impl FnMut(MatMut<'_, f64>),
+    b: &Mat<f64>,
+    bt: &Mat<f64>,
+    x_ref: &Mat<f64>,
+    xt_ref: &Mat<f64>,
+    tol: f64,
+    what: &str,
+) {
+    let mut x = b.clone();
+    solve(x.as_mut());
+    let mut xt = bt.clone();
+    solve(xt.as_mut().transpose_mut());
+    let n = b.nrows();
+    for j in 0..n {
+        for i in 0..b.ncols() {
+            assert!((x[(j, i)] - x_ref[(j, i)]).abs() < tol, "{what} solve n {n}");
+        }
+        for i in 0..bt.nrows() {
+            assert!((xt[(i, j)] - xt_ref[(j, i)]).abs() < tol, "{what} strided solve n {n}");
+        }
+    }
+}
+
+#[test]
+fn factorizations_solve_random_systems() {
+    for n in [1, 2, 5, 13, 40] {
+        let a = spd(n, n as u64);
+        let b = Mat::from_fn(n, 3, |i, j| (i as f64 + 1.0) * (j as f64 - 1.0) + 0.5);
+
+        let mut f = Llt::new(n);
+        f.factor(a.as_ref()).unwrap();
+        let mut x = b.clone();
+        f.solve_in_place(x.as_mut());
+        assert!(residual(a.as_ref(), x.as_ref(), b.as_ref()) < 1e-10);
+
+        let mut f = Ldlt::new(n);
+        let inertia = f.factor(a.as_ref()).unwrap();
+        assert_eq!(
+            inertia,
+            Inertia {
+                positive: n,
+                negative: 0,
+                zero: 0
+            }
+        );
+        let mut x = b.clone();
+        f.solve_in_place(x.as_mut());
+        assert!(residual(a.as_ref(), x.as_ref(), b.as_ref()) < 1e-10);
+
+        // Saddle point [[A, I], [I, 0]]: inertia (n, n, 0).
+        let mut k = Mat::<f64>::zeros(2 * n, 2 * n);
+        k.as_mut().submatrix_mut(0, 0, n, n).copy_from(a.as_ref());
+        for i in 0..n {
+            k[(n + i, i)] = 1.0;
+            k[(i, n + i)] = 1.0;
+        }
+        let b2 = Mat::from_fn(2 * n, 2, |i, j| (i * 3 + j) as f64 - 2.0);
+        let mut f = BunchKaufman::new(2 * n);
+        let inertia = f.factor(k.as_ref(), 1e-13).unwrap();
+        assert_eq!(
+            inertia,
+            Inertia {
+                positive: n,
+                negative: n,
+                zero: 0
+            }
+        );
+        let mut x = b2.clone();
+        f.solve_in_place(x.as_mut());
+        assert!(residual(k.as_ref(), x.as_ref(), b2.as_ref()) < 1e-9);
+
+        let mut f = Lu::new(2 * n, 2);
+        f.factor(k.as_ref()).unwrap();
+        let mut x = b2.clone();
+        f.solve_in_place(x.as_mut());
+        assert!(residual(k.as_ref(), x.as_ref(), b2.as_ref()) < 1e-9);
+        let mut x = b2.clone();
+        f.solve_transpose_in_place(x.as_mut());
+        assert!(residual(k.transpose(), x.as_ref(), b2.as_ref()) < 1e-9);
+    }
+}
+
+#[test]
+fn singular_and_non_finite_are_reported() {
+    let mut f = Llt::new(2);
+    let a = Mat::from_fn(2, 2, |i, j| if i == j { -1.0 } else { 0.0 });
+    assert!(matches!(f.factor(a.as_ref()), Err(FactorError::Singular { .. })));
+    let a = Mat::from_fn(2, 2, |_, _| f64::NAN);
+    assert_eq!(f.factor(a.as_ref()), Err(FactorError::NonFinite));
+    let mut lu = Lu::new(2, 1);
+    let z = Mat::<f64>::zeros(2, 2);
+    assert!(matches!(lu.factor(z.as_ref()), Err(FactorError::Singular { .. })));
+}
