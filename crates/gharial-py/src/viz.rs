@@ -68,8 +68,8 @@ fn plot_convergence(runs: Vec<(String, PyRef<'_, PyResults>)>, path: &str, title
 }
 
 /// Writes the 3D viewer page (one self-contained HTML file) of `robot` along the states
-/// `xs` (a list of states whose first `nq` entries are the configuration, e.g.
-/// `results.xs`), `dt` seconds apart, with `targets` marked; returns the path. Meshes
+/// `xs` (a `Results`, or a list of states whose first `nq` entries are the
+/// configuration), `dt` seconds apart, with `targets` marked; returns the path. Meshes
 /// resolve through `GHARIAL_MESH_PATH`, `ROS_PACKAGE_PATH` and example-robot-data.
 #[pyfunction]
 #[pyo3(signature = (xs, robot, path, dt, targets = Vec::new(), title = "gharial"))]
@@ -83,7 +83,10 @@ fn view(
 ) -> PyResult<String> {
     let model = robot.model();
     let nq = model.nq();
-    let xs = vectors(xs, "xs")?;
+    let xs = match xs.cast::<PyResults>() {
+        Ok(r) => r.borrow().s.xs.clone(),
+        Err(_) => vectors(xs, "xs")?,
+    };
     if let Some((t, x)) = xs.iter().enumerate().find(|(_, x)| x.len() < nq) {
         return Err(value_error(format!(
             "xs[{t}] has {} entries, the robot's configuration {nq}",

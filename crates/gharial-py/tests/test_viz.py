@@ -62,5 +62,8 @@ def test_view_writes_the_ur5_page(tmp_path):
     assert scene["frames"] == len(s.results.xs) and scene["dt"] == ex.dt
     assert scene["markers"][0]["pose"][9:] == [0.3, 0.5, 0.5]
     assert len(scene["bodies"]) >= 6 and all(len(b["poses"]) == scene["frames"] for b in scene["bodies"])
+    # A Results object stands for its states.
+    again = gharial.view(s.results, robot, str(tmp_path / "again.html"), ex.dt, targets=[(0.3, 0.5, 0.5)], title="UR5")
+    assert open(again).read() == html
     with pytest.raises(ValueError, match="entries"):
         gharial.view([np.zeros(3)], robot, str(tmp_path / "x.html"), 0.01)
