@@ -53,9 +53,9 @@
 use std::sync::Arc;
 
 use gharial::Result;
+use gharial::autodiff::{AutoOdeFn, ManifoldScalar};
 use gharial::costs::{ConstantCost, CostStack, QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, ExplicitRungeKutta, Ode, OdeData};
-use gharial::functions::autodiff::{AutoOdeFn, ManifoldScalar};
 use gharial::problem::{Problem, StageModel};
 use gharial::solvers::proxddp::{Merit, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::spaces::{CartesianProduct, Manifold, SO2, VectorSpace};

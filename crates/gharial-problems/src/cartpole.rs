@@ -41,11 +41,11 @@
 use std::sync::Arc;
 
 use gharial::Result;
+use gharial::autodiff::{AutoDiff, AutoOdeFn, AutoUnaryFn, ManifoldScalar};
 use gharial::constraints::EqualityConstraintSet;
 use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, Ode, OdeData, SemiImplicitEuler};
 use gharial::functions::Unary;
-use gharial::functions::autodiff::{AutoDiff, AutoOdeFn, AutoUnaryFn, ManifoldScalar};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::proxddp::{Merit, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::spaces::{Manifold, VectorSpace};

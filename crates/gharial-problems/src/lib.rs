@@ -268,7 +268,7 @@ pub fn rollout(problem: &Problem, us: &[Vec<f64>]) -> Result<Vec<Vec<f64>>> {
 
 /// `M⁻¹ b` for a symmetric 2x2 mass matrix `M = [m0 m1; m1 m2]` (the two-degree-of-freedom
 /// models: cart-pole, acrobot), generic over the scalar.
-pub(crate) fn solve2<D: gharial::functions::autodiff::ManifoldScalar>(m: &[D; 3], b: &[D; 2]) -> [D; 2] {
+pub(crate) fn solve2<D: gharial::autodiff::ManifoldScalar>(m: &[D; 3], b: &[D; 2]) -> [D; 2] {
     let det = m[0] * m[2] - m[1] * m[1];
     [(m[2] * b[0] - m[1] * b[1]) / det, (m[0] * b[1] - m[1] * b[0]) / det]
 }

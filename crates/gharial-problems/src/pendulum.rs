@@ -36,10 +36,10 @@
 use std::sync::Arc;
 
 use gharial::Result;
+use gharial::autodiff::{AutoDiff, AutoOdeFn, AutoUnaryFn, ManifoldScalar};
 use gharial::constraints::EqualityConstraintSet;
 use gharial::costs::{CostStack, QuadraticControlCost, QuadraticResidualCost};
 use gharial::dynamics::{Dynamics, Ode, OdeData, SemiImplicitEuler};
-use gharial::functions::autodiff::{AutoDiff, AutoOdeFn, AutoUnaryFn, ManifoldScalar};
 use gharial::functions::{Unary, Workspace};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::proxddp::{ProxDdpOptions, Rollout};

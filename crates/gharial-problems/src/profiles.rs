@@ -36,18 +36,18 @@
 
 use std::sync::Arc;
 
+use gharial::autodiff::AutoDiff;
 use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, ExplicitRungeKutta};
-use gharial::functions::autodiff::AutoDiff;
 use gharial::lq::random::SplitMix64;
 use gharial::problem::{Problem, StageModel};
 use gharial::solvers::proxddp::{ProxDdpOptions, Rollout};
 use gharial::{Error, Result};
 
+use gharial::autodiff::{AutoUnaryFn, ManifoldScalar};
 use gharial::costs::QuadraticResidualCost;
 use gharial::dynamics::SemiImplicitEuler;
 use gharial::functions::Unary;
-use gharial::functions::autodiff::{AutoUnaryFn, ManifoldScalar};
 use gharial::spaces::Manifold;
 use gharial_multibody::spatial::{Se3, Vec3};
 use gharial_multibody::{Model, ReferenceFrame, RootJoint, forward_kinematics_placements, neutral};

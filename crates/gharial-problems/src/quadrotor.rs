@@ -52,11 +52,11 @@
 use std::sync::Arc;
 
 use gharial::Result;
+use gharial::autodiff::{AutoDiff, AutoOdeFn, AutoUnaryFn, ManifoldScalar};
 use gharial::constraints::NegativeOrthant;
 use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, ExplicitRungeKutta};
 use gharial::functions::Unary;
-use gharial::functions::autodiff::{AutoDiff, AutoOdeFn, AutoUnaryFn, ManifoldScalar};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::proxddp::{ProxDdpOptions, Rollout};
 use gharial::spaces::{CartesianProduct, Manifold, SE3, VectorSpace};

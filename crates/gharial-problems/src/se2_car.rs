@@ -23,9 +23,9 @@
 use std::sync::Arc;
 
 use gharial::Result;
+use gharial::autodiff::{AutoOdeFn, ManifoldScalar};
 use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, ExplicitRungeKutta, Ode, OdeData};
-use gharial::functions::autodiff::{AutoOdeFn, ManifoldScalar};
 use gharial::problem::{Problem, StageModel};
 use gharial::solvers::proxddp::{ProxDdpOptions, Rollout};
 use gharial::spaces::{Manifold, SE2};

@@ -10,12 +10,12 @@
 //!   total energy `T + V`, computed from the positions and velocities of the bodies,
 //!   changes at the rate of the power of the inputs.
 
-use gharial::dynamics::{Dynamics, Ode};
-use gharial::functions::autodiff::{AutoOdeFn, Dual64};
-use gharial::functions::check::{
+use gharial::autodiff::{AutoOdeFn, Dual64};
+use gharial::check::{
     CheckOptions, DualCheckOptions, check_cost, check_explicit_dynamics, check_ode, check_ode_dual,
     check_stage_function,
 };
+use gharial::dynamics::{Dynamics, Ode};
 use gharial::spaces::Manifold;
 use gharial_problems::acrobot::AcrobotOde;
 use gharial_problems::cartpole::CartpoleOde;
@@ -255,7 +255,7 @@ fn acrobot_energy_changes_at_the_rate_of_the_elbow_power() {
 #[test]
 fn quadrotor_energy_changes_at_the_rate_of_the_rotor_power() {
     let q = QuadrotorOde::hector().unwrap();
-    let ode = gharial::functions::autodiff::AutoDiff::ode(gharial_problems::quadrotor::space(), q).unwrap();
+    let ode = gharial::autodiff::AutoDiff::ode(gharial_problems::quadrotor::space(), q).unwrap();
     assert_power_balance(
         "quadrotor",
         &ode,

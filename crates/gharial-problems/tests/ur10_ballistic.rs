@@ -6,8 +6,8 @@
 
 use std::sync::{Arc, OnceLock};
 
+use gharial::check::{CheckOptions, check_explicit_dynamics};
 use gharial::dynamics::{Dynamics, Ode};
-use gharial::functions::check::{CheckOptions, check_explicit_dynamics};
 use gharial::solvers::proxddp::ProxDdp;
 use gharial::solvers::{InitialGuess, Solution, Solver};
 use gharial::spaces::Manifold;

@@ -17,9 +17,9 @@
 use std::f64::consts::PI;
 use std::sync::Arc;
 
+use gharial::check::{CheckOptions, check_stage_function};
 use gharial::costs::Cost;
 use gharial::dynamics::{ExplicitDynamics, ExplicitDynamicsData, SemiImplicitEuler};
-use gharial::functions::check::{CheckOptions, check_stage_function};
 use gharial::mpc::{ClosedLoop, Mpc, MpcOptions, simulate};
 use gharial::problem::{Problem, kkt_residuals};
 use gharial::solvers::proxddp::ProxDdp;

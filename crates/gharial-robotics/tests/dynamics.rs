@@ -11,8 +11,8 @@ use std::sync::Arc;
 use faer::Mat;
 use faer::linalg::solvers::Solve;
 use gharial::Error;
+use gharial::check::{CheckOptions, check_explicit_dynamics, check_ode, rel_error};
 use gharial::dynamics::{ExplicitDynamics, ExplicitRungeKutta, Ode, OdeData, SemiImplicitEuler};
-use gharial::functions::check::{CheckOptions, check_explicit_dynamics, check_ode, rel_error};
 use gharial::solvers::Solver;
 use gharial::spaces::Manifold;
 use gharial_multibody::{

@@ -17,8 +17,8 @@ use std::sync::Arc;
 
 use faer::Mat;
 use gharial::Error;
+use gharial::check::{CheckOptions, check_stage_function};
 use gharial::constraints::{ConstraintSet, NegativeOrthant, SecondOrderCone};
-use gharial::functions::check::{CheckOptions, check_stage_function};
 use gharial::functions::{StageFunction, StageFunctionData, Unary, UnaryFunction};
 use gharial::spaces::Manifold;
 use gharial_multibody::spatial::{Mat3, Motion, Se3, Vec3};

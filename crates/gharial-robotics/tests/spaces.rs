@@ -6,7 +6,7 @@ mod common;
 use common::{matf, max_diff, max_diff_mat, vecf};
 
 use faer::Mat;
-use gharial::functions::check::{CheckOptions, DualCheckOptions, check_manifold, check_manifold_dual};
+use gharial::check::{CheckOptions, DualCheckOptions, check_manifold, check_manifold_dual};
 use gharial::spaces::{Arg, Manifold};
 use gharial_robotics::{MultibodyConfiguration, MultibodyPhaseSpace};
 use rand::SeedableRng;

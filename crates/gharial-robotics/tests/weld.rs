@@ -8,8 +8,8 @@ use common::*;
 
 use std::sync::Arc;
 
+use gharial::check::{CheckOptions, check_ode};
 use gharial::dynamics::{Ode, OdeData};
-use gharial::functions::check::{CheckOptions, check_ode};
 use gharial_multibody::spatial::{Inertia, Mat3, Se3, Vec3};
 use gharial_multibody::{
     ContactModel, ContactType, JointLimits, JointType, Model, ReferenceFrame, aba, generalized_gravity,

@@ -6,9 +6,9 @@ use std::sync::Arc;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use faer::Mat;
+use gharial::autodiff::{AutoCostFn, AutoDiff, AutoDynamicsFn, ManifoldScalar};
 use gharial::costs::Cost;
 use gharial::dynamics::ExplicitDynamics;
-use gharial::functions::autodiff::{AutoCostFn, AutoDiff, AutoDynamicsFn, ManifoldScalar};
 use gharial::spaces::{Arg, CartesianProduct, Manifold, SE3, SO3, VectorSpace};
 use rand::SeedableRng;
 

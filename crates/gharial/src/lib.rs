@@ -11,10 +11,15 @@
 //! with states on manifolds. The pieces, in the order data flows through them:
 //! - [`spaces`]: state manifolds (vector spaces, SO(2), SO(3), SE(2), SE(3), products);
 //! - [`functions`], [`costs`], [`dynamics`], [`constraints`]: the modelling layer, with
-//!   exact derivatives and a derivative checker;
+//!   exact derivatives;
+//! - [`autodiff`], [`check`]: above the modelling layer, the dual-number adapters that
+//!   turn a model written once generic over the scalar into any model kind, and the
+//!   derivative checker of every model kind;
 //! - [`lq`]: the linear-quadratic subproblems every solver reduces to, and the proximal
 //!   Riccati solver of the ProxDDP paper.
 
+pub mod autodiff;
+pub mod check;
 pub mod constraints;
 pub mod costs;
 pub mod dynamics;

@@ -243,14 +243,14 @@ fn constraint_sets_do_not_allocate() {
 /// A rigid body on the tangent bundle of SO(3), written once for every scalar.
 struct Gyro;
 
-impl gharial::functions::autodiff::AutoOdeFn for Gyro {
+impl gharial::autodiff::AutoOdeFn for Gyro {
     fn nx(&self) -> usize {
         7
     }
     fn nu(&self) -> usize {
         3
     }
-    fn eval<D: gharial::functions::autodiff::ManifoldScalar>(&self, x: &[D], u: &[D], xdot: &mut [D]) {
+    fn eval<D: gharial::autodiff::ManifoldScalar>(&self, x: &[D], u: &[D], xdot: &mut [D]) {
         let i = [1.0, 2.0, 3.0];
         let w = [x[4], x[5], x[6]];
         let iw = [w[0] * i[0], w[1] * i[1], w[2] * i[2]];
@@ -268,7 +268,7 @@ impl gharial::functions::autodiff::AutoOdeFn for Gyro {
 
 #[test]
 fn models_on_lie_groups_do_not_allocate() {
-    use gharial::functions::autodiff::AutoDiff;
+    use gharial::autodiff::AutoDiff;
     use gharial::spaces::{SE3, SO3, TangentBundle};
     use rand::SeedableRng;
     let mut rng = rand::rngs::SmallRng::seed_from_u64(5);

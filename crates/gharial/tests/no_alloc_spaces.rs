@@ -4,10 +4,10 @@
 use std::sync::Arc;
 
 use faer::Mat;
+use gharial::autodiff::{AutoCostFn, AutoDiff, AutoDynamicsFn, AutoStageFn, ManifoldScalar};
 use gharial::costs::Cost;
 use gharial::dynamics::ExplicitDynamics;
 use gharial::functions::StageFunction;
-use gharial::functions::autodiff::{AutoCostFn, AutoDiff, AutoDynamicsFn, AutoStageFn, ManifoldScalar};
 use gharial::spaces::{Arg, CartesianProduct, Manifold, SE2, SE3, SO2, SO3, TangentBundle, VectorSpace};
 use rand::SeedableRng;
 

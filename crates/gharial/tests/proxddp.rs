@@ -465,7 +465,7 @@ struct Disc {
     radius: f64,
 }
 
-impl gharial::functions::autodiff::AutoStageFn for Disc {
+impl gharial::autodiff::AutoStageFn for Disc {
     fn nx(&self) -> usize {
         4
     }
@@ -475,7 +475,7 @@ impl gharial::functions::autodiff::AutoStageFn for Disc {
     fn nr(&self) -> usize {
         1
     }
-    fn eval<D: gharial::functions::autodiff::ManifoldScalar>(&self, x: &[D], _u: &[D], out: &mut [D]) {
+    fn eval<D: gharial::autodiff::ManifoldScalar>(&self, x: &[D], _u: &[D], out: &mut [D]) {
         out[0] = x[0] * x[0] + x[1] * x[1] - D::from(self.radius * self.radius);
     }
 }
@@ -484,8 +484,8 @@ impl gharial::functions::autodiff::AutoStageFn for Disc {
 fn exact_and_gauss_newton_hessians_reach_the_same_kkt_point() {
     // A planar double integrator steered towards (2, 1) while staying in the unit disc:
     // the curvature of the active disc constraint enters the exact Hessian only.
+    use gharial::autodiff::AutoDiff;
     use gharial::constraints::NegativeOrthant;
-    use gharial::functions::autodiff::AutoDiff;
     use gharial::solvers::proxddp::HessianApprox;
     let dt = 0.1;
     let a = Mat::from_fn(4, 4, |i, j| {
@@ -559,14 +559,14 @@ fn exact_and_gauss_newton_hessians_reach_the_same_kkt_point() {
 /// A pendulum on `SO(2) × R`, `θ = 0` hanging: `ẋ = (ω, -g sin θ + u)`.
 struct SwingPendulum;
 
-impl gharial::functions::autodiff::AutoOdeFn for SwingPendulum {
+impl gharial::autodiff::AutoOdeFn for SwingPendulum {
     fn nx(&self) -> usize {
         3
     }
     fn nu(&self) -> usize {
         1
     }
-    fn eval<D: gharial::functions::autodiff::ManifoldScalar>(&self, x: &[D], u: &[D], xdot: &mut [D]) {
+    fn eval<D: gharial::autodiff::ManifoldScalar>(&self, x: &[D], u: &[D], xdot: &mut [D]) {
         xdot[0] = x[2];
         xdot[1] = x[1] * (-9.81) + u[0];
     }
@@ -576,9 +576,9 @@ impl gharial::functions::autodiff::AutoOdeFn for SwingPendulum {
 /// steps of `dt`, control cost `w_u dt u²`, terminal equality constraint; the guess is
 /// `u = 0` (the pendulum stays hanging).
 fn swing_up(n: usize, dt: f64, w_u: f64) -> (Problem, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    use gharial::autodiff::AutoDiff;
     use gharial::costs::{ConstantCost, QuadraticControlCost};
     use gharial::dynamics::ExplicitRungeKutta;
-    use gharial::functions::autodiff::AutoDiff;
     use gharial::spaces::{CartesianProduct, SO2};
     let space: Arc<dyn Manifold> = Arc::new(CartesianProduct::new(vec![
         Arc::new(SO2::new()),

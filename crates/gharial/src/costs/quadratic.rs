@@ -226,7 +226,7 @@ impl Cost for ConstantCost {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::functions::check::{CheckOptions, check_cost};
+    use crate::check::{CheckOptions, check_cost};
     use crate::functions::testing::{dual_check_cost, random_mat, random_vec, rng};
     use crate::spaces::VectorSpace;
     use num_dual::DualNum;

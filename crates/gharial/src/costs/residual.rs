@@ -536,8 +536,8 @@ impl Cost for LogBarrierCost {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::check::{CheckOptions, check_cost};
     use crate::functions::LinearComposition;
-    use crate::functions::check::{CheckOptions, check_cost};
     use crate::functions::testing::{
         TestFunction, assert_close, dual_check_cost, dual_jacobian, random_mat, random_vec, rng, test_fn,
     };
@@ -730,9 +730,7 @@ mod tests {
 
     #[test]
     fn state_cost_on_lie_groups_has_exact_gradient_and_gauss_newton_hessian() {
-        use crate::functions::check::{
-            DualCheckOptions, check_cost_dual, dual_stage_jacobians, hyper_cost_derivatives,
-        };
+        use crate::check::{DualCheckOptions, check_cost_dual, dual_stage_jacobians, hyper_cost_derivatives};
         use num_dual::{Dual64, HyperDual64};
         let mut g = rng(45);
         for space in crate::functions::testing::lie_spaces() {

@@ -240,8 +240,8 @@ impl Cost for CostStack {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::check::{CheckOptions, check_cost};
     use crate::costs::{QuadraticControlCost, QuadraticStateCost};
-    use crate::functions::check::{CheckOptions, check_cost};
     use crate::functions::testing::{random_vec, rng};
     use crate::spaces::VectorSpace;
     use rand::Rng;

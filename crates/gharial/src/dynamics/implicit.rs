@@ -274,10 +274,8 @@ impl ImplicitDynamics for ExplicitAsImplicit {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::check::{CheckOptions, DualCheckOptions, check_implicit_dynamics, check_implicit_dynamics_dual};
     use crate::dynamics::ExplicitRungeKutta;
-    use crate::functions::check::{
-        CheckOptions, DualCheckOptions, check_implicit_dynamics, check_implicit_dynamics_dual,
-    };
     use crate::functions::testing::{RotationOde, TestOde, assert_close, concat, random_vec, rng, test_ode};
     use num_dual::{Dual64, DualNum};
 

@@ -393,10 +393,10 @@ impl ExplicitDynamics for SemiImplicitEuler {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dynamics::LinearOde;
-    use crate::functions::check::{
+    use crate::check::{
         CheckOptions, DualCheckOptions, check_explicit_dynamics, check_explicit_dynamics_dual, check_ode,
     };
+    use crate::dynamics::LinearOde;
     use crate::functions::testing::{RotationOde, TestOde, concat, random_vec, rng, test_ode};
     use crate::spaces::VectorSpace;
     use num_dual::{Dual64, DualNum};

@@ -156,7 +156,7 @@ impl Ode for LinearOde {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::functions::check::{CheckOptions, check_explicit_dynamics, check_ode};
+    use crate::check::{CheckOptions, check_explicit_dynamics, check_ode};
     use crate::functions::testing::{random_mat, random_vec, rng};
 
     #[test]

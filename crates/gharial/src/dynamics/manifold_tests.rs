@@ -1,15 +1,15 @@
 //! Integrators on manifolds: SO(2) x R, the tangent bundle of SO(3) and SE(3).
 //!
 //! The ODEs are written once generic over the scalar and wrapped by
-//! [`AutoDiff`](crate::functions::autodiff::AutoDiff); each integrator is compared with
+//! [`AutoDiff`](crate::autodiff::AutoDiff); each integrator is compared with
 //! finite differences and with dual-number derivatives of the same scheme written
 //! generically with the spaces' own `⊕` and `⊖`.
 
 use std::sync::Arc;
 
 use super::*;
-use crate::functions::autodiff::{AutoDiff, AutoOdeFn, ManifoldScalar};
-use crate::functions::check::{
+use crate::autodiff::{AutoDiff, AutoOdeFn, ManifoldScalar};
+use crate::check::{
     CheckOptions, DualCheckOptions, check_explicit_dynamics, check_explicit_dynamics_dual, check_implicit_dynamics,
     check_implicit_dynamics_dual, check_ode, check_ode_dual,
 };

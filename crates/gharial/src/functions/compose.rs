@@ -319,7 +319,7 @@ impl StageFunction for FunctionStack {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::functions::check::{CheckOptions, check_stage_function};
+    use crate::check::{CheckOptions, check_stage_function};
     use crate::functions::testing::{TestFunction, dual_check_stage, random_mat, random_vec, rng, test_fn};
     use crate::spaces::VectorSpace;
     use num_dual::DualNum;

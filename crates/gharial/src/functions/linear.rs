@@ -132,8 +132,8 @@ impl UnaryFunction for LinearUnaryFunction {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::check::{CheckOptions, check_stage_function};
     use crate::functions::Unary;
-    use crate::functions::check::{CheckOptions, check_stage_function};
     use crate::functions::testing::{random_mat, random_vec, rng};
     use crate::spaces::VectorSpace;
 

@@ -12,8 +12,6 @@ use std::sync::Arc;
 
 use faer::{Col, Mat};
 
-pub mod autodiff;
-pub mod check;
 mod compose;
 mod linear;
 mod state_error;

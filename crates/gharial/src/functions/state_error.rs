@@ -184,8 +184,8 @@ impl StageFunction for ControlError {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::check::{CheckOptions, check_stage_function};
     use crate::functions::Unary;
-    use crate::functions::check::{CheckOptions, check_stage_function};
     use crate::functions::testing::{random_vec, rng};
     use crate::spaces::VectorSpace;
 
@@ -239,8 +239,8 @@ mod tests {
 
     #[test]
     fn state_error_on_lie_groups_matches_finite_differences_and_dual_numbers() {
+        use crate::check::{DualCheckOptions, check_stage_function_dual};
         use crate::functions::LinearComposition;
-        use crate::functions::check::{DualCheckOptions, check_stage_function_dual};
         use crate::functions::testing::random_mat;
         use num_dual::Dual64;
         let mut g = rng(11);

@@ -9,11 +9,11 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
 use super::{StageFunction, StageFunctionData};
-use crate::dynamics::{Ode, OdeData};
-use crate::functions::check::{
+use crate::check::{
     DualCheckOptions, check_stage_function_dual, check_stage_function_vhp_dual, dual_stage_jacobians,
     hyper_cost_derivatives, rel_error,
 };
+use crate::dynamics::{Ode, OdeData};
 use crate::spaces::{Manifold, VectorSpace};
 
 /// Spaces of the manifold tests: SO(2) x R, SE(2), SE(3), the tangent bundle of SO(3).

@@ -39,8 +39,8 @@
 //! (`f64` and the dual numbers of `num-dual`). The trait exposes them for `f64`
 //! ([`Manifold::integrate`]), first-order dual numbers ([`Manifold::integrate_dual`])
 //! and hyper-dual numbers ([`Manifold::integrate_hyper`]): automatic differentiation
-//! ([`crate::functions::autodiff`]) and the dual-number derivative checker
-//! ([`crate::functions::check`]) evaluate the very code that the solvers run.
+//! ([`crate::autodiff`]) and the dual-number derivative checker
+//! ([`crate::check`]) evaluate the very code that the solvers run.
 
 use std::fmt::Debug;
 

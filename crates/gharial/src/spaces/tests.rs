@@ -10,7 +10,7 @@ use rand::rngs::SmallRng;
 use rand::{Rng, SeedableRng};
 
 use super::*;
-use crate::functions::check::{CheckOptions, DualCheckOptions, check_manifold, check_manifold_dual};
+use crate::check::{CheckOptions, DualCheckOptions, check_manifold, check_manifold_dual};
 
 fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len());

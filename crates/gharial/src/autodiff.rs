@@ -13,7 +13,7 @@
 //! ```
 //! use std::sync::Arc;
 //! use gharial::dynamics::Ode;
-//! use gharial::functions::autodiff::{AutoDiff, AutoOdeFn, ManifoldScalar};
+//! use gharial::autodiff::{AutoDiff, AutoOdeFn, ManifoldScalar};
 //! use gharial::spaces::VectorSpace;
 //!
 //! /// A pendulum: x = (θ, θ̇), u = torque.
@@ -60,7 +60,7 @@
 //!
 //! Every buffer lives in the workspace created by `create_data`: evaluations and
 //! derivatives do not allocate. The same passes implement the dual-number derivative
-//! checker ([`super::check`]).
+//! checker ([`crate::check`]).
 
 use std::sync::Arc;
 
@@ -443,6 +443,57 @@ impl<F> AutoDiff<F> {
         ws.downcast_mut::<DualScratch>()
             .expect("data used with an AutoDiff model that did not create it")
     }
+
+    /// The dual-pass scratch of a model with `nu` controls and `ny` values (in
+    /// `out_space` if given), the workspace of every kind.
+    fn dual_workspace(&self, nu: usize, ny: usize, out_space: Option<&dyn Manifold>) -> Workspace {
+        Box::new(DualScratch::new(self.space.as_ref(), nu, ny, out_space))
+    }
+
+    /// First derivatives of `g` at `(x, u)` into `jx`, `ju` (one dual pass per direction),
+    /// the `jacobians` of every kind.
+    fn dual_jacobians(
+        &self,
+        ws: &mut Workspace,
+        out: Output<'_>,
+        x: &[f64],
+        u: &[f64],
+        jx: MatMut<'_, f64>,
+        ju: MatMut<'_, f64>,
+        g: impl FnMut(&[Dual64], &[Dual64], &mut [Dual64]),
+    ) {
+        jacobians_dual(self.space.as_ref(), out, x, u, Self::scratch(ws), jx, ju, g);
+    }
+
+    /// Second derivatives of `wᵀ g` at `(x, u)` into `h` (one hyper-dual pass per pair of
+    /// directions), or zero blocks under [`AutoDiff::gauss_newton`] unless `exact`: the
+    /// `vhp` of every kind and the cost Hessian (`exact`).
+    fn hyper_hessian(
+        &self,
+        ws: &mut Workspace,
+        out: Output<'_>,
+        x: &[f64],
+        u: &[f64],
+        w: &[f64],
+        exact: bool,
+        mut h: Hessian<'_>,
+        g: impl FnMut(&[HyperDual64], &[HyperDual64], &mut [HyperDual64]),
+    ) {
+        if !(exact || self.second_order) {
+            h.xx.fill(0.0);
+            h.xu.fill(0.0);
+            h.uu.fill(0.0);
+            return;
+        }
+        hessian_hyper(self.space.as_ref(), out, x, u, w, Self::scratch(ws), h, g);
+    }
+}
+
+impl<'a> Hessian<'a> {
+    /// The blocks `xx`, `xu`, `uu` (no gradient).
+    fn blocks(xx: MatMut<'a, f64>, xu: MatMut<'a, f64>, uu: MatMut<'a, f64>) -> Self {
+        Self { xx, xu, uu, grad: None }
+    }
 }
 
 impl<F: AutoStageFn> AutoDiff<F> {
@@ -520,7 +571,7 @@ impl<F: AutoStageFn> StageFunction for AutoDiff<F> {
     }
 
     fn create_workspace(&self) -> Workspace {
-        Box::new(DualScratch::new(self.space.as_ref(), self.f.nu(), self.f.nr(), None))
+        self.dual_workspace(self.f.nu(), self.f.nr(), None)
     }
 
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
@@ -528,18 +579,9 @@ impl<F: AutoStageFn> StageFunction for AutoDiff<F> {
     }
 
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
-        let s = Self::scratch(&mut data.ws);
+        let (jx, ju) = (data.jx.as_mut(), data.ju.as_mut());
         let out = Output::Vector(self.f.nr());
-        jacobians_dual(
-            self.space.as_ref(),
-            out,
-            x,
-            u,
-            s,
-            data.jx.as_mut(),
-            data.ju.as_mut(),
-            |x, u, r| self.f.eval(x, u, r),
-        );
+        self.dual_jacobians(&mut data.ws, out, x, u, jx, ju, |x, u, r| self.f.eval(x, u, r));
     }
 
     fn has_vhp(&self) -> bool {
@@ -547,21 +589,9 @@ impl<F: AutoStageFn> StageFunction for AutoDiff<F> {
     }
 
     fn vhp(&self, x: &[f64], u: &[f64], lambda: &[f64], data: &mut StageFunctionData) {
-        if !self.second_order {
-            data.vhp_xx.fill(0.0);
-            data.vhp_xu.fill(0.0);
-            data.vhp_uu.fill(0.0);
-            return;
-        }
-        let s = Self::scratch(&mut data.ws);
-        let h = Hessian {
-            xx: data.vhp_xx.as_mut(),
-            xu: data.vhp_xu.as_mut(),
-            uu: data.vhp_uu.as_mut(),
-            grad: None,
-        };
+        let h = Hessian::blocks(data.vhp_xx.as_mut(), data.vhp_xu.as_mut(), data.vhp_uu.as_mut());
         let out = Output::Vector(self.f.nr());
-        hessian_hyper(self.space.as_ref(), out, x, u, lambda, s, h, |x, u, r| {
+        self.hyper_hessian(&mut data.ws, out, x, u, lambda, false, h, |x, u, r| {
             self.f.eval(x, u, r)
         });
     }
@@ -579,7 +609,7 @@ impl<F: AutoUnaryFn> UnaryFunction for AutoDiff<F> {
     }
 
     fn create_workspace(&self) -> Workspace {
-        Box::new(DualScratch::new(self.space.as_ref(), 0, self.f.nr(), None))
+        self.dual_workspace(0, self.f.nr(), None)
     }
 
     fn evaluate(&self, x: &[f64], data: &mut StageFunctionData) {
@@ -587,18 +617,9 @@ impl<F: AutoUnaryFn> UnaryFunction for AutoDiff<F> {
     }
 
     fn jacobian(&self, x: &[f64], data: &mut StageFunctionData) {
-        let s = Self::scratch(&mut data.ws);
+        let (jx, ju) = (data.jx.as_mut(), data.ju.as_mut().subcols_mut(0, 0));
         let out = Output::Vector(self.f.nr());
-        jacobians_dual(
-            self.space.as_ref(),
-            out,
-            x,
-            &[],
-            s,
-            data.jx.as_mut(),
-            data.ju.as_mut().subcols_mut(0, 0),
-            |x, _, r| self.f.eval(x, r),
-        );
+        self.dual_jacobians(&mut data.ws, out, x, &[], jx, ju, |x, _, r| self.f.eval(x, r));
     }
 
     fn has_vhp(&self) -> bool {
@@ -606,21 +627,13 @@ impl<F: AutoUnaryFn> UnaryFunction for AutoDiff<F> {
     }
 
     fn vhp(&self, x: &[f64], lambda: &[f64], data: &mut StageFunctionData) {
-        if !self.second_order {
-            data.vhp_xx.fill(0.0);
-            return;
-        }
-        let s = Self::scratch(&mut data.ws);
-        let h = Hessian {
-            xx: data.vhp_xx.as_mut(),
-            xu: data.vhp_xu.as_mut().subcols_mut(0, 0),
-            uu: data.vhp_uu.as_mut().submatrix_mut(0, 0, 0, 0),
-            grad: None,
-        };
+        let h = Hessian::blocks(
+            data.vhp_xx.as_mut(),
+            data.vhp_xu.as_mut().subcols_mut(0, 0),
+            data.vhp_uu.as_mut().submatrix_mut(0, 0, 0, 0),
+        );
         let out = Output::Vector(self.f.nr());
-        hessian_hyper(self.space.as_ref(), out, x, &[], lambda, s, h, |x, _, r| {
-            self.f.eval(x, r)
-        });
+        self.hyper_hessian(&mut data.ws, out, x, &[], lambda, false, h, |x, _, r| self.f.eval(x, r));
     }
 }
 
@@ -636,7 +649,7 @@ impl<F: AutoCostFn> Cost for AutoDiff<F> {
     }
 
     fn create_workspace(&self) -> Workspace {
-        Box::new(DualScratch::new(self.space.as_ref(), self.f.nu(), 1, None))
+        self.dual_workspace(self.f.nu(), 1, None)
     }
 
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut CostData) {
@@ -644,7 +657,6 @@ impl<F: AutoCostFn> Cost for AutoDiff<F> {
     }
 
     fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-        let s = Self::scratch(&mut data.ws);
         let h = Hessian {
             xx: data.lxx.as_mut(),
             xu: data.lxu.as_mut(),
@@ -654,7 +666,7 @@ impl<F: AutoCostFn> Cost for AutoDiff<F> {
                 crate::linalg::slice_mut(&mut data.lu),
             )),
         };
-        hessian_hyper(self.space.as_ref(), Output::Vector(1), x, u, &[1.0], s, h, |x, u, r| {
+        self.hyper_hessian(&mut data.ws, Output::Vector(1), x, u, &[1.0], true, h, |x, u, r| {
             r[0] = self.f.eval(x, u)
         });
     }
@@ -673,7 +685,7 @@ impl<F: AutoDynamicsFn> ExplicitDynamics for AutoDiff<F> {
 
     fn create_workspace(&self) -> Workspace {
         let sn = self.space_next.as_ref();
-        Box::new(DualScratch::new(self.space.as_ref(), self.f.nu(), sn.nx(), Some(sn)))
+        self.dual_workspace(self.f.nu(), sn.nx(), Some(sn))
     }
 
     fn forward(&self, x: &[f64], u: &[f64], data: &mut ExplicitDynamicsData) {
@@ -681,18 +693,9 @@ impl<F: AutoDynamicsFn> ExplicitDynamics for AutoDiff<F> {
     }
 
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut ExplicitDynamicsData) {
-        let s = Self::scratch(&mut data.ws);
+        let (jx, ju) = (data.jx.as_mut(), data.ju.as_mut());
         let out = Output::Manifold(self.space_next.as_ref(), crate::linalg::slice(&data.xnext));
-        jacobians_dual(
-            self.space.as_ref(),
-            out,
-            x,
-            u,
-            s,
-            data.jx.as_mut(),
-            data.ju.as_mut(),
-            |x, u, y| self.f.eval(x, u, y),
-        );
+        self.dual_jacobians(&mut data.ws, out, x, u, jx, ju, |x, u, y| self.f.eval(x, u, y));
     }
 
     fn has_vhp(&self) -> bool {
@@ -700,21 +703,9 @@ impl<F: AutoDynamicsFn> ExplicitDynamics for AutoDiff<F> {
     }
 
     fn vhp(&self, x: &[f64], u: &[f64], lambda: &[f64], data: &mut ExplicitDynamicsData) {
-        if !self.second_order {
-            data.vhp_xx.fill(0.0);
-            data.vhp_xu.fill(0.0);
-            data.vhp_uu.fill(0.0);
-            return;
-        }
-        let s = Self::scratch(&mut data.ws);
         let out = Output::Manifold(self.space_next.as_ref(), crate::linalg::slice(&data.xnext));
-        let h = Hessian {
-            xx: data.vhp_xx.as_mut(),
-            xu: data.vhp_xu.as_mut(),
-            uu: data.vhp_uu.as_mut(),
-            grad: None,
-        };
-        hessian_hyper(self.space.as_ref(), out, x, u, lambda, s, h, |x, u, y| {
+        let h = Hessian::blocks(data.vhp_xx.as_mut(), data.vhp_xu.as_mut(), data.vhp_uu.as_mut());
+        self.hyper_hessian(&mut data.ws, out, x, u, lambda, false, h, |x, u, y| {
             self.f.eval(x, u, y)
         });
     }
@@ -729,12 +720,7 @@ impl<F: AutoOdeFn> Ode for AutoDiff<F> {
     }
 
     fn create_workspace(&self) -> Workspace {
-        Box::new(DualScratch::new(
-            self.space.as_ref(),
-            self.f.nu(),
-            self.space.ndx(),
-            None,
-        ))
+        self.dual_workspace(self.f.nu(), self.space.ndx(), None)
     }
 
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
@@ -742,29 +728,21 @@ impl<F: AutoOdeFn> Ode for AutoDiff<F> {
     }
 
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
-        let s = Self::scratch(&mut data.ws);
-        jacobians_dual(
-            self.space.as_ref(),
-            Output::Vector(self.space.ndx()),
-            x,
-            u,
-            s,
-            data.jx.as_mut(),
-            data.ju.as_mut(),
-            |x, u, v| self.f.eval(x, u, v),
-        );
+        let (jx, ju) = (data.jx.as_mut(), data.ju.as_mut());
+        let out = Output::Vector(self.space.ndx());
+        self.dual_jacobians(&mut data.ws, out, x, u, jx, ju, |x, u, v| self.f.eval(x, u, v));
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::functions::Unary;
-    use crate::functions::check::{
+    use crate::check::{
         CheckOptions, DualCheckOptions, check_cost, check_cost_dual, check_explicit_dynamics,
         check_explicit_dynamics_dual, check_explicit_dynamics_vhp_dual, check_ode, check_ode_dual,
         check_stage_function, check_stage_function_dual, check_stage_function_vhp_dual, rel_error,
     };
+    use crate::functions::Unary;
     use crate::spaces::lie;
     use crate::spaces::{Arg, SE2, SE3, SO3, TangentBundle, VectorSpace};
     use rand::rngs::SmallRng;

@@ -25,7 +25,7 @@
 //! # Example
 //!
 //! ```
-//! use gharial::functions::check::{DualCheckOptions, check_stage_function_dual};
+//! use gharial::check::{DualCheckOptions, check_stage_function_dual};
 //! use gharial::functions::{StageFunction, StageFunctionData};
 //! use gharial::spaces::{Scalar, VectorSpace};
 //!
@@ -63,13 +63,15 @@
 //! assert!(report.max_error() < 1e-15);
 //! ```
 
+use std::sync::Arc;
+
 use faer::Mat;
 use num_dual::{Dual64, HyperDual64};
 
-use crate::costs::Cost;
-use crate::dynamics::{ExplicitDynamics, ImplicitDynamics, Ode};
-use crate::functions::StageFunction;
-use crate::functions::autodiff::{DualScratch, Hessian, Output, hessian_hyper, jacobians_dual};
+use crate::autodiff::{DualScratch, Hessian, Output, hessian_hyper, jacobians_dual};
+use crate::costs::{Cost, CostData};
+use crate::dynamics::{ExplicitDynamics, ExplicitDynamicsData, ImplicitDynamics, ImplicitDynamicsData, Ode, OdeData};
+use crate::functions::{StageFunction, StageFunctionData};
 use crate::linalg::norm_max;
 use crate::spaces::{Arg, Manifold};
 
@@ -191,177 +193,6 @@ fn fd_state(
 fn fd_vec(u: &[f64], nout_space: &dyn Manifold, eps: f64, mut g: impl FnMut(&[f64], &mut [f64])) -> Mat<f64> {
     let vs = crate::spaces::VectorSpace::new(u.len());
     fd_state(&vs, u, nout_space, eps, &mut g)
-}
-
-/// Checks `jacobians` (and `vhp` when `lambda` is given and the function has one) of a
-/// stage function at `(x, u)`, `x` on `space`.
-pub fn check_stage_function(
-    f: &dyn StageFunction,
-    space: &dyn Manifold,
-    x: &[f64],
-    u: &[f64],
-    lambda: Option<&[f64]>,
-    opts: CheckOptions,
-) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let rs = crate::spaces::VectorSpace::new(f.nr());
-    let mut data = f.create_data();
-    f.evaluate(x, u, &mut data);
-    f.jacobians(x, u, &mut data);
-    let (jx, ju) = (data.jx.clone(), data.ju.clone());
-    let mut d2 = f.create_data();
-    let fd_x = fd_state(space, x, &rs, opts.eps, |xp, out| {
-        f.evaluate(xp, u, &mut d2);
-        out.copy_from_slice(d2.value());
-    });
-    let fd_u = fd_vec(u, &rs, opts.eps, |up, out| {
-        f.evaluate(x, up, &mut d2);
-        out.copy_from_slice(d2.value());
-    });
-    rep.push("jx", &jx, &fd_x);
-    rep.push("ju", &ju, &fd_u);
-    if let (Some(lam), true) = (lambda, f.has_vhp()) {
-        f.vhp(x, u, lam, &mut data);
-        // Gradient of λᵀ r along x and u, differentiated again.
-        let grad = |xp: &[f64], up: &[f64], out: &mut [f64], d: &mut crate::functions::StageFunctionData| {
-            f.evaluate(xp, up, d);
-            f.jacobians(xp, up, d);
-            let ndx = d.jx.ncols();
-            for j in 0..ndx {
-                out[j] = (0..lam.len()).map(|i| lam[i] * d.jx[(i, j)]).sum();
-            }
-            for j in 0..d.ju.ncols() {
-                out[ndx + j] = (0..lam.len()).map(|i| lam[i] * d.ju[(i, j)]).sum();
-            }
-        };
-        let gs = crate::spaces::VectorSpace::new(f.ndx() + f.nu());
-        let hx = fd_state(space, x, &gs, opts.eps, |xp, out| grad(xp, u, out, &mut d2));
-        let hu = fd_vec(u, &gs, opts.eps, |up, out| grad(x, up, out, &mut d2));
-        let (ndx, nu) = (f.ndx(), f.nu());
-        rep.push("vhp_xx", &data.vhp_xx, &symmetric_part(&hx, ndx));
-        rep.push("vhp_xu", &data.vhp_xu, &hu.as_ref().submatrix(0, 0, ndx, nu).to_owned());
-        rep.push(
-            "vhp_uu",
-            &data.vhp_uu,
-            &hu.as_ref().submatrix(ndx, 0, nu, nu).to_owned(),
-        );
-    }
-    rep
-}
-
-/// Checks the gradient and Hessian of a cost at `(x, u)`.
-pub fn check_cost(c: &dyn Cost, space: &dyn Manifold, x: &[f64], u: &[f64], opts: CheckOptions) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let mut data = c.create_data();
-    c.evaluate(x, u, &mut data);
-    c.derivatives(x, u, &mut data);
-    let one = crate::spaces::VectorSpace::new(1);
-    let mut d2 = c.create_data();
-    let gx = fd_state(space, x, &one, opts.eps, |xp, out| {
-        c.evaluate(xp, u, &mut d2);
-        out[0] = d2.value;
-    });
-    let gu = fd_vec(u, &one, opts.eps, |up, out| {
-        c.evaluate(x, up, &mut d2);
-        out[0] = d2.value;
-    });
-    rep.push("lx", &data.lx.as_mat().to_owned(), &gx.transpose().to_owned());
-    rep.push("lu", &data.lu.as_mat().to_owned(), &gu.transpose().to_owned());
-    let (ndx, nu) = (c.ndx(), c.nu());
-    let gs = crate::spaces::VectorSpace::new(ndx + nu);
-    let mut grad = |xp: &[f64], up: &[f64], out: &mut [f64]| {
-        c.evaluate(xp, up, &mut d2);
-        c.derivatives(xp, up, &mut d2);
-        out[..ndx].copy_from_slice(d2.lx());
-        out[ndx..].copy_from_slice(d2.lu());
-    };
-    let hx = fd_state(space, x, &gs, opts.eps, |xp, out| grad(xp, u, out));
-    let hu = fd_vec(u, &gs, opts.eps, |up, out| grad(x, up, out));
-    rep.push("lxx", &data.lxx, &symmetric_part(&hx, ndx));
-    rep.push("lxu", &data.lxu, &hu.as_ref().submatrix(0, 0, ndx, nu).to_owned());
-    rep.push("luu", &data.luu, &hu.as_ref().submatrix(ndx, 0, nu, nu).to_owned());
-    rep
-}
-
-/// Checks the Jacobians of explicit dynamics at `(x, u)`.
-pub fn check_explicit_dynamics(d: &dyn ExplicitDynamics, x: &[f64], u: &[f64], opts: CheckOptions) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let (s, sn) = (d.space().clone(), d.space_next().clone());
-    let mut data = d.create_data();
-    d.forward(x, u, &mut data);
-    d.jacobians(x, u, &mut data);
-    let mut d2 = d.create_data();
-    let jx = fd_state(s.as_ref(), x, sn.as_ref(), opts.eps, |xp, out| {
-        d.forward(xp, u, &mut d2);
-        out.copy_from_slice(d2.xnext());
-    });
-    let vs = crate::spaces::VectorSpace::new(u.len());
-    let ju = fd_state(&vs, u, sn.as_ref(), opts.eps, |up, out| {
-        d.forward(x, up, &mut d2);
-        out.copy_from_slice(d2.xnext());
-    });
-    rep.push("jx", &data.jx, &jx);
-    rep.push("ju", &data.ju, &ju);
-    rep
-}
-
-/// Checks the Jacobians of implicit dynamics at `(x, u, y)`.
-pub fn check_implicit_dynamics(
-    d: &dyn ImplicitDynamics,
-    x: &[f64],
-    u: &[f64],
-    y: &[f64],
-    opts: CheckOptions,
-) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let (s, sn) = (d.space().clone(), d.space_next().clone());
-    let rs = crate::spaces::VectorSpace::new(sn.ndx());
-    let mut data = d.create_data();
-    d.evaluate(x, u, y, &mut data);
-    d.jacobians(x, u, y, &mut data);
-    let mut d2 = d.create_data();
-    let jx = fd_state(s.as_ref(), x, &rs, opts.eps, |xp, out| {
-        d.evaluate(xp, u, y, &mut d2);
-        out.copy_from_slice(d2.value());
-    });
-    let ju = fd_vec(u, &rs, opts.eps, |up, out| {
-        d.evaluate(x, up, y, &mut d2);
-        out.copy_from_slice(d2.value());
-    });
-    let jy = fd_state(sn.as_ref(), y, &rs, opts.eps, |yp, out| {
-        d.evaluate(x, u, yp, &mut d2);
-        out.copy_from_slice(d2.value());
-    });
-    rep.push("jx", &data.jx, &jx);
-    rep.push("ju", &data.ju, &ju);
-    rep.push("jy", &data.jy, &jy);
-    rep
-}
-
-/// Checks the Jacobians of an ODE at `(x, u)`.
-///
-/// The velocity lives in the tangent space at `x`, so its `x`-derivative is only
-/// meaningful on vector spaces or for ODEs whose velocity is expressed in a frame that
-/// does not move with `x`; the check differentiates the coordinates as they are.
-pub fn check_ode(ode: &dyn Ode, x: &[f64], u: &[f64], opts: CheckOptions) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let s = ode.space().clone();
-    let rs = crate::spaces::VectorSpace::new(s.ndx());
-    let mut data = ode.create_data();
-    ode.evaluate(x, u, &mut data);
-    ode.jacobians(x, u, &mut data);
-    let mut d2 = ode.create_data();
-    let jx = fd_state(s.as_ref(), x, &rs, opts.eps, |xp, out| {
-        ode.evaluate(xp, u, &mut d2);
-        out.copy_from_slice(d2.xdot());
-    });
-    let ju = fd_vec(u, &rs, opts.eps, |up, out| {
-        ode.evaluate(x, up, &mut d2);
-        out.copy_from_slice(d2.xdot());
-    });
-    rep.push("jx", &data.jx, &jx);
-    rep.push("ju", &data.ju, &ju);
-    rep
 }
 
 /// Checks `jintegrate`, `jdifference`, `jintegrate_transport`, `tangent_map` and
@@ -640,6 +471,399 @@ pub fn dual_ode_jacobians(
     dual_stage_jacobians(space, x, u, space.ndx(), f)
 }
 
+// ---------------------------------------------------------------------------------
+// One checker for every model kind.
+
+/// A model kind as the checkers see it: a map `(x, u[, y]) ↦ value` with analytic first
+/// derivatives and, where the kind has them, analytic second derivatives of a weighted
+/// value. One thin adapter per kind; the finite-difference and dual-number bodies below
+/// are written once against it.
+trait Checked {
+    /// The model's data.
+    type Data;
+    /// Names of the first-order blocks (`x`, `u`, `y`).
+    const FIRST: [&'static str; 3];
+    /// Names of the second-order blocks (`xx`, `xu`, `uu`).
+    const SECOND: [&'static str; 3] = ["vhp_xx", "vhp_xu", "vhp_uu"];
+    /// Fresh data.
+    fn create_data(&self) -> Self::Data;
+    /// Writes the value at `(x, u, y)` into `out`, using `d` as scratch.
+    fn value(&self, x: &[f64], u: &[f64], y: &[f64], d: &mut Self::Data, out: &mut [f64]);
+    /// Evaluates and writes the analytic first derivatives into `d`.
+    fn derive(&self, x: &[f64], u: &[f64], y: &[f64], d: &mut Self::Data);
+    /// The value in `d`.
+    fn current<'d>(&self, d: &'d Self::Data) -> &'d [f64];
+    /// The analytic first-order blocks in `d`, one row per value component.
+    fn first_order(&self, d: &Self::Data) -> Vec<Mat<f64>>;
+    /// The analytic second-order blocks of `wᵀ value` at `(x, u)` (after `derive`).
+    fn second_order(&self, x: &[f64], u: &[f64], w: &[f64], d: &mut Self::Data) -> [Mat<f64>; 3] {
+        let _ = (x, u, w, d);
+        unreachable!("this model kind has no second-order check")
+    }
+    /// Writes the analytic gradient of `wᵀ value` at `(x, u)` (tangent `x`, then `u`)
+    /// into `out`, using `d` as scratch.
+    fn gradient(&self, x: &[f64], u: &[f64], w: &[f64], d: &mut Self::Data, out: &mut [f64]) {
+        let _ = (x, u, w, d, out);
+        unreachable!("this model kind has no second-order check")
+    }
+    /// The analytic and reference values as two comparable columns (default: as they are).
+    fn value_pair(&self, analytic: &[f64], reference: &[f64]) -> (Mat<f64>, Mat<f64>) {
+        (column(analytic), column(reference))
+    }
+}
+
+/// The spaces of a checked map: of the state, of the values (which are differenced in
+/// it) and of a third argument `y`, if the map has one.
+struct Spaces<'a> {
+    x: &'a dyn Manifold,
+    values: Arc<dyn Manifold>,
+    y: Option<&'a dyn Manifold>,
+}
+
+impl<'a> Spaces<'a> {
+    /// A map of `x ∈ x` with `n` plain values.
+    fn vector(x: &'a dyn Manifold, n: usize) -> Self {
+        let values = Arc::new(crate::spaces::VectorSpace::new(n));
+        Self { x, values, y: None }
+    }
+}
+
+/// The derivative blocks of one side of a comparison; the reference side decides which
+/// blocks are compared.
+#[derive(Default)]
+struct Blocks {
+    value: Option<Vec<f64>>,
+    first: Vec<Mat<f64>>,
+    second: Option<[Mat<f64>; 3]>,
+}
+
+/// The comparison of the analytic blocks with the reference blocks, in the order value,
+/// first order, second order.
+fn compare<M: Checked + ?Sized>(m: &M, analytic: Blocks, reference: Blocks, tol: f64) -> CheckReport {
+    let mut rep = CheckReport::new(tol);
+    if let (Some(a), Some(r)) = (&analytic.value, &reference.value) {
+        let (a, r) = m.value_pair(a, r);
+        rep.push("value", &a, &r);
+    }
+    for ((name, a), r) in M::FIRST.iter().zip(&analytic.first).zip(&reference.first) {
+        rep.push(name, a, r);
+    }
+    if let (Some(a), Some(r)) = (&analytic.second, &reference.second) {
+        for ((name, a), r) in M::SECOND.iter().zip(a).zip(r) {
+            rep.push(name, a, r);
+        }
+    }
+    rep
+}
+
+/// Central differences of the value along `x`, `u` (and `y`), and, with weights `w`, of
+/// the analytic gradient of `wᵀ value` along `x` and `u`.
+fn check_fd<M: Checked + ?Sized>(
+    m: &M,
+    spaces: Spaces<'_>,
+    x: &[f64],
+    u: &[f64],
+    y: &[f64],
+    w: Option<&[f64]>,
+    opts: CheckOptions,
+) -> CheckReport {
+    let (space, values) = (spaces.x, spaces.values.as_ref());
+    let mut data = m.create_data();
+    m.derive(x, u, y, &mut data);
+    let mut analytic = Blocks {
+        first: m.first_order(&data),
+        ..Blocks::default()
+    };
+    let mut d2 = m.create_data();
+    let mut fd = Blocks::default();
+    fd.first.push(fd_state(space, x, values, opts.eps, |xp, out| {
+        m.value(xp, u, y, &mut d2, out)
+    }));
+    fd.first
+        .push(fd_vec(u, values, opts.eps, |up, out| m.value(x, up, y, &mut d2, out)));
+    if let Some(third) = spaces.y {
+        fd.first.push(fd_state(third, y, values, opts.eps, |yp, out| {
+            m.value(x, u, yp, &mut d2, out)
+        }));
+    }
+    if let Some(w) = w {
+        analytic.second = Some(m.second_order(x, u, w, &mut data));
+        // The gradient of wᵀ value along x and u, differentiated again.
+        let (ndx, nu) = (space.ndx(), u.len());
+        let gs = crate::spaces::VectorSpace::new(ndx + nu);
+        let hx = fd_state(space, x, &gs, opts.eps, |xp, out| m.gradient(xp, u, w, &mut d2, out));
+        let hu = fd_vec(u, &gs, opts.eps, |up, out| m.gradient(x, up, w, &mut d2, out));
+        fd.second = Some([
+            symmetric_part(&hx, ndx),
+            hu.as_ref().submatrix(0, 0, ndx, nu).to_owned(),
+            hu.as_ref().submatrix(ndx, 0, nu, nu).to_owned(),
+        ]);
+    }
+    compare(m, analytic, fd, opts.tol)
+}
+
+/// Compares the analytic blocks at `(x, u, y)` (second order with weights `w`) with the
+/// blocks of a dual-number reference, computed after them.
+fn check_dual<M: Checked + ?Sized>(
+    m: &M,
+    x: &[f64],
+    u: &[f64],
+    y: &[f64],
+    w: Option<&[f64]>,
+    reference: impl FnOnce() -> Blocks,
+    opts: DualCheckOptions,
+) -> CheckReport {
+    let mut data = m.create_data();
+    m.derive(x, u, y, &mut data);
+    let second = w.map(|w| m.second_order(x, u, w, &mut data));
+    let analytic = Blocks {
+        value: Some(m.current(&data).to_vec()),
+        first: m.first_order(&data),
+        second,
+    };
+    compare(m, analytic, reference(), opts.tol)
+}
+
+/// `λᵀ J` for the rows of `j` (`out` has `j.ncols()` entries).
+fn weighted_rows(lambda: &[f64], j: &Mat<f64>, out: &mut [f64]) {
+    for (c, o) in out.iter_mut().enumerate() {
+        *o = (0..lambda.len()).map(|i| lambda[i] * j[(i, c)]).sum();
+    }
+}
+
+impl Checked for dyn StageFunction + '_ {
+    type Data = StageFunctionData;
+    const FIRST: [&'static str; 3] = ["jx", "ju", "jy"];
+    fn create_data(&self) -> StageFunctionData {
+        StageFunction::create_data(self)
+    }
+    fn value(&self, x: &[f64], u: &[f64], _y: &[f64], d: &mut StageFunctionData, out: &mut [f64]) {
+        self.evaluate(x, u, d);
+        out.copy_from_slice(d.value());
+    }
+    fn derive(&self, x: &[f64], u: &[f64], _y: &[f64], d: &mut StageFunctionData) {
+        self.evaluate(x, u, d);
+        self.jacobians(x, u, d);
+    }
+    fn current<'d>(&self, d: &'d StageFunctionData) -> &'d [f64] {
+        d.value()
+    }
+    fn first_order(&self, d: &StageFunctionData) -> Vec<Mat<f64>> {
+        vec![d.jx.clone(), d.ju.clone()]
+    }
+    fn second_order(&self, x: &[f64], u: &[f64], w: &[f64], d: &mut StageFunctionData) -> [Mat<f64>; 3] {
+        self.vhp(x, u, w, d);
+        [d.vhp_xx.clone(), d.vhp_xu.clone(), d.vhp_uu.clone()]
+    }
+    fn gradient(&self, x: &[f64], u: &[f64], w: &[f64], d: &mut StageFunctionData, out: &mut [f64]) {
+        self.derive(x, u, &[], d);
+        let ndx = d.jx.ncols();
+        weighted_rows(w, &d.jx, &mut out[..ndx]);
+        weighted_rows(w, &d.ju, &mut out[ndx..ndx + d.ju.ncols()]);
+    }
+}
+
+/// `v` as a row.
+fn row(v: &[f64]) -> Mat<f64> {
+    Mat::from_fn(1, v.len(), |_, j| v[j])
+}
+
+impl Checked for dyn Cost + '_ {
+    type Data = CostData;
+    const FIRST: [&'static str; 3] = ["lx", "lu", "ly"];
+    const SECOND: [&'static str; 3] = ["lxx", "lxu", "luu"];
+    fn create_data(&self) -> CostData {
+        Cost::create_data(self)
+    }
+    fn value(&self, x: &[f64], u: &[f64], _y: &[f64], d: &mut CostData, out: &mut [f64]) {
+        self.evaluate(x, u, d);
+        out[0] = d.value;
+    }
+    fn derive(&self, x: &[f64], u: &[f64], _y: &[f64], d: &mut CostData) {
+        self.evaluate(x, u, d);
+        self.derivatives(x, u, d);
+    }
+    fn current<'d>(&self, d: &'d CostData) -> &'d [f64] {
+        std::slice::from_ref(&d.value)
+    }
+    fn first_order(&self, d: &CostData) -> Vec<Mat<f64>> {
+        vec![row(d.lx()), row(d.lu())]
+    }
+    fn second_order(&self, _x: &[f64], _u: &[f64], _w: &[f64], d: &mut CostData) -> [Mat<f64>; 3] {
+        [d.lxx.clone(), d.lxu.clone(), d.luu.clone()]
+    }
+    fn gradient(&self, x: &[f64], u: &[f64], _w: &[f64], d: &mut CostData, out: &mut [f64]) {
+        self.derive(x, u, &[], d);
+        let ndx = d.lx().len();
+        out[..ndx].copy_from_slice(d.lx());
+        out[ndx..].copy_from_slice(d.lu());
+    }
+}
+
+impl Checked for dyn ExplicitDynamics + '_ {
+    type Data = ExplicitDynamicsData;
+    const FIRST: [&'static str; 3] = ["jx", "ju", "jy"];
+    fn create_data(&self) -> ExplicitDynamicsData {
+        ExplicitDynamics::create_data(self)
+    }
+    fn value(&self, x: &[f64], u: &[f64], _y: &[f64], d: &mut ExplicitDynamicsData, out: &mut [f64]) {
+        self.forward(x, u, d);
+        out.copy_from_slice(d.xnext());
+    }
+    fn derive(&self, x: &[f64], u: &[f64], _y: &[f64], d: &mut ExplicitDynamicsData) {
+        self.forward(x, u, d);
+        self.jacobians(x, u, d);
+    }
+    fn current<'d>(&self, d: &'d ExplicitDynamicsData) -> &'d [f64] {
+        d.xnext()
+    }
+    fn first_order(&self, d: &ExplicitDynamicsData) -> Vec<Mat<f64>> {
+        vec![d.jx.clone(), d.ju.clone()]
+    }
+    fn second_order(&self, x: &[f64], u: &[f64], w: &[f64], d: &mut ExplicitDynamicsData) -> [Mat<f64>; 3] {
+        self.vhp(x, u, w, d);
+        [d.vhp_xx.clone(), d.vhp_xu.clone(), d.vhp_uu.clone()]
+    }
+    /// Next states are compared through `⊖` (so `q` and `-q` are the same rotation).
+    fn value_pair(&self, analytic: &[f64], reference: &[f64]) -> (Mat<f64>, Mat<f64>) {
+        let sn = self.space_next();
+        let mut gap = vec![0.0; sn.ndx()];
+        sn.difference(reference, analytic, &mut gap);
+        (column(&gap), Mat::zeros(gap.len(), 1))
+    }
+}
+
+impl Checked for dyn ImplicitDynamics + '_ {
+    type Data = ImplicitDynamicsData;
+    const FIRST: [&'static str; 3] = ["jx", "ju", "jy"];
+    fn create_data(&self) -> ImplicitDynamicsData {
+        ImplicitDynamics::create_data(self)
+    }
+    fn value(&self, x: &[f64], u: &[f64], y: &[f64], d: &mut ImplicitDynamicsData, out: &mut [f64]) {
+        self.evaluate(x, u, y, d);
+        out.copy_from_slice(d.value());
+    }
+    fn derive(&self, x: &[f64], u: &[f64], y: &[f64], d: &mut ImplicitDynamicsData) {
+        self.evaluate(x, u, y, d);
+        self.jacobians(x, u, y, d);
+    }
+    fn current<'d>(&self, d: &'d ImplicitDynamicsData) -> &'d [f64] {
+        d.value()
+    }
+    fn first_order(&self, d: &ImplicitDynamicsData) -> Vec<Mat<f64>> {
+        vec![d.jx.clone(), d.ju.clone(), d.jy.clone()]
+    }
+}
+
+impl Checked for dyn Ode + '_ {
+    type Data = OdeData;
+    const FIRST: [&'static str; 3] = ["jx", "ju", "jy"];
+    fn create_data(&self) -> OdeData {
+        Ode::create_data(self)
+    }
+    fn value(&self, x: &[f64], u: &[f64], _y: &[f64], d: &mut OdeData, out: &mut [f64]) {
+        self.evaluate(x, u, d);
+        out.copy_from_slice(d.xdot());
+    }
+    fn derive(&self, x: &[f64], u: &[f64], _y: &[f64], d: &mut OdeData) {
+        self.evaluate(x, u, d);
+        self.jacobians(x, u, d);
+    }
+    fn current<'d>(&self, d: &'d OdeData) -> &'d [f64] {
+        d.xdot()
+    }
+    fn first_order(&self, d: &OdeData) -> Vec<Mat<f64>> {
+        vec![d.jx.clone(), d.ju.clone()]
+    }
+}
+
+/// Checks `jacobians` (and `vhp` when `lambda` is given and the function has one) of a
+/// stage function at `(x, u)`, `x` on `space`.
+pub fn check_stage_function(
+    f: &dyn StageFunction,
+    space: &dyn Manifold,
+    x: &[f64],
+    u: &[f64],
+    lambda: Option<&[f64]>,
+    opts: CheckOptions,
+) -> CheckReport {
+    let w = lambda.filter(|_| f.has_vhp());
+    check_fd(f, Spaces::vector(space, f.nr()), x, u, &[], w, opts)
+}
+
+/// Checks the gradient and Hessian of a cost at `(x, u)`.
+pub fn check_cost(c: &dyn Cost, space: &dyn Manifold, x: &[f64], u: &[f64], opts: CheckOptions) -> CheckReport {
+    check_fd(c, Spaces::vector(space, 1), x, u, &[], Some(&[1.0]), opts)
+}
+
+/// Checks the Jacobians of explicit dynamics at `(x, u)`.
+pub fn check_explicit_dynamics(d: &dyn ExplicitDynamics, x: &[f64], u: &[f64], opts: CheckOptions) -> CheckReport {
+    let (space, values) = (d.space().as_ref(), d.space_next().clone());
+    check_fd(
+        d,
+        Spaces {
+            x: space,
+            values,
+            y: None,
+        },
+        x,
+        u,
+        &[],
+        None,
+        opts,
+    )
+}
+
+/// Checks the Jacobians of implicit dynamics at `(x, u, y)`.
+pub fn check_implicit_dynamics(
+    d: &dyn ImplicitDynamics,
+    x: &[f64],
+    u: &[f64],
+    y: &[f64],
+    opts: CheckOptions,
+) -> CheckReport {
+    let (space, next) = (d.space().as_ref(), d.space_next().as_ref());
+    let spaces = Spaces {
+        y: Some(next),
+        ..Spaces::vector(space, next.ndx())
+    };
+    check_fd(d, spaces, x, u, y, None, opts)
+}
+
+/// Checks the Jacobians of an ODE at `(x, u)`.
+///
+/// The velocity lives in the tangent space at `x`, so its `x`-derivative is only
+/// meaningful on vector spaces or for ODEs whose velocity is expressed in a frame that
+/// does not move with `x`; the check differentiates the coordinates as they are.
+pub fn check_ode(ode: &dyn Ode, x: &[f64], u: &[f64], opts: CheckOptions) -> CheckReport {
+    check_fd(
+        ode,
+        Spaces::vector(ode.space().as_ref(), ode.space().ndx()),
+        x,
+        u,
+        &[],
+        None,
+        opts,
+    )
+}
+
+/// The reference blocks `value`, `jx`, `ju` of dual-number Jacobians.
+fn jacobian_blocks(r: DualJacobians) -> Blocks {
+    Blocks {
+        value: Some(r.value),
+        first: vec![r.jx, r.ju],
+        second: None,
+    }
+}
+
+/// The reference second-order blocks of hyper-dual numbers.
+fn hessian_blocks(h: DualHessians) -> Blocks {
+    Blocks {
+        second: Some([h.xx, h.xu, h.uu]),
+        ..Blocks::default()
+    }
+}
+
 /// Checks the value and Jacobians of a stage function at `(x, u)` against a reference
 /// implementation differentiated with dual numbers.
 pub fn check_stage_function_dual(
@@ -650,15 +874,8 @@ pub fn check_stage_function_dual(
     reference: impl FnMut(&[Dual64], &[Dual64], &mut [Dual64]),
     opts: DualCheckOptions,
 ) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let mut data = f.create_data();
-    f.evaluate(x, u, &mut data);
-    f.jacobians(x, u, &mut data);
-    let r = dual_stage_jacobians(space, x, u, f.nr(), reference);
-    rep.push("value", &column(data.value()), &column(&r.value));
-    rep.push("jx", &data.jx, &r.jx);
-    rep.push("ju", &data.ju, &r.ju);
-    rep
+    let r = || jacobian_blocks(dual_stage_jacobians(space, x, u, f.nr(), reference));
+    check_dual(f, x, u, &[], None, r, opts)
 }
 
 /// Checks the vector-Hessian products of a stage function at `(x, u, λ)` against a
@@ -673,16 +890,8 @@ pub fn check_stage_function_vhp_dual(
     reference: impl FnMut(&[HyperDual64], &[HyperDual64], &mut [HyperDual64]),
     opts: DualCheckOptions,
 ) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let mut data = f.create_data();
-    f.evaluate(x, u, &mut data);
-    f.jacobians(x, u, &mut data);
-    f.vhp(x, u, lambda, &mut data);
-    let h = hyper_stage_vhp(space, x, u, lambda, reference);
-    rep.push("vhp_xx", &data.vhp_xx, &h.xx);
-    rep.push("vhp_xu", &data.vhp_xu, &h.xu);
-    rep.push("vhp_uu", &data.vhp_uu, &h.uu);
-    rep
+    let r = || hessian_blocks(hyper_stage_vhp(space, x, u, lambda, reference));
+    check_dual(f, x, u, &[], Some(lambda), r, opts)
 }
 
 /// Checks the value, gradient and Hessian of a cost at `(x, u)` against a reference
@@ -695,18 +904,15 @@ pub fn check_cost_dual(
     reference: impl FnMut(&[HyperDual64], &[HyperDual64]) -> HyperDual64,
     opts: DualCheckOptions,
 ) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let mut data = c.create_data();
-    c.evaluate(x, u, &mut data);
-    c.derivatives(x, u, &mut data);
-    let r = hyper_cost_derivatives(space, x, u, reference);
-    rep.push("value", &column(&[data.value]), &column(&[r.value]));
-    rep.push("lx", &column(data.lx()), &column(&r.lx));
-    rep.push("lu", &column(data.lu()), &column(&r.lu));
-    rep.push("lxx", &data.lxx, &r.lxx);
-    rep.push("lxu", &data.lxu, &r.lxu);
-    rep.push("luu", &data.luu, &r.luu);
-    rep
+    let r = || {
+        let r = hyper_cost_derivatives(space, x, u, reference);
+        Blocks {
+            value: Some(vec![r.value]),
+            first: vec![row(&r.lx), row(&r.lu)],
+            second: Some([r.lxx, r.lxu, r.luu]),
+        }
+    };
+    check_dual(c, x, u, &[], Some(&[1.0]), r, opts)
 }
 
 /// Checks the next state and Jacobians of explicit dynamics at `(x, u)` against a
@@ -719,18 +925,9 @@ pub fn check_explicit_dynamics_dual(
     reference: impl FnMut(&[Dual64], &[Dual64], &mut [Dual64]),
     opts: DualCheckOptions,
 ) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let (s, sn) = (d.space().clone(), d.space_next().clone());
-    let mut data = d.create_data();
-    d.forward(x, u, &mut data);
-    d.jacobians(x, u, &mut data);
-    let r = dual_explicit_dynamics_jacobians(s.as_ref(), sn.as_ref(), x, u, reference);
-    let mut gap = vec![0.0; sn.ndx()];
-    sn.difference(&r.value, data.xnext(), &mut gap);
-    rep.push("value", &column(&gap), &Mat::zeros(gap.len(), 1));
-    rep.push("jx", &data.jx, &r.jx);
-    rep.push("ju", &data.ju, &r.ju);
-    rep
+    let (s, sn) = (d.space().as_ref(), d.space_next().as_ref());
+    let r = || jacobian_blocks(dual_explicit_dynamics_jacobians(s, sn, x, u, reference));
+    check_dual(d, x, u, &[], None, r, opts)
 }
 
 /// Checks the vector-Hessian products of explicit dynamics at `(x, u, λ)` against a
@@ -743,17 +940,9 @@ pub fn check_explicit_dynamics_vhp_dual(
     reference: impl FnMut(&[HyperDual64], &[HyperDual64], &mut [HyperDual64]),
     opts: DualCheckOptions,
 ) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let (s, sn) = (d.space().clone(), d.space_next().clone());
-    let mut data = d.create_data();
-    d.forward(x, u, &mut data);
-    d.jacobians(x, u, &mut data);
-    d.vhp(x, u, lambda, &mut data);
-    let h = hyper_explicit_dynamics_vhp(s.as_ref(), sn.as_ref(), x, u, lambda, reference);
-    rep.push("vhp_xx", &data.vhp_xx, &h.xx);
-    rep.push("vhp_xu", &data.vhp_xu, &h.xu);
-    rep.push("vhp_uu", &data.vhp_uu, &h.uu);
-    rep
+    let (s, sn) = (d.space().as_ref(), d.space_next().as_ref());
+    let r = || hessian_blocks(hyper_explicit_dynamics_vhp(s, sn, x, u, lambda, reference));
+    check_dual(d, x, u, &[], Some(lambda), r, opts)
 }
 
 /// Checks the residual and Jacobians of implicit dynamics at `(x, u, y)` against a
@@ -766,17 +955,14 @@ pub fn check_implicit_dynamics_dual(
     reference: impl FnMut(&[Dual64], &[Dual64], &[Dual64], &mut [Dual64]),
     opts: DualCheckOptions,
 ) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let (s, sn) = (d.space().clone(), d.space_next().clone());
-    let mut data = d.create_data();
-    d.evaluate(x, u, y, &mut data);
-    d.jacobians(x, u, y, &mut data);
-    let (r, jy) = dual_implicit_dynamics_jacobians(s.as_ref(), sn.as_ref(), x, u, y, reference);
-    rep.push("value", &column(data.value()), &column(&r.value));
-    rep.push("jx", &data.jx, &r.jx);
-    rep.push("ju", &data.ju, &r.ju);
-    rep.push("jy", &data.jy, &jy);
-    rep
+    let (s, sn) = (d.space().as_ref(), d.space_next().as_ref());
+    let r = || {
+        let (r, jy) = dual_implicit_dynamics_jacobians(s, sn, x, u, y, reference);
+        let mut blocks = jacobian_blocks(r);
+        blocks.first.push(jy);
+        blocks
+    };
+    check_dual(d, x, u, y, None, r, opts)
 }
 
 /// Checks the velocity and Jacobians of an ODE at `(x, u)` against a reference
@@ -789,16 +975,8 @@ pub fn check_ode_dual(
     reference: impl FnMut(&[Dual64], &[Dual64], &mut [Dual64]),
     opts: DualCheckOptions,
 ) -> CheckReport {
-    let mut rep = CheckReport::new(opts.tol);
-    let s = ode.space().clone();
-    let mut data = ode.create_data();
-    ode.evaluate(x, u, &mut data);
-    ode.jacobians(x, u, &mut data);
-    let r = dual_ode_jacobians(s.as_ref(), x, u, reference);
-    rep.push("value", &column(data.xdot()), &column(&r.value));
-    rep.push("jx", &data.jx, &r.jx);
-    rep.push("ju", &data.ju, &r.ju);
-    rep
+    let r = || jacobian_blocks(dual_ode_jacobians(ode.space().as_ref(), x, u, reference));
+    check_dual(ode, x, u, &[], None, r, opts)
 }
 
 /// Tangent-convention Jacobian of a tangent-valued map `g` of `x ∈ m`, by dual numbers:
