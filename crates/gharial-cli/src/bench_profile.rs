@@ -28,7 +28,7 @@ use std::io::Write;
 use clap::ValueEnum;
 use gharial::error::Num;
 use gharial::solvers::ddp::DdpVariant;
-use gharial::solvers::{Callback, InitialGuess, IterationRecord};
+use gharial::solvers::{Callback, InitialGuess, IterationRecord, SolverOptions};
 use gharial_problems::Example;
 use gharial_problems::profiles::{self, MAX_COUNT};
 
@@ -74,7 +74,7 @@ impl ProfileSolver {
             ..SolverArgs::new(self.kind)
         };
         let mut config = solver.config(ex);
-        if let SolverConfig::Ddp(o) = &mut config {
+        if let SolverOptions::Ddp(o) = &mut config.options {
             o.filter_linesearch = self.filter;
             o.filter_size = args.filter_size.unwrap_or(max_iters);
             if args.criterion == Criterion::Kkt {
@@ -167,7 +167,7 @@ fn run_solver(solver: ProfileSolver, instances: &[Example], args: &ProfileArgs) 
         seconds: 0.0,
     };
     for (i, ex) in instances.iter().enumerate() {
-        let mut s = solver.config(ex, args).build();
+        let mut s = solver.config(ex, args).options.build();
         s.setup(&ex.problem)
             .map_err(|e| format!("{} refuses {} instance {i}: {e}", solver.name(), args.family))?;
         let mut watch = FirstKkt {

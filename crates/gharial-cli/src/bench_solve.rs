@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use gharial::error::Num;
 use gharial::problem::{Problem, ProblemData, kkt_residuals};
-use gharial::solvers::{InitialGuess, Solution};
+use gharial::solvers::{InitialGuess, Solution, SolverOptions};
 use gharial_problems::peers::{PeersLqrParams, PeersVariant};
 use serde_json::json;
 
@@ -73,7 +73,7 @@ pub fn time_solves(
     let mut solution = Solution::default();
     for _ in 0..repeats.max(1) {
         // A freshly constructed and set-up solver per repeat (not timed), as the harness.
-        let mut solver = config.build();
+        let mut solver = config.options.build();
         solver.setup(problem).map_err(TimingError::Refused)?;
         let t = Instant::now();
         solver
@@ -162,9 +162,9 @@ pub fn examples(args: &ExamplesArgs) -> i32 {
             }
         };
         let config = args.solver.config(&ex);
-        let rollout = match &config {
-            SolverConfig::ProxDdp(o) => format!("{:?}", o.rollout).to_lowercase(),
-            SolverConfig::Ddp(_) | SolverConfig::Csqp(_) => "-".to_string(),
+        let rollout = match &config.options {
+            SolverOptions::ProxDdp(o) => format!("{:?}", o.rollout).to_lowercase(),
+            _ => "-".to_string(),
         };
         match time_solves(&ex.problem, &ex.xs0, &ex.us0, &config, args.repeats) {
             Ok(t) => {
@@ -401,7 +401,7 @@ fn peers_line(
 ) -> bool {
     let t = match time_solves(&ex.problem, &ex.xs0, &ex.us0, config, args.repeats) {
         Ok(t) => t,
-        Err(TimingError::Refused(_)) if config.kind() != SolverKind::ProxDdp => return false,
+        Err(TimingError::Refused(_)) if config.kind != SolverKind::ProxDdp => return false,
         Err(e) => {
             out!(
                 "{}",
@@ -438,19 +438,19 @@ fn peers_line(
 
 /// The harness's free-form `settings` string of a solver.
 fn peers_settings(config: &SolverConfig) -> String {
-    match config {
-        SolverConfig::ProxDdp(o) => format!(
+    match &config.options {
+        SolverOptions::ProxDdp(o) => format!(
             "mu_init={:e} rollout={:?} step_acceptance={:?} active_set_iters={} threads={}",
             o.mu_init, o.rollout, o.step_acceptance, o.active_set_iters, o.num_threads
         ),
-        SolverConfig::Ddp(o) => format!(
+        SolverOptions::Ddp(o) => format!(
             "tol={} th_stop=tol^2*N variant={} reg_init={} threads={}",
             Num(o.tol),
             o.variant.name(),
             Num(o.reg_init),
             o.num_threads
         ),
-        SolverConfig::Csqp(o) => format!(
+        SolverOptions::Csqp(o) => format!(
             "tol={} eps_abs={} eps_rel={} max_qp_iters={} warm_qp={}",
             Num(o.tol),
             Num(o.admm.eps_abs),
@@ -458,5 +458,6 @@ fn peers_settings(config: &SolverConfig) -> String {
             o.admm.max_iters,
             o.warm_qp
         ),
+        _ => String::new(),
     }
 }

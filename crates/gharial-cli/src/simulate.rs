@@ -108,7 +108,7 @@ pub fn run(args: &SimulateArgs) -> i32 {
     }
     sc.options.max_time = args.cycle_budget.map(|ms| Duration::from_secs_f64(ms * 1e-3));
     let config = args.solver.config(&sc.example);
-    let mut mpc = match sc.controller(config.build()) {
+    let mut mpc = match sc.controller(config.options.build()) {
         Ok(m) => m,
         Err(e) => {
             eprintln!("gharial simulate: {e}");
@@ -123,7 +123,7 @@ pub fn run(args: &SimulateArgs) -> i32 {
         sc.plant_dt * 1e3,
         sc.plant_dt * sc.steps_per_cycle as f64 * 1e3,
         sc.options.max_iters,
-        config.kind().name()
+        config.kind.name()
     );
     let rec = match sc.run(&mut mpc, args.duration) {
         Ok(r) => r,

@@ -84,10 +84,10 @@ pub fn run(args: &SolveArgs) -> i32 {
     }
     let mut config = args.solver.config(&example);
     if args.verbose {
-        config.set_log(LogSink::Stderr);
+        config.options.set_log(LogSink::Stderr);
     }
     let p = &example.problem;
-    let mut solver = config.build();
+    let mut solver = config.options.build();
     // A problem the solver does not take is invalid input: refuse it before printing.
     if let Err(e) = solver.setup(p) {
         eprintln!("gharial solve: {e}");
@@ -103,7 +103,7 @@ pub fn run(args: &SolveArgs) -> i32 {
     );
     out!(
         "solver    {} ({})",
-        config.kind().label(),
+        config.kind.label(),
         config.settings_line(&example, &args.solver)
     );
     let table = solver.table();
@@ -117,7 +117,7 @@ pub fn run(args: &SolveArgs) -> i32 {
     if !args.verbose {
         print_table(table, &sol.history);
     }
-    print_summary(config.kind(), sol);
+    print_summary(config.kind, sol);
     let doc = (output.is_some() || args.plot.is_some()).then(|| solution_json(&example, &config, sol));
     let written = output
         .as_mut()
@@ -230,7 +230,7 @@ pub fn solution_json(example: &Example, config: &SolverConfig, sol: &Solution) -
     };
     json!({
         "problem": example.name,
-        "solver": config.kind().name(),
+        "solver": config.kind.name(),
         "dt": example.dt,
         "settings": config.settings_json(),
         "status": sol.status.to_string(),

@@ -4,17 +4,18 @@
 //! [`SolverArgs`] holds what the command line says: the solver's name, the options every
 //! solver takes ([`CommonArgs`]) and ProxDDP's own ([`ProxDdpArgs`]). [`SolverArgs::check`]
 //! refuses an option the chosen solver does not take; [`SolverArgs::config`] applies the
-//! options to the solver's starting settings (a problem's recommended ProxDDP settings, the
-//! DDP family's defaults) and [`SolverConfig::build`] constructs the solver.
+//! options to the solver's starting settings ([`Example::options`]: a problem's recommended
+//! ProxDDP settings, the other solvers' defaults) and [`SolverConfig::options`] builds the
+//! solver.
 
 use clap::ValueEnum;
 use clap::builder::PossibleValue;
 use gharial::error::Num;
-use gharial::solvers::Solver;
-use gharial::solvers::csqp::{Csqp, CsqpOptions};
-use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
-use gharial::solvers::log::{LogSink, Table};
-use gharial::solvers::proxddp::{ACTIVE_SET_ITERS_MAX, Merit, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
+use gharial::solvers::SolverOptions;
+use gharial::solvers::csqp::CsqpOptions;
+use gharial::solvers::ddp::{DdpOptions, DdpVariant};
+use gharial::solvers::log::Table;
+use gharial::solvers::proxddp::{ACTIVE_SET_ITERS_MAX, Merit, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial_problems::Example;
 use serde_json::{Value, json};
 
@@ -92,12 +93,17 @@ impl SolverKind {
 
     /// The solver's iteration table (asked of a solver with default options).
     pub fn table(self) -> Table {
-        let solver: Box<dyn Solver> = match self {
-            SolverKind::ProxDdp => Box::new(ProxDdp::new(ProxDdpOptions::default())),
-            SolverKind::Ddp(v) => Box::new(Ddp::new(DdpOptions::new(v))),
-            SolverKind::Csqp => Box::new(Csqp::new(CsqpOptions::default())),
-        };
-        solver.table()
+        self.defaults().build().table()
+    }
+
+    /// The solver's default options.
+    fn defaults(self) -> SolverOptions {
+        SolverOptions::from_name(self.name()).expect(EVERY_KIND_IS_A_SOLVER)
+    }
+
+    /// The solver's options on `example` (see [`Example::options`]).
+    fn options(self, example: &Example) -> SolverOptions {
+        example.options(self.name()).expect(EVERY_KIND_IS_A_SOLVER)
     }
 
     /// The settings the solver reports, and the command-line options that set them.
@@ -109,6 +115,9 @@ impl SolverKind {
         }
     }
 }
+
+/// Why the library knows the name of every [`SolverKind`] (tested).
+const EVERY_KIND_IS_A_SOLVER: &str = "every SolverKind names a solver of the library";
 
 impl ValueEnum for SolverKind {
     fn value_variants<'a>() -> &'a [Self] {
@@ -306,98 +315,73 @@ impl SolverArgs {
         Ok(())
     }
 
-    /// The settings of the chosen solver on `example`: ProxDDP starts from the example's
-    /// recommended settings, the DDP family from its defaults; the options given override
-    /// them.
+    /// The settings of the chosen solver on `example` ([`Example::options`]: ProxDDP
+    /// starts from the example's recommended settings, the other solvers from their
+    /// defaults); the options given override them.
     pub fn config(&self, example: &Example) -> SolverConfig {
-        match self.solver {
-            SolverKind::ProxDdp => {
-                let mut o = example.proxddp.clone();
+        let mut options = self.solver.options(example);
+        match &mut options {
+            SolverOptions::ProxDdp(o) => {
                 self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads);
-                self.proxddp.apply(&mut o);
-                SolverConfig::ProxDdp(o)
+                self.proxddp.apply(o);
             }
-            SolverKind::Ddp(v) => {
-                let mut o = DdpOptions::new(v);
-                self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads);
-                SolverConfig::Ddp(o)
-            }
-            SolverKind::Csqp => {
-                let mut o = CsqpOptions::default();
+            SolverOptions::Ddp(o) => self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads),
+            SolverOptions::Csqp(o) => {
                 // Single-threaded: --threads is refused by `check`.
                 let mut threads = 1;
                 self.common.apply(&mut o.tol, &mut o.max_iters, &mut threads);
-                SolverConfig::Csqp(o)
             }
+            // A solver without command-line options takes none (`check` refuses them).
+            _ => {}
+        }
+        SolverConfig {
+            kind: self.solver,
+            options,
         }
     }
 }
 
-/// The chosen solver's settings, from which fresh solvers are built.
+/// The chosen solver and its settings, from which fresh solvers are built
+/// ([`SolverOptions::build`]).
 #[derive(Debug, Clone)]
-pub enum SolverConfig {
-    /// ProxDDP.
-    ProxDdp(ProxDdpOptions),
-    /// The DDP family (the variant is in the options).
-    Ddp(DdpOptions),
-    /// CSQP.
-    Csqp(CsqpOptions),
+pub struct SolverConfig {
+    /// Which solver.
+    pub kind: SolverKind,
+    /// Its settings.
+    pub options: SolverOptions,
 }
 
 impl SolverConfig {
-    /// Which solver.
-    pub fn kind(&self) -> SolverKind {
-        match self {
-            SolverConfig::ProxDdp(_) => SolverKind::ProxDdp,
-            SolverConfig::Ddp(o) => SolverKind::Ddp(o.variant),
-            SolverConfig::Csqp(_) => SolverKind::Csqp,
-        }
-    }
-
-    /// Sends the solver's live log to `log`.
-    pub fn set_log(&mut self, log: LogSink) {
-        match self {
-            SolverConfig::ProxDdp(o) => o.log = log,
-            SolverConfig::Ddp(o) => o.log = log,
-            SolverConfig::Csqp(o) => o.log = log,
-        }
-    }
-
-    /// A new solver with these settings (not set up).
-    pub fn build(&self) -> Box<dyn Solver> {
-        match self {
-            SolverConfig::ProxDdp(o) => Box::new(ProxDdp::new(o.clone())),
-            SolverConfig::Ddp(o) => Box::new(Ddp::new(o.clone())),
-            SolverConfig::Csqp(o) => Box::new(Csqp::new(o.clone())),
-        }
-    }
-
     /// The settings line of `gharial solve`: each setting, marked with where it comes
     /// from when it is not the library's default: `[option; default …]` (the command
     /// line) or `[problem; default …]` (the problem's recommended ProxDDP settings).
     pub fn settings_line(&self, example: &Example, args: &SolverArgs) -> String {
-        match self {
-            SolverConfig::ProxDdp(o) => {
-                marked_settings(PROXDDP_FIELDS, o, &example.proxddp, &ProxDdpOptions::default(), args)
-            }
-            SolverConfig::Ddp(o) => {
-                let d = DdpOptions::new(o.variant);
-                marked_settings(DDP_FIELDS, o, &d, &d, args)
-            }
-            SolverConfig::Csqp(o) => {
-                let d = CsqpOptions::default();
-                marked_settings(CSQP_FIELDS, o, &d, &d, args)
-            }
-        }
+        let recommended = settings(&self.kind.options(example));
+        let default = settings(&self.kind.defaults());
+        settings(&self.options)
+            .into_iter()
+            .zip(recommended)
+            .zip(default)
+            .map(|(((name, value, flag), (_, recommended, _)), (_, def, _))| {
+                let mark = if flag.is_some_and(|(_, given)| given(args)) {
+                    format!(" [option; default {def}]")
+                } else if recommended != def {
+                    format!(" [problem; default {def}]")
+                } else {
+                    String::new()
+                };
+                format!("{name} {value}{mark}")
+            })
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 
     /// The settings as a JSON object (the `settings` of `gharial solve --output`).
     pub fn settings_json(&self) -> Value {
-        let object = match self {
-            SolverConfig::ProxDdp(o) => settings_object(PROXDDP_FIELDS, o),
-            SolverConfig::Ddp(o) => settings_object(DDP_FIELDS, o),
-            SolverConfig::Csqp(o) => settings_object(CSQP_FIELDS, o),
-        };
+        let object = settings(&self.options)
+            .into_iter()
+            .map(|(name, value, _)| (name.to_string(), value.json()))
+            .collect();
         Value::Object(object)
     }
 }
@@ -567,31 +551,18 @@ const CSQP_FIELDS: &[Field<CsqpOptions>] = &[
     },
 ];
 
-/// `name value [mark]` for every field of `o`, comma separated (see
-/// [`SolverConfig::settings_line`]).
-fn marked_settings<O>(fields: &[Field<O>], o: &O, recommended: &O, default: &O, args: &SolverArgs) -> String {
-    fields
-        .iter()
-        .map(|f| {
-            let (value, def) = ((f.value)(o), (f.value)(default));
-            let mark = if f.flag.is_some_and(|(_, given)| given(args)) {
-                format!(" [option; default {def}]")
-            } else if (f.value)(recommended) != def {
-                format!(" [problem; default {def}]")
-            } else {
-                String::new()
-            };
-            format!("{} {value}{mark}", f.name)
-        })
-        .collect::<Vec<_>>()
-        .join(", ")
-}
-
-fn settings_object<O>(fields: &[Field<O>], o: &O) -> serde_json::Map<String, Value> {
-    fields
-        .iter()
-        .map(|f| (f.name.to_string(), (f.value)(o).json()))
-        .collect()
+/// The reported settings of `options`: each field's name, value and command-line option
+/// (none for a solver without a field table).
+fn settings(options: &SolverOptions) -> Vec<(&'static str, Setting, Option<Flag>)> {
+    fn values<O>(fields: &[Field<O>], o: &O) -> Vec<(&'static str, Setting, Option<Flag>)> {
+        fields.iter().map(|f| (f.name, (f.value)(o), f.flag)).collect()
+    }
+    match options {
+        SolverOptions::ProxDdp(o) => values(PROXDDP_FIELDS, o),
+        SolverOptions::Ddp(o) => values(DDP_FIELDS, o),
+        SolverOptions::Csqp(o) => values(CSQP_FIELDS, o),
+        _ => Vec::new(),
+    }
 }
 
 /// The columns of every solver's iteration table (for `gharial solve --help`), one
@@ -610,4 +581,19 @@ pub fn tables_legend() -> String {
         .map(|(names, legend)| format!("Columns of the iteration table of {}:\n{legend}", names.join(", ")))
         .collect::<Vec<_>>()
         .join("\n\n")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The command line's solvers are the library's, by the same names in the same order.
+    #[test]
+    fn every_kind_is_a_solver_of_the_library() {
+        let names: Vec<_> = SolverKind::ALL.into_iter().map(SolverKind::name).collect();
+        assert_eq!(names, SolverOptions::names());
+        for kind in SolverKind::ALL {
+            assert_eq!(kind.defaults().name(), kind.name());
+        }
+    }
 }

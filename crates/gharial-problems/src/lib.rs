@@ -57,6 +57,7 @@ pub mod ur10_ballistic;
 pub mod ur5_circle;
 
 use gharial::problem::{Problem, ProblemData};
+use gharial::solvers::SolverOptions;
 use gharial::solvers::proxddp::ProxDdpOptions;
 use gharial::{Error, Result};
 
@@ -86,6 +87,21 @@ pub struct Example {
     pub proxddp: ProxDdpOptions,
     /// A few lines describing the problem.
     pub description: &'static str,
+}
+
+impl Example {
+    /// The options of the solver `name` (one of [`SolverOptions::names`]) for this
+    /// problem: ProxDDP's are the recommended [`Example::proxddp`], the other solvers'
+    /// their defaults.
+    ///
+    /// # Errors
+    /// If `name` is not a solver's name (the message lists the valid names).
+    pub fn options(&self, name: &str) -> Result<SolverOptions> {
+        match SolverOptions::from_name(name)? {
+            SolverOptions::ProxDdp(_) => Ok(SolverOptions::ProxDdp(self.proxddp.clone())),
+            defaults => Ok(defaults),
+        }
+    }
 }
 
 impl std::fmt::Debug for Example {
@@ -295,4 +311,27 @@ pub fn total_cost(problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Result
     problem.check_trajectory(xs, us)?;
     let mut data = ProblemData::new(problem, 1)?;
     Ok(data.evaluate(problem, xs, us))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// ProxDDP gets the problem's recommended settings, the other solvers their defaults.
+    #[test]
+    fn options_by_solver_name() {
+        let ex = build("cartpole").unwrap();
+        assert_ne!(format!("{:?}", ex.proxddp), format!("{:?}", ProxDdpOptions::default()));
+        for &name in SolverOptions::names() {
+            let options = ex.options(name).unwrap();
+            assert_eq!(options.name(), name);
+            let expected = match name {
+                "proxddp" => SolverOptions::ProxDdp(ex.proxddp.clone()),
+                _ => SolverOptions::from_name(name).unwrap(),
+            };
+            assert_eq!(format!("{options:?}"), format!("{expected:?}"));
+        }
+        let e = ex.options("ipopt").unwrap_err().to_string();
+        assert!(e.contains("unknown solver `ipopt`"), "{e}");
+    }
 }

@@ -5,7 +5,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::convert::{arrays1, err};
-use crate::options::Options;
+use crate::options::solver_options;
 use crate::problem::PyProblem;
 use crate::solvers::PySolver;
 
@@ -62,8 +62,7 @@ impl PyExample {
     /// `options` override them.
     #[pyo3(signature = (name = "proxddp", **options))]
     fn solver(&self, name: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<PySolver> {
-        let base = (name == "proxddp").then(|| Options::ProxDdp(self.example.proxddp.clone()));
-        PySolver::with(name, base, options)
+        PySolver::with_options(solver_options(self.example.options(name))?, options)
     }
 
     fn __repr__(&self) -> String {

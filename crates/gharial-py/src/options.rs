@@ -2,94 +2,42 @@
 
 use std::time::Duration;
 
-use gharial::solvers::HessianApprox;
 use gharial::solvers::csqp::CsqpOptions;
-use gharial::solvers::ddp::{DdpOptions, DdpVariant};
+use gharial::solvers::ddp::DdpOptions;
 use gharial::solvers::proxddp::{Merit, ProxDdpOptions, Rollout, StepAcceptance};
+use gharial::solvers::{HessianApprox, SolverOptions};
 use pyo3::IntoPyObjectExt;
 use pyo3::prelude::*;
 
-use crate::convert::value_error;
+use crate::convert::{err, value_error};
 
-/// The options of one solver.
-#[derive(Debug, Clone)]
-pub enum Options {
-    /// ProxDDP.
-    ProxDdp(ProxDdpOptions),
-    /// The DDP family and SQP.
-    Ddp(DdpOptions),
-    /// CSQP.
-    Csqp(CsqpOptions),
+/// A solver's options from `SolverOptions::from_name` or `Example::options`; an unknown
+/// solver name is a `ValueError` whose message is the core's reason ("unknown solver
+/// `x` (one of ...)").
+pub fn solver_options(options: gharial::Result<SolverOptions>) -> PyResult<SolverOptions> {
+    options.map_err(|e| match e {
+        gharial::Error::InvalidOption { reason, .. } => value_error(reason),
+        e => err(e),
+    })
 }
 
-/// The solver names, as the command-line tool spells them.
-pub const SOLVER_NAMES: [&str; 7] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp"];
-
-impl Options {
-    /// The default options of the solver `name`.
-    pub fn default_for(name: &str) -> PyResult<Self> {
-        match name {
-            "proxddp" => Ok(Options::ProxDdp(ProxDdpOptions::default())),
-            "csqp" => Ok(Options::Csqp(CsqpOptions::default())),
-            _ => DdpVariant::from_name(name)
-                .map(|v| Options::Ddp(DdpOptions::new(v)))
-                .ok_or_else(|| value_error(format!("unknown solver `{name}` (one of {})", SOLVER_NAMES.join(", ")))),
-        }
+/// The option `name` of `options`, if the solver has it.
+pub fn field<'a>(options: &'a mut SolverOptions, name: &str) -> Option<Field<'a>> {
+    match options {
+        SolverOptions::ProxDdp(o) => proxddp_field(o, name),
+        SolverOptions::Ddp(o) => ddp_field(o, name),
+        SolverOptions::Csqp(o) => csqp_field(o, name),
+        _ => None,
     }
+}
 
-    /// The solver's name.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Options::ProxDdp(_) => "proxddp",
-            Options::Ddp(o) => o.variant.name(),
-            Options::Csqp(_) => "csqp",
-        }
-    }
-
-    /// Checks the values (the solvers' own validation).
-    pub fn validate(&self) -> gharial::Result<()> {
-        match self {
-            Options::ProxDdp(o) => o.validate(),
-            Options::Ddp(o) => o.validate(),
-            Options::Csqp(o) => o.validate(),
-        }
-    }
-
-    /// A new Rust solver with these options.
-    pub fn build(&self) -> Box<dyn gharial::solvers::Solver> {
-        use gharial::solvers::{csqp::Csqp, ddp::Ddp, proxddp::ProxDdp};
-        match self {
-            Options::ProxDdp(o) => Box::new(ProxDdp::new(o.clone())),
-            Options::Ddp(o) => Box::new(Ddp::new(o.clone())),
-            Options::Csqp(o) => Box::new(Csqp::new(o.clone())),
-        }
-    }
-
-    /// Sets where the iteration log goes.
-    pub fn set_log(&mut self, log: gharial::solvers::log::LogSink) {
-        match self {
-            Options::ProxDdp(o) => o.log = log,
-            Options::Ddp(o) => o.log = log,
-            Options::Csqp(o) => o.log = log,
-        }
-    }
-
-    /// The option `name`, if the solver has it.
-    pub fn field(&mut self, name: &str) -> Option<Field<'_>> {
-        match self {
-            Options::ProxDdp(o) => proxddp_field(o, name),
-            Options::Ddp(o) => ddp_field(o, name),
-            Options::Csqp(o) => csqp_field(o, name),
-        }
-    }
-
-    /// Every option name.
-    pub fn names(&self) -> &'static [&'static str] {
-        match self {
-            Options::ProxDdp(_) => PROXDDP,
-            Options::Ddp(_) => DDP,
-            Options::Csqp(_) => CSQP,
-        }
+/// Every option name of the solver of `options`.
+pub fn option_names(options: &SolverOptions) -> &'static [&'static str] {
+    match options {
+        SolverOptions::ProxDdp(_) => PROXDDP,
+        SolverOptions::Ddp(_) => DDP,
+        SolverOptions::Csqp(_) => CSQP,
+        _ => &[],
     }
 }
 

@@ -4,14 +4,14 @@ use std::sync::{Arc, Mutex};
 
 use gharial::problem::{Problem, ProblemData};
 use gharial::solvers::log::LogSink;
-use gharial::solvers::{InitialGuess, IterationRecord, Solution, Solver};
+use gharial::solvers::{InitialGuess, IterationRecord, Solution, Solver, SolverOptions};
 use pyo3::PyClassInitializer;
 use pyo3::exceptions::{PyAttributeError, PyRuntimeError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::convert::{array1, array2, arrays1, err, value_error, vectors_into};
-use crate::options::{Options, SOLVER_NAMES};
+use crate::options::{field, option_names, solver_options};
 use crate::problem::PyProblem;
 
 /// A solver of the `TrajOptProblem`s (base class of `SolverProxDDP`, `SolverFDDP`, ...):
@@ -19,7 +19,7 @@ use crate::problem::PyProblem;
 /// attribute (`solver.tol = 1e-8`), checked when set.
 #[pyclass(subclass, name = "Solver", module = "gharial")]
 pub struct PySolver {
-    options: Options,
+    options: SolverOptions,
     verbose: bool,
     /// The Rust solver, set up for `setup_key`; taken out while it runs.
     solver: Mutex<Option<Box<dyn Solver>>>,
@@ -51,12 +51,13 @@ pub fn status_name(s: gharial::solvers::Status) -> String {
 }
 
 impl PySolver {
-    /// A solver named `name` with `options` applied to its defaults (or to `base`).
-    pub fn with(name: &str, base: Option<Options>, kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        let options = match base {
-            Some(o) => o,
-            None => Options::default_for(name)?,
-        };
+    /// A solver named `name` with `kwargs` applied to its defaults.
+    pub fn with(name: &str, kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        Self::with_options(solver_options(SolverOptions::from_name(name))?, kwargs)
+    }
+
+    /// A solver with `kwargs` applied to `options`.
+    pub fn with_options(options: SolverOptions, kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
         let mut s = Self {
             options,
             verbose: false,
@@ -84,11 +85,9 @@ impl PySolver {
         }
         let previous = self.options.clone();
         let solver = self.options.name();
-        let mut field = self
-            .options
-            .field(name)
+        let mut option = field(&mut self.options, name)
             .ok_or_else(|| PyAttributeError::new_err(format!("solver `{solver}` has no option `{name}`")))?;
-        field.set(name, value)?;
+        option.set(name, value)?;
         if let Err(e) = self.options.validate() {
             self.options = previous;
             return Err(value_error(e.to_string()));
@@ -98,7 +97,7 @@ impl PySolver {
     }
 
     /// The Rust options with the log sink that `verbose` asks for.
-    fn effective_options(&self) -> Options {
+    fn effective_options(&self) -> SolverOptions {
         let mut o = self.options.clone();
         if self.verbose {
             o.set_log(LogSink::Function(Arc::new(|line: &str| {
@@ -234,7 +233,7 @@ impl PySolver {
     #[new]
     #[pyo3(signature = (name, **options))]
     fn py_new(name: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
-        Self::with(name, None, options)
+        Self::with(name, options)
     }
 
     /// The solver's name (`proxddp`, `fddp`, ...).
@@ -246,7 +245,7 @@ impl PySolver {
     /// The option names of this solver.
     #[getter]
     fn option_names(&self) -> Vec<&'static str> {
-        let mut v = self.options.names().to_vec();
+        let mut v = option_names(&self.options).to_vec();
         v.push("verbose");
         v
     }
@@ -259,7 +258,7 @@ impl PySolver {
                 .unbind());
         }
         let solver = self.options.name();
-        match self.options.field(name) {
+        match field(&mut self.options, name) {
             Some(f) => f.get(py),
             None => Err(PyAttributeError::new_err(format!(
                 "solver `{solver}` has no attribute `{name}`"
@@ -377,7 +376,7 @@ macro_rules! named_solver {
                     all.set_item("max_iters", m)?;
                 }
                 all.set_item("verbose", verbose)?;
-                Ok(PyClassInitializer::from(PySolver::with($solver, None, Some(&all))?).add_subclass(Self))
+                Ok(PyClassInitializer::from(PySolver::with($solver, Some(&all))?).add_subclass(Self))
             }
         }
     };
@@ -421,13 +420,13 @@ named_solver!(
 #[pyfunction]
 #[pyo3(signature = (name, **options))]
 fn solver(name: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<PySolver> {
-    PySolver::with(name, None, options)
+    PySolver::with(name, options)
 }
 
 /// The names of the solvers.
 #[pyfunction]
 fn solver_names() -> Vec<&'static str> {
-    SOLVER_NAMES.to_vec()
+    SolverOptions::names().to_vec()
 }
 
 /// The result of a solve (ALIGATOR's `Results`): trajectories and multipliers as numpy

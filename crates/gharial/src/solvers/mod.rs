@@ -13,6 +13,7 @@ pub mod ddp;
 pub mod filter;
 pub mod linesearch;
 pub mod log;
+mod options;
 pub mod proxddp;
 pub(crate) mod skeleton;
 
@@ -23,6 +24,8 @@ use faer::{Col, Mat};
 
 use crate::error::Result;
 use crate::problem::Problem;
+
+pub use options::SolverOptions;
 
 /// Which Hessian of the Lagrangian builds the Newton (or DDP) system.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -256,7 +259,7 @@ pub trait Callback {
 /// What every solver offers, so that the command-line tool, the benchmarks, the
 /// catalogue and receding-horizon control can pick one by name and drive it the same way.
 pub trait Solver: Send {
-    /// The solver's name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`).
+    /// The solver's name (one of [`SolverOptions::names`]).
     fn name(&self) -> &'static str;
 
     /// Validates the options and allocates every buffer for `problem`'s dimensions.
