@@ -76,6 +76,96 @@ fn min(v: &[f64]) -> f64 {
     v.iter().copied().fold(f64::INFINITY, f64::min)
 }
 
+impl Run {
+    /// The solver of `problem` on `threads` threads (1: the serial one), checked by one
+    /// backward and forward pass.
+    fn new(b: &RiccatiBench, (nx, nu, nc, n): (usize, usize, usize, usize), threads: usize) -> Result<Self, String> {
+        let problem = peers_problem(nx, nu, nc, n, b.seed, b.mu).problem;
+        let (mut solver, legs) = if threads <= 1 {
+            let opts = RiccatiOptions {
+                refinement_steps: b.refine,
+                ..Default::default()
+            };
+            let s = RiccatiSolver::with_options(&problem, opts).expect("solver");
+            (Solver::Serial(s), 1)
+        } else {
+            let s = ParallelRiccatiSolver::new(&problem, threads, b.refine).expect("solver");
+            let legs = s.num_legs();
+            (Solver::Parallel(s), legs)
+        };
+        let mut sol = LqSolution::new(&problem);
+        solver
+            .backward(&problem)
+            .and_then(|()| solver.forward(&problem, &mut sol))
+            .map_err(|e| {
+                let hint = if b.mu == 0.0 {
+                    " (at mu = 0 a constraint without control makes the stage system singular; take mu > 0)"
+                } else {
+                    ""
+                };
+                format!("case {nx}:{nu}:{nc}:{n}, mu = {:e}: {e}{hint}", b.mu)
+            })?;
+        Ok(Run {
+            problem,
+            n,
+            dims: (nx, nu, nc),
+            threads,
+            legs,
+            solver,
+            sol,
+            tb: Vec::new(),
+            tf: Vec::new(),
+            tt: Vec::new(),
+        })
+    }
+
+    /// `warm_up` untimed solves, then timed ones for `seconds` (at least 3).
+    fn time(&mut self, warm_up: usize, seconds: f64) -> Result<(), String> {
+        for _ in 0..warm_up {
+            self.solver.backward(&self.problem)?;
+            self.solver.forward(&self.problem, &mut self.sol)?;
+        }
+        let start = Instant::now();
+        let mut reps = 0;
+        while reps < 3 || start.elapsed().as_secs_f64() < seconds {
+            let t0 = Instant::now();
+            self.solver.backward(&self.problem)?;
+            let t1 = Instant::now();
+            self.solver.forward(&self.problem, &mut self.sol)?;
+            let t2 = Instant::now();
+            self.tb.push((t1 - t0).as_secs_f64() * 1e6);
+            self.tf.push((t2 - t1).as_secs_f64() * 1e6);
+            self.tt.push((t2 - t0).as_secs_f64() * 1e6);
+            reps += 1;
+        }
+        Ok(())
+    }
+
+    /// The table row of this run.
+    fn row(&self) -> String {
+        let res = kkt_residuals(&self.problem, &self.sol).expect("dimensions match");
+        let (tt, tmin) = (median(&self.tt), min(&self.tt));
+        format!(
+            "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} ({:.1}) | {:.2} ({:.2}) | {} | {:.1e} / {:.1e} / {:.1e} |",
+            self.dims.0,
+            self.dims.1,
+            self.dims.2,
+            self.n,
+            self.legs,
+            median(&self.tb),
+            median(&self.tf),
+            tt,
+            tmin,
+            tt / self.n as f64,
+            tmin / self.n as f64,
+            self.tt.len(),
+            res.dynamics,
+            res.constraints,
+            res.dual
+        )
+    }
+}
+
 /// Runs the benchmark and prints one table per thread count. A case the LQ solver
 /// refuses (for example a constraint without control at `mu = 0`) is an error, found by
 /// one solve of every case before any timing.
@@ -84,76 +174,21 @@ pub fn run(b: &RiccatiBench) -> Result<(), String> {
         b.horizons.iter().map(|&n| (b.dims.0, b.dims.1, b.dims.2, n)).collect();
     cases.extend(b.extra.iter().copied());
     let mut runs = Vec::new();
-    for &(nx, nu, nc, n) in &cases {
-        let problem = peers_problem(nx, nu, nc, n, b.seed, b.mu).problem;
+    for &case in &cases {
         for &threads in &b.threads {
-            let (solver, legs) = if threads <= 1 {
-                let opts = RiccatiOptions {
-                    refinement_steps: b.refine,
-                    ..Default::default()
-                };
-                (
-                    Solver::Serial(RiccatiSolver::with_options(&problem, opts).expect("solver")),
-                    1,
-                )
-            } else {
-                let s = ParallelRiccatiSolver::new(&problem, threads, b.refine).expect("solver");
-                let legs = s.num_legs();
-                (Solver::Parallel(s), legs)
-            };
-            let mut sol = LqSolution::new(&problem);
-            let mut solver = solver;
-            solver
-                .backward(&problem)
-                .and_then(|()| solver.forward(&problem, &mut sol))
-                .map_err(|e| {
-                    let hint = if b.mu == 0.0 {
-                        " (at mu = 0 a constraint without control makes the stage system singular; take mu > 0)"
-                    } else {
-                        ""
-                    };
-                    format!("case {nx}:{nu}:{nc}:{n}, mu = {:e}: {e}{hint}", b.mu)
-                })?;
-            runs.push(Run {
-                problem: problem.clone(),
-                n,
-                dims: (nx, nu, nc),
-                threads,
-                legs,
-                solver,
-                sol,
-                tb: Vec::new(),
-                tf: Vec::new(),
-                tt: Vec::new(),
-            });
+            runs.push(Run::new(b, case, threads)?);
         }
     }
-    let per_round = b.budget / b.rounds.max(1) as f64;
-    for round in 0..b.rounds.max(1) {
+    // Rounds over the cases, in alternating order, share the budget.
+    let rounds = b.rounds.max(1);
+    for round in 0..rounds {
         let order: Vec<usize> = if round % 2 == 0 {
             (0..runs.len()).collect()
         } else {
             (0..runs.len()).rev().collect()
         };
         for i in order {
-            let r = &mut runs[i];
-            for _ in 0..if round == 0 { 3 } else { 1 } {
-                r.solver.backward(&r.problem)?;
-                r.solver.forward(&r.problem, &mut r.sol)?;
-            }
-            let start = Instant::now();
-            let mut reps = 0;
-            while reps < 3 || start.elapsed().as_secs_f64() < per_round {
-                let t0 = Instant::now();
-                r.solver.backward(&r.problem)?;
-                let t1 = Instant::now();
-                r.solver.forward(&r.problem, &mut r.sol)?;
-                let t2 = Instant::now();
-                r.tb.push((t1 - t0).as_secs_f64() * 1e6);
-                r.tf.push((t2 - t1).as_secs_f64() * 1e6);
-                r.tt.push((t2 - t0).as_secs_f64() * 1e6);
-                reps += 1;
-            }
+            runs[i].time(if round == 0 { 3 } else { 1 }, b.budget / rounds as f64)?;
         }
     }
     out!(
@@ -173,26 +208,7 @@ pub fn run(b: &RiccatiBench) -> Result<(), String> {
         out!("| nx | nu | nc | N | legs | backward | forward | total | per stage | reps | KKT dyn / cstr / dual |");
         out!("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
         for r in runs.iter().filter(|r| r.threads == threads) {
-            let res = kkt_residuals(&r.problem, &r.sol).expect("dimensions match");
-            let (tt, tmin) = (median(&r.tt), min(&r.tt));
-            out!(
-                "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {:.1} ({:.1}) | {:.2} ({:.2}) | {} | {:.1e} / {:.1e} / {:.1e} |",
-                r.dims.0,
-                r.dims.1,
-                r.dims.2,
-                r.n,
-                r.legs,
-                median(&r.tb),
-                median(&r.tf),
-                tt,
-                tmin,
-                tt / r.n as f64,
-                tmin / r.n as f64,
-                r.tt.len(),
-                res.dynamics,
-                res.constraints,
-                res.dual
-            );
+            out!("{}", r.row());
         }
     }
     Ok(())

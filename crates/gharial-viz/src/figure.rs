@@ -3,6 +3,7 @@
 use std::path::Path;
 use std::sync::OnceLock;
 
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::{CoordTranslate, Shift};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
@@ -167,4 +168,72 @@ pub(crate) fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
         .label_font((FONT, size))
         .draw()
         .map_err(text)
+}
+
+/// A chart with linear axes.
+pub(crate) type LinearChart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// Fills `root` white, writes `title` on its top line and returns the area below.
+pub(crate) fn titled<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+) -> std::result::Result<DrawingArea<DB, Shift>, String> {
+    root.fill(&WHITE).map_err(text)?;
+    let (top, body) = root.split_vertically(34);
+    top.titled(title, (FONT, 22)).map_err(text)?;
+    Ok(body)
+}
+
+/// A captioned panel of `area` with linear axes over `x` and `y` (`y_labels` pixels for
+/// the vertical axis' labels); its mesh is drawn by the caller.
+pub(crate) fn linear_chart<'a, DB: DrawingBackend>(
+    area: &'a DrawingArea<DB, Shift>,
+    caption: &str,
+    x: (f64, f64),
+    y: (f64, f64),
+    y_labels: u32,
+) -> std::result::Result<LinearChart<'a, DB>, String> {
+    ChartBuilder::on(area)
+        .caption(caption, (FONT, 16))
+        .margin(10)
+        .x_label_area_size(36)
+        .y_label_area_size(y_labels)
+        .build_cartesian_2d(x.0..x.1, y.0..y.1)
+        .map_err(text)
+}
+
+/// Draws `points` as a solid line of colour `c`, with the legend entry `label` if given.
+pub(crate) fn line<'a, DB: DrawingBackend + 'a, CT: CoordTranslate<From = (f64, f64)>>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    points: Vec<(f64, f64)>,
+    c: RGBColor,
+    label: Option<String>,
+) -> std::result::Result<(), String> {
+    let series = chart
+        .draw_series(LineSeries::new(points, c.stroke_width(2)))
+        .map_err(text)?;
+    if let Some(label) = label {
+        series
+            .label(label)
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
+    }
+    Ok(())
+}
+
+/// A legend entry `label` with a dashed key of colour `c`, for dashed series.
+pub(crate) fn dashed_key<'a, DB: DrawingBackend + 'a, CT: CoordTranslate<From = (f64, f64)>>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    c: RGBColor,
+    label: String,
+) -> std::result::Result<(), String> {
+    chart
+        .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())
+        .map_err(text)?
+        .label(label)
+        .legend(move |(x, y)| {
+            EmptyElement::at((x, y))
+                + PathElement::new([(0, 0), (8, 0)], c.stroke_width(2))
+                + PathElement::new([(13, 0), (20, 0)], c.stroke_width(2))
+        });
+    Ok(())
 }

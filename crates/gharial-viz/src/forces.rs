@@ -6,7 +6,9 @@ use std::path::Path;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::figure::{Draw, FONT, Figure, Panel, color, finite_runs, legend, linear_range, render, text};
+use crate::figure::{
+    Draw, FONT, Figure, Panel, color, finite_runs, legend, line, linear_chart, linear_range, render, text, titled,
+};
 use crate::{Error, Result};
 
 /// The contact force of one foot at every stage (N, world axes; zero in the air).
@@ -66,9 +68,7 @@ fn cone_ratio(f: &[f64; 3], mu: f64) -> f64 {
 
 impl Draw for Plot<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> std::result::Result<Figure, String> {
-        root.fill(&WHITE).map_err(text)?;
-        let (top, body) = root.split_vertically(34);
-        top.titled(self.title, (FONT, 22)).map_err(text)?;
+        let body = titled(root, self.title)?;
         let areas = body.split_evenly((if self.mu.is_some() { 2 } else { 1 }, 1));
         let time = |t: usize| t as f64 * self.dt.unwrap_or(1.0);
         let stages = self.feet[0].forces.len();
@@ -99,13 +99,7 @@ impl Draw for Plot<'_> {
         }
         let mut panels = Vec::new();
         for (area, (name, lines, y)) in areas.iter().zip(series) {
-            let mut chart = ChartBuilder::on(area)
-                .caption(name, (FONT, 16))
-                .margin(10)
-                .x_label_area_size(36)
-                .y_label_area_size(60)
-                .build_cartesian_2d(x.0..x.1, y.0..y.1)
-                .map_err(text)?;
+            let mut chart = linear_chart(area, name, x, y, 60)?;
             chart
                 .configure_mesh()
                 .x_desc(x_desc)
@@ -113,15 +107,8 @@ impl Draw for Plot<'_> {
                 .draw()
                 .map_err(text)?;
             for (k, (foot, pts)) in self.feet.iter().zip(lines).enumerate() {
-                let c = color(k);
                 for (j, seg) in finite_runs(pts).into_iter().enumerate() {
-                    let s = chart
-                        .draw_series(LineSeries::new(seg, c.stroke_width(2)))
-                        .map_err(text)?;
-                    if j == 0 {
-                        s.label(foot.label.as_str())
-                            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
-                    }
+                    line(&mut chart, seg, color(k), (j == 0).then(|| foot.label.clone()))?;
                 }
             }
             if panels.len() == 1 {

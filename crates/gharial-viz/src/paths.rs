@@ -6,7 +6,7 @@ use std::path::Path;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::figure::{Draw, FONT, Figure, Panel, color, legend, linear_range, render, text};
+use crate::figure::{Draw, FONT, Figure, Panel, color, legend, line, linear_chart, linear_range, render, text, titled};
 use crate::{Error, Result};
 
 /// The path of one point, one position per node.
@@ -85,9 +85,7 @@ fn square_ranges(a: Vec<f64>, b: Vec<f64>) -> ((f64, f64), (f64, f64)) {
 
 impl Draw for Paths<'_> {
     fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> std::result::Result<Figure, String> {
-        root.fill(&WHITE).map_err(text)?;
-        let (top, body) = root.split_vertically(34);
-        top.titled(self.title, (FONT, 22)).map_err(text)?;
+        let body = titled(root, self.title)?;
         let areas = body.split_evenly((1, 3));
         let mut panels = Vec::new();
         for (area, (i, j), name) in [
@@ -111,13 +109,7 @@ impl Draw for Paths<'_> {
                 pts.chain(self.targets.iter().map(|t| t[k])).chain(extents(k)).collect()
             };
             let (x, y) = square_ranges(coords(i), coords(j));
-            let mut chart = ChartBuilder::on(area)
-                .caption(name, (FONT, 16))
-                .margin(10)
-                .x_label_area_size(36)
-                .y_label_area_size(52)
-                .build_cartesian_2d(x.0..x.1, y.0..y.1)
-                .map_err(text)?;
+            let mut chart = linear_chart(area, name, x, y, 52)?;
             chart
                 .configure_mesh()
                 .x_desc(axis[i])
@@ -146,11 +138,7 @@ impl Draw for Paths<'_> {
                 let c = color(k);
                 let pts: Vec<(f64, f64)> = p.points.iter().map(|q| (q[i], q[j])).collect();
                 let start = pts[0];
-                chart
-                    .draw_series(LineSeries::new(pts, c.stroke_width(2)))
-                    .map_err(text)?
-                    .label(p.label.as_str())
-                    .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
+                line(&mut chart, pts, c, Some(p.label.clone()))?;
                 chart.draw_series([Circle::new(start, 4, c.filled())]).map_err(text)?;
             }
             for t in self.targets {

@@ -5,7 +5,7 @@ use std::path::Path;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::figure::{Draw, FONT, Figure, Panel, color, legend, linear_range, render, text};
+use crate::figure::{Draw, FONT, Figure, Panel, color, legend, line, linear_range, render, text};
 use crate::{Error, ProfileCurve, Result};
 
 /// Draws one line per solver: the percentage of instances solved within each iteration
@@ -70,11 +70,7 @@ impl Draw for Profile<'_> {
                 }
                 pts.push((b, 100.0 * f));
             }
-            chart
-                .draw_series(LineSeries::new(pts, c.stroke_width(2)))
-                .map_err(text)?
-                .label(curve.label.as_str())
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 24, y)], c.stroke_width(2)));
+            line(&mut chart, pts, c, Some(curve.label.clone()))?;
         }
         legend(&mut chart, SeriesLabelPosition::LowerRight, 14)?;
         Ok(Figure {

@@ -5,7 +5,10 @@ use std::path::Path;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::figure::{Draw, FONT, Figure, Panel, check_finite, color, finite_runs, legend, linear_range, render, text};
+use crate::figure::{
+    Draw, FONT, Figure, LinearChart, Panel, check_finite, color, dashed_key, finite_runs, legend, line, linear_chart,
+    linear_range, render, text, titled,
+};
 use crate::{Error, Result, Trajectory};
 
 /// Legend entries beyond this many series are left out (the lines are still drawn).
@@ -80,26 +83,16 @@ fn steps(values: &[Vec<f64>], i: usize, time: impl Fn(usize) -> f64) -> Vec<(f64
     pts
 }
 
-impl Draw for Plot<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> std::result::Result<Figure, String> {
-        let traj = self.0;
-        root.fill(&WHITE).map_err(text)?;
-        let title_height = 34;
-        let (top, body) = root.split_vertically(title_height);
-        top.titled(&traj.title, (FONT, 22)).map_err(text)?;
-        let areas = body.split_evenly((2, 1));
-        let x = (0.0, self.time(traj.xs.len() - 1).max(f64::MIN_POSITIVE));
-        let mut panels = Vec::new();
-
-        // States.
-        let y = linear_range(traj.xs.iter().flatten().copied());
-        let mut chart = ChartBuilder::on(&areas[0])
-            .caption("states", (FONT, 16))
-            .margin(10)
-            .x_label_area_size(36)
-            .y_label_area_size(64)
-            .build_cartesian_2d(x.0..x.1, y.0..y.1)
-            .map_err(text)?;
+impl Plot<'_> {
+    /// A panel over the time axis `x` with its mesh drawn.
+    fn panel<'a, DB: DrawingBackend>(
+        &self,
+        area: &'a DrawingArea<DB, Shift>,
+        caption: &str,
+        x: (f64, f64),
+        y: (f64, f64),
+    ) -> std::result::Result<LinearChart<'a, DB>, String> {
+        let mut chart = linear_chart(area, caption, x, y, 64)?;
         chart
             .configure_mesh()
             .x_desc(self.x_desc())
@@ -107,50 +100,46 @@ impl Draw for Plot<'_> {
             .label_style((FONT, 13))
             .draw()
             .map_err(text)?;
-        let nx = traj.xs[0].len();
-        for i in 0..nx {
-            let c = color(i);
-            let pts: Vec<_> = traj.xs.iter().enumerate().map(|(t, v)| (self.time(t), v[i])).collect();
-            let s = chart
-                .draw_series(LineSeries::new(pts, c.stroke_width(2)))
-                .map_err(text)?;
-            if i < MAX_LEGEND {
-                s.label(format!("x[{i}]"))
-                    .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
-            }
+        Ok(chart)
+    }
+
+    /// The states, one line each.
+    fn states<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Shift>,
+        x: (f64, f64),
+    ) -> std::result::Result<Panel, String> {
+        let xs = &self.0.xs;
+        let y = linear_range(xs.iter().flatten().copied());
+        let mut chart = self.panel(area, "states", x, y)?;
+        for i in 0..xs[0].len() {
+            let pts = xs.iter().enumerate().map(|(t, v)| (self.time(t), v[i])).collect();
+            line(&mut chart, pts, color(i), (i < MAX_LEGEND).then(|| format!("x[{i}]")))?;
         }
         legend(&mut chart, SeriesLabelPosition::UpperRight, 12)?;
-        panels.push(Panel {
+        Ok(Panel {
             title: "states".into(),
             x,
             y,
             log_y: false,
-        });
+        })
+    }
 
-        // Controls and their bounds.
-        let finite_bounds = traj.u_lower.iter().chain(&traj.u_upper).flatten().copied();
+    /// The controls as steps, over their finite bounds, dashed in the same colours.
+    fn controls<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, Shift>,
+        x: (f64, f64),
+    ) -> std::result::Result<Panel, String> {
+        let traj = self.0;
+        let bounds = [&traj.u_lower, &traj.u_upper];
+        let finite_bounds = bounds.iter().copied().flatten().flatten().copied();
         let y = linear_range(traj.us.iter().flatten().copied().chain(finite_bounds));
-        let mut chart = ChartBuilder::on(&areas[1])
-            .caption("controls", (FONT, 16))
-            .margin(10)
-            .x_label_area_size(36)
-            .y_label_area_size(64)
-            .build_cartesian_2d(x.0..x.1, y.0..y.1)
-            .map_err(text)?;
-        chart
-            .configure_mesh()
-            .x_desc(self.x_desc())
-            .x_label_formatter(&|v| self.tick(*v, x.1 - x.0))
-            .label_style((FONT, 13))
-            .draw()
-            .map_err(text)?;
+        let mut chart = self.panel(area, "controls", x, y)?;
         let nu = traj.us.first().map_or(0, Vec::len);
         // Bounds first, so that a control on its bound is drawn over it.
         for i in 0..nu {
-            for bound in [&traj.u_lower, &traj.u_upper] {
-                if bound.is_empty() {
-                    continue;
-                }
+            for bound in bounds.iter().filter(|b| !b.is_empty()) {
                 for seg in finite_runs(steps(bound, i, |t| self.time(t))) {
                     chart
                         .draw_series(DashedLineSeries::new(seg, 8, 5, color(i).stroke_width(2)))
@@ -159,40 +148,29 @@ impl Draw for Plot<'_> {
             }
         }
         for i in 0..nu {
-            let c = color(i);
-            let s = chart
-                .draw_series(LineSeries::new(steps(&traj.us, i, |t| self.time(t)), c.stroke_width(2)))
-                .map_err(text)?;
-            if i < MAX_LEGEND {
-                s.label(format!("u[{i}]"))
-                    .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
-            }
+            let pts = steps(&traj.us, i, |t| self.time(t));
+            line(&mut chart, pts, color(i), (i < MAX_LEGEND).then(|| format!("u[{i}]")))?;
         }
-        let bounded = traj
-            .u_lower
-            .iter()
-            .chain(&traj.u_upper)
-            .flatten()
-            .any(|v| v.is_finite());
-        if bounded {
-            // A legend entry for the dashed bounds.
-            chart
-                .draw_series(std::iter::empty::<PathElement<(f64, f64)>>())
-                .map_err(text)?
-                .label("bounds")
-                .legend(|(x, y)| {
-                    EmptyElement::at((x, y))
-                        + PathElement::new([(0, 0), (8, 0)], BLACK.stroke_width(2))
-                        + PathElement::new([(13, 0), (20, 0)], BLACK.stroke_width(2))
-                });
+        if bounds.iter().copied().flatten().flatten().any(|v| v.is_finite()) {
+            dashed_key(&mut chart, BLACK, "bounds".into())?;
         }
         legend(&mut chart, SeriesLabelPosition::UpperRight, 12)?;
-        panels.push(Panel {
+        Ok(Panel {
             title: "controls".into(),
             x,
             y,
             log_y: false,
-        });
-        Ok(Figure { panels })
+        })
+    }
+}
+
+impl Draw for Plot<'_> {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> std::result::Result<Figure, String> {
+        let body = titled(root, &self.0.title)?;
+        let areas = body.split_evenly((2, 1));
+        let x = (0.0, self.time(self.0.xs.len() - 1).max(f64::MIN_POSITIVE));
+        Ok(Figure {
+            panels: vec![self.states(&areas[0], x)?, self.controls(&areas[1], x)?],
+        })
     }
 }

@@ -264,30 +264,26 @@ fn node_transform(node: roxmltree::Node<'_, '_>) -> Transform {
     m
 }
 
-/// COLLADA: the triangles and polygons (fanned) of every geometry that the visual scene
-/// instantiates, with the nodes' transforms, in metres, z up. Without a visual scene,
-/// every geometry as it is.
-fn read_dae(text: &str) -> Result<Triangles, String> {
-    let doc = roxmltree::Document::parse(text).map_err(|e| format!("not XML: {e}"))?;
-    let by_id = |id: &str| {
-        doc.descendants()
-            .find(|n| n.attribute("id") == Some(id.trim_start_matches('#')))
-    };
-    let unit = doc
-        .descendants()
-        .find(|n| n.has_tag_name("unit"))
-        .and_then(|n| n.attribute("meter"))
-        .and_then(|m| m.parse::<f64>().ok())
-        .unwrap_or(1.0);
-    let y_up = doc
-        .descendants()
-        .find(|n| n.has_tag_name("up_axis"))
-        .is_some_and(|n| n.text() == Some("Y_UP"));
-    // The geometries to read, with their world transforms.
-    let mut instances: Vec<(roxmltree::Node<'_, '_>, Transform)> = Vec::new();
-    fn walk<'a, 'i>(node: roxmltree::Node<'a, 'i>, parent: Transform, out: &mut Vec<(String, Transform)>) {
+type Node<'a, 'i> = roxmltree::Node<'a, 'i>;
+
+/// The element of `doc` whose `id` is `id` (a leading `#` ignored).
+fn by_id<'a, 'i>(doc: &'a roxmltree::Document<'i>, id: &str) -> Option<Node<'a, 'i>> {
+    doc.descendants()
+        .find(|n| n.attribute("id") == Some(id.trim_start_matches('#')))
+}
+
+/// The whitespace-separated integers of an element's text (empty without the element).
+fn integers<T: std::str::FromStr>(node: Option<Node<'_, '_>>) -> Vec<T> {
+    let text = node.and_then(|n| n.text()).unwrap_or("");
+    text.split_whitespace().filter_map(|s| s.parse().ok()).collect()
+}
+
+/// The geometries that the visual scene instantiates, with the world transforms of
+/// their nodes; without a visual scene, every geometry as it is.
+fn scene_instances<'a, 'i>(doc: &'a roxmltree::Document<'i>) -> Vec<(Node<'a, 'i>, Transform)> {
+    fn walk(node: Node<'_, '_>, parent: Transform, out: &mut Vec<(String, Transform)>) {
         let m = compose(&parent, &node_transform(node));
-        for child in node.children().filter(roxmltree::Node::is_element) {
+        for child in node.children().filter(Node::is_element) {
             match child.tag_name().name() {
                 "instance_geometry" => out.push((child.attribute("url").unwrap_or("").to_string(), m)),
                 "node" => walk(child, m, out),
@@ -295,93 +291,87 @@ fn read_dae(text: &str) -> Result<Triangles, String> {
             }
         }
     }
+    let Some(scene) = doc.descendants().find(|n| n.has_tag_name("visual_scene")) else {
+        let geometries = doc.descendants().filter(|n| n.has_tag_name("geometry"));
+        return geometries.map(|g| (g, IDENTITY)).collect();
+    };
     let mut urls = Vec::new();
-    if let Some(scene) = doc.descendants().find(|n| n.has_tag_name("visual_scene")) {
-        for node in scene.children().filter(|n| n.has_tag_name("node")) {
-            walk(node, IDENTITY, &mut urls);
-        }
-        for (url, m) in urls {
-            if let Some(g) = by_id(&url) {
-                instances.push((g, m));
-            }
-        }
-    } else {
-        instances = doc
-            .descendants()
-            .filter(|n| n.has_tag_name("geometry"))
-            .map(|g| (g, IDENTITY))
-            .collect();
+    for node in scene.children().filter(|n| n.has_tag_name("node")) {
+        walk(node, IDENTITY, &mut urls);
     }
-    let (mut vertices, mut triangles) = (Vec::new(), Vec::new());
-    for (geometry, m) in instances {
-        for prims in geometry
-            .descendants()
-            .filter(|n| n.has_tag_name("triangles") || n.has_tag_name("polylist"))
-        {
-            let inputs: Vec<_> = prims.children().filter(|n| n.has_tag_name("input")).collect();
-            let stride = inputs
-                .iter()
-                .filter_map(|i| i.attribute("offset")?.parse::<usize>().ok())
-                .max()
-                .unwrap_or(0)
-                + 1;
-            let vertex_input = inputs
-                .iter()
-                .find(|i| i.attribute("semantic") == Some("VERTEX"))
-                .ok_or("a primitive without VERTEX input")?;
-            let offset: usize = vertex_input
-                .attribute("offset")
-                .and_then(|o| o.parse().ok())
-                .unwrap_or(0);
-            let positions_id = by_id(vertex_input.attribute("source").unwrap_or(""))
-                .and_then(|v| v.children().find(|i| i.attribute("semantic") == Some("POSITION")))
-                .and_then(|i| i.attribute("source"))
-                .ok_or("VERTEX input without POSITION")?;
-            let floats = by_id(positions_id)
-                .and_then(|s| s.descendants().find(|n| n.has_tag_name("float_array")))
-                .map(|a| numbers(a.text().unwrap_or("")))
-                .ok_or("POSITION source without float_array")?;
-            let base = vertices.len() as u32;
-            for p in floats.chunks_exact(3) {
-                let w = [0, 1, 2].map(|i| unit * (m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3]));
-                vertices.push(if y_up { [w[0], -w[2], w[1]] } else { w });
-            }
-            let count = (floats.len() / 3) as u32;
-            let idx: Vec<u32> = prims
-                .children()
-                .find(|n| n.has_tag_name("p"))
-                .map(|p| {
-                    p.text()
-                        .unwrap_or("")
-                        .split_whitespace()
-                        .filter_map(|s| s.parse().ok())
-                        .collect()
-                })
-                .unwrap_or_default();
-            let corners: Vec<u32> = idx.iter().skip(offset).step_by(stride).copied().collect();
-            if corners.iter().any(|&i| i >= count) {
-                return Err("a vertex index out of range".into());
-            }
-            let sizes: Vec<usize> = match prims.children().find(|n| n.has_tag_name("vcount")) {
-                Some(v) => v
-                    .text()
-                    .unwrap_or("")
-                    .split_whitespace()
-                    .filter_map(|s| s.parse().ok())
-                    .collect(),
-                None => vec![3; corners.len() / 3],
-            };
-            let mut at = 0;
-            for n in sizes {
-                let poly = corners.get(at..at + n).ok_or("fewer indices than the polygon sizes")?;
-                for k in 1..n.saturating_sub(1) {
-                    triangles.push([base + poly[0], base + poly[k], base + poly[k + 1]]);
-                }
-                at += n;
-            }
+    urls.into_iter()
+        .filter_map(|(url, m)| Some((by_id(doc, &url)?, m)))
+        .collect()
+}
+
+/// Appends one `<triangles>` or `<polylist>` element: its positions through `m` (scaled
+/// by `unit`, turned to z up when `y_up`) and its polygons fanned into triangles.
+fn read_primitive(
+    doc: &roxmltree::Document<'_>,
+    prims: Node<'_, '_>,
+    (m, unit, y_up): (&Transform, f64, bool),
+    (vertices, triangles): &mut Triangles,
+) -> Result<(), String> {
+    let inputs: Vec<_> = prims.children().filter(|n| n.has_tag_name("input")).collect();
+    let offset_of = |i: &Node<'_, '_>| i.attribute("offset").and_then(|o| o.parse::<usize>().ok());
+    let stride = inputs.iter().filter_map(offset_of).max().unwrap_or(0) + 1;
+    let vertex_input = inputs
+        .iter()
+        .find(|i| i.attribute("semantic") == Some("VERTEX"))
+        .ok_or("a primitive without VERTEX input")?;
+    let offset = offset_of(vertex_input).unwrap_or(0);
+    let positions_id = by_id(doc, vertex_input.attribute("source").unwrap_or(""))
+        .and_then(|v| v.children().find(|i| i.attribute("semantic") == Some("POSITION")))
+        .and_then(|i| i.attribute("source"))
+        .ok_or("VERTEX input without POSITION")?;
+    let floats = by_id(doc, positions_id)
+        .and_then(|s| s.descendants().find(|n| n.has_tag_name("float_array")))
+        .map(|a| numbers(a.text().unwrap_or("")))
+        .ok_or("POSITION source without float_array")?;
+    let base = vertices.len() as u32;
+    for p in floats.chunks_exact(3) {
+        let w = [0, 1, 2].map(|i| unit * (m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3]));
+        vertices.push(if y_up { [w[0], -w[2], w[1]] } else { w });
+    }
+    let idx: Vec<u32> = integers(prims.children().find(|n| n.has_tag_name("p")));
+    let corners: Vec<u32> = idx.iter().skip(offset).step_by(stride).copied().collect();
+    if corners.iter().any(|&i| i as usize >= floats.len() / 3) {
+        return Err("a vertex index out of range".into());
+    }
+    let sizes: Vec<usize> = match prims.children().find(|n| n.has_tag_name("vcount")) {
+        Some(v) => integers(Some(v)),
+        None => vec![3; corners.len() / 3],
+    };
+    let mut at = 0;
+    for n in sizes {
+        let poly = corners.get(at..at + n).ok_or("fewer indices than the polygon sizes")?;
+        for k in 1..n.saturating_sub(1) {
+            triangles.push([base + poly[0], base + poly[k], base + poly[k + 1]]);
+        }
+        at += n;
+    }
+    Ok(())
+}
+
+/// COLLADA: the triangles and polygons (fanned) of every geometry that the visual scene
+/// instantiates, with the nodes' transforms, in metres, z up. Without a visual scene,
+/// every geometry as it is.
+fn read_dae(text: &str) -> Result<Triangles, String> {
+    let doc = roxmltree::Document::parse(text).map_err(|e| format!("not XML: {e}"))?;
+    let first = |tag: &str| doc.descendants().find(|n| n.has_tag_name(tag));
+    let unit = first("unit")
+        .and_then(|n| n.attribute("meter"))
+        .and_then(|m| m.parse::<f64>().ok())
+        .unwrap_or(1.0);
+    let y_up = first("up_axis").is_some_and(|n| n.text() == Some("Y_UP"));
+    let mut mesh = (Vec::new(), Vec::new());
+    for (geometry, m) in scene_instances(&doc) {
+        let prims = geometry.descendants();
+        for p in prims.filter(|n| n.has_tag_name("triangles") || n.has_tag_name("polylist")) {
+            read_primitive(&doc, p, (&m, unit, y_up), &mut mesh)?;
         }
     }
-    Ok((vertices, triangles))
+    Ok(mesh)
 }
 
 /// Merges vertices that share a cell of a grid over the bounding box, finer until the
