@@ -70,6 +70,7 @@ impl ProfileSolver {
                 tol: Some(args.tol),
                 max_iters: Some(max_iters),
                 threads: Some(1),
+                hessian: None,
             },
             ..SolverArgs::new(self.kind)
         };

@@ -310,6 +310,7 @@ fn peers_solvers(args: &PeersArgs) -> Vec<(&'static str, SolverArgs)> {
         tol: Some(args.tol),
         max_iters: Some(args.max_iters),
         threads: Some(1),
+        hessian: None,
     };
     let proxddp = |label, acceptance, active_set_iters| {
         let proxddp = ProxDdpArgs {

@@ -11,11 +11,11 @@
 use clap::ValueEnum;
 use clap::builder::PossibleValue;
 use gharial::error::Num;
-use gharial::solvers::SolverOptions;
 use gharial::solvers::csqp::CsqpOptions;
 use gharial::solvers::ddp::{DdpOptions, DdpVariant};
 use gharial::solvers::log::Table;
 use gharial::solvers::proxddp::{ACTIVE_SET_ITERS_MAX, Merit, ProxDdpOptions, Rollout, StepAcceptance};
+use gharial::solvers::{HessianApprox, SolverOptions};
 use gharial_problems::Example;
 use serde_json::{Value, json};
 
@@ -200,6 +200,29 @@ pub struct CommonArgs {
     /// Threads for stage-wise evaluation.
     #[arg(long, value_parser = positive_int)]
     pub threads: Option<usize>,
+    /// Hessian of the Newton / backward-pass system: `gauss-newton` (cost Hessians only;
+    /// iLQR for the DDP family) or `exact` (with the dynamics' and constraints' second
+    /// derivatives where the models provide them; classical DDP for the DDP family).
+    #[arg(long, value_enum)]
+    pub hessian: Option<HessianArg>,
+}
+
+/// The values of `--hessian`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum HessianArg {
+    /// Cost Hessians only.
+    GaussNewton,
+    /// With the models' second derivatives.
+    Exact,
+}
+
+impl From<HessianArg> for HessianApprox {
+    fn from(h: HessianArg) -> Self {
+        match h {
+            HessianArg::GaussNewton => HessianApprox::GaussNewton,
+            HessianArg::Exact => HessianApprox::Exact,
+        }
+    }
 }
 
 impl CommonArgs {
@@ -323,9 +346,13 @@ impl SolverArgs {
         match &mut options {
             SolverOptions::ProxDdp(o) => {
                 self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads);
+                o.hessian = self.common.hessian.map_or(o.hessian, Into::into);
                 self.proxddp.apply(o);
             }
-            SolverOptions::Ddp(o) => self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads),
+            SolverOptions::Ddp(o) => {
+                self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads);
+                o.hessian = self.common.hessian.map_or(o.hessian, Into::into);
+            }
             SolverOptions::Csqp(o) => {
                 // Single-threaded: --threads is refused by `check`.
                 let mut threads = 1;
@@ -446,12 +473,18 @@ impl Fields {
 const TOL: Flag = ("--tol", |a| a.common.tol.is_some());
 const MAX_ITERS: Flag = ("--max-iters", |a| a.common.max_iters.is_some());
 const THREADS: Flag = ("--threads", |a| a.common.threads.is_some());
+const HESSIAN: Flag = ("--hessian", |a| a.common.hessian.is_some());
 
 const PROXDDP_FIELDS: &[Field<ProxDdpOptions>] = &[
     Field {
         name: "tol",
         value: |o| Setting::Real(o.tol),
         flag: Some(TOL),
+    },
+    Field {
+        name: "hessian",
+        value: |o| Setting::Name(format!("{:?}", o.hessian)),
+        flag: Some(HESSIAN),
     },
     Field {
         name: "mu_init",
@@ -509,7 +542,7 @@ const DDP_FIELDS: &[Field<DdpOptions>] = &[
     Field {
         name: "hessian",
         value: |o| Setting::Name(format!("{:?}", o.hessian)),
-        flag: None,
+        flag: Some(HESSIAN),
     },
     Field {
         name: "reg_init",

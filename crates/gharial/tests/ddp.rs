@@ -1,9 +1,13 @@
-//! The DDP family (DDP, FDDP, box-DDP, box-FDDP) on linear-quadratic problems, against
+//! The DDP family (DDP, FDDP, box-DDP, box-FDDP) on linear-quadratic problems and a small
+//! nonlinear one (the exact Hessian), against
 //! independent references: the dense KKT solve of the exact problem, the Clarabel optimum
-//! of box-constrained problems, and the solver-independent KKT residuals of the result.
+//! of box-constrained problems, finite-difference Newton steps, and the solver-independent
+//! KKT residuals of the result.
 
 #[path = "support/lq_ocp.rs"]
 mod lq_ocp;
+#[path = "support/pendulum.rs"]
+mod pendulum;
 
 use std::sync::Arc;
 
@@ -294,4 +298,110 @@ fn an_unreachable_tolerance_stalls_instead_of_iterating_forever() {
         assert_eq!(sol.status, Status::Stalled, "tol {tol:e}");
         assert!(sol.iterations <= 3, "tol {tol:e}: {} iterations", sol.iterations);
     }
+}
+
+fn exact(variant: DdpVariant) -> DdpOptions {
+    DdpOptions::new(variant).with(|o| o.hessian = gharial::solvers::HessianApprox::Exact)
+}
+
+/// With one stage, classical DDP's step is Newton's step on `u ↦ ℓ(x_0, u) + ℓ_N(φ(x_0, u))`
+/// (the Q-function is the whole objective): checked against the Newton step of finite
+/// differences of the cost; iLQR's Gauss-Newton step, which leaves out `V_x'·φ_uu`, is not.
+#[test]
+fn exact_ddp_takes_the_newton_step_of_a_one_stage_problem() {
+    let p = pendulum::euler_swing_up(1, [2.5, 1.0]);
+    let u0 = -0.5;
+    let objective = |u: f64| {
+        let us = vec![vec![u]];
+        let xs = rollout(&p, &us);
+        gharial::problem::ProblemData::new(&p, 1)
+            .unwrap()
+            .evaluate(&p, &xs, &us)
+    };
+    // Newton step from central differences, Richardson-extrapolated in the step h.
+    let newton_fd = |h: f64| {
+        let (jm, j0, jp) = (objective(u0 - h), objective(u0), objective(u0 + h));
+        u0 - ((jp - jm) / (2.0 * h)) / ((jp - 2.0 * j0 + jm) / (h * h))
+    };
+    let newton = (4.0 * newton_fd(5e-3) - newton_fd(1e-2)) / 3.0;
+    let us = vec![vec![u0]];
+    let xs = rollout(&p, &us);
+    let step = |opts: DdpOptions| solve(&p, opts.with(|o| o.max_iters = 1), &xs, &us).us[0][0];
+    let ddp = step(exact(DdpVariant::Ddp));
+    assert!(
+        (ddp - newton).abs() < 1e-8 * (1.0 + newton.abs()),
+        "DDP {ddp} vs Newton {newton}"
+    );
+    let ilqr = step(DdpOptions::new(DdpVariant::Ddp));
+    assert!((ilqr - newton).abs() > 1e-3, "iLQR {ilqr} vs Newton {newton}");
+}
+
+/// On the swing-up, DDP (from a rollout) and FDDP (from states off it) with the exact
+/// Hessian converge to the optimum their Gauss-Newton versions reach from the same guess:
+/// the KKT point of the problem (solver-independent residuals).
+#[test]
+fn exact_ddp_and_fddp_reach_the_gauss_newton_optimum() {
+    let p = pendulum::euler_swing_up(60, [0.0, 0.0]);
+    let us = vec![vec![0.0]; 60];
+    let xs = rollout(&p, &us);
+    let ddp = solve(&p, DdpOptions::new(DdpVariant::Ddp), &xs, &us);
+    // Near that optimum (the problem has several local ones): states off its trajectory
+    // (gaps of about 0.05) and controls 10 % smaller.
+    let xs_off: Vec<Vec<f64>> = (ddp.xs.iter().enumerate())
+        .map(|(t, x)| vec![x[0] + 0.05 * (t as f64).sin(), x[1]])
+        .collect();
+    let us_off: Vec<Vec<f64>> = ddp.us.iter().map(|u| vec![0.9 * u[0]]).collect();
+    let tight = |o: DdpOptions| o.with(|o| o.tol = 1e-7);
+    for (variant, xs, us) in [(DdpVariant::Ddp, &xs, &us), (DdpVariant::Fddp, &xs_off, &us_off)] {
+        let reference = solve(&p, tight(DdpOptions::new(variant)), xs, us);
+        let sol = solve(&p, tight(exact(variant)), xs, us);
+        for s in [&reference, &sol] {
+            assert_eq!(s.status, Status::Converged, "{variant:?}");
+            let kkt = kkt_residuals(&p, &s.xs, &s.us, &s.lambdas, &s.nus).unwrap();
+            assert!(kkt.max() < 1e-5, "{variant:?}: {kkt:?}");
+        }
+        let rel = (sol.cost - reference.cost).abs() / reference.cost;
+        assert!(rel < 1e-8, "{variant:?}: cost {} vs {}", sol.cost, reference.cost);
+        for (a, b) in sol.us.iter().zip(&reference.us) {
+            assert!((a[0] - b[0]).abs() < 1e-4, "{variant:?}: {a:?} vs {b:?}");
+        }
+        eprintln!(
+            "{variant:?}: exact Hessian {} iterations, Gauss-Newton {}, cost {}",
+            sol.iterations, reference.iterations, sol.cost
+        );
+    }
+}
+
+/// The exact Hessian is refused where it is not available: SQP, dynamics without
+/// vector-Hessian products, implicit dynamics.
+#[test]
+fn exact_hessian_is_refused_where_it_is_not_available() {
+    let nonlinear = pendulum::euler_swing_up(5, [0.0, 0.0]);
+    let mut sqp = Ddp::new(exact(DdpVariant::Sqp));
+    let e = sqp.setup(&nonlinear).unwrap_err().to_string();
+    assert!(e.contains("Gauss-Newton"), "{e}");
+    let lq = random_lq(3, 2, 5, 11);
+    let (implicit, _) = implicit_euler_ocp(&lq, 0.1);
+    let e = Ddp::new(exact(DdpVariant::Fddp))
+        .setup(&implicit)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("stage 0") && e.contains("implicit"), "{e}");
+    // An integrator over an ODE gives no vector-Hessian product.
+    let ode = ode_problem();
+    let e = Ddp::new(exact(DdpVariant::Ddp)).setup(&ode).unwrap_err().to_string();
+    assert!(e.contains("stage 0") && e.contains("vector-Hessian"), "{e}");
+}
+
+/// A pendulum ODE integrated by RK4 (hand-written, without second derivatives).
+fn ode_problem() -> Problem {
+    use gharial::costs::QuadraticStateCost;
+    use gharial::dynamics::{Dynamics, ExplicitRungeKutta};
+    use gharial::spaces::{Manifold, VectorSpace};
+    let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(2));
+    let ode = Arc::new(pendulum::Pendulum { space: space.clone() });
+    let phi = Dynamics::Explicit(Arc::new(ExplicitRungeKutta::rk4(ode, 0.05).unwrap()));
+    let cost = Arc::new(QuadraticStateCost::diagonal(space.clone(), &[0.0, 0.0], &[1.0, 1.0], 1).unwrap());
+    let term = Arc::new(QuadraticStateCost::diagonal(space, &[0.0, 0.0], &[1.0, 1.0], 0).unwrap());
+    Problem::new(&[0.1, 0.0], vec![StageModel::new(cost, phi).unwrap(); 4], term).unwrap()
 }

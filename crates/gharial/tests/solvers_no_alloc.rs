@@ -131,6 +131,25 @@ fn ddp_family_solve_does_not_allocate_after_setup() {
 }
 
 #[test]
+fn exact_hessian_ddp_solve_does_not_allocate_after_setup() {
+    let p = pendulum::euler_swing_up(30, [0.0, 0.0]);
+    let (xs, us) = guess(&p);
+    for variant in DdpVariant::ALL.into_iter().filter(|v| *v != DdpVariant::Sqp) {
+        let mut opts = DdpOptions::new(variant);
+        opts.hessian = HessianApprox::Exact;
+        opts.max_iters = 30;
+        let mut solver = Ddp::new(opts);
+        solver.setup(&p).unwrap();
+        let mut iterations = 0;
+        let count = counting_alloc::allocations(|| {
+            iterations = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().iterations;
+        });
+        assert!(iterations > 3, "{}: the solves must do real work", variant.name());
+        assert_eq!(count, 0, "exact Hessian {}", variant.name());
+    }
+}
+
+#[test]
 fn proxddp_solve_does_not_allocate_after_setup() {
     for implicit in [false, true] {
         let p = problem(implicit, 2);

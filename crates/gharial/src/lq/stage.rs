@@ -904,6 +904,52 @@ impl RiccatiStage {
         self.qmat.as_ref()
     }
 
+    /// Adds `[H_xx H_xu; H_xuᵀ H_uu]` to the Q-function's Hessian after
+    /// [`RiccatiSolver::backward_with`](super::RiccatiSolver::backward_with) computed it
+    /// and before the control law factors it: second-order terms that depend on the next
+    /// value function, such as classical DDP's `V_x'·f_xx` (Tassa et al. 2012).
+    ///
+    /// # Errors
+    /// [`LqError::Dimension`] if a block does not have this stage's dimensions.
+    pub fn add_q_hessian(
+        &mut self,
+        H_xx: MatRef<'_, f64>,
+        H_xu: MatRef<'_, f64>,
+        H_uu: MatRef<'_, f64>,
+    ) -> Result<(), LqError> {
+        let (nx, nu) = (self.nx, self.nu);
+        for (field, m, shape) in [
+            ("H_xx", H_xx, (nx, nx)),
+            ("H_xu", H_xu, (nx, nu)),
+            ("H_uu", H_uu, (nu, nu)),
+        ] {
+            if (m.nrows(), m.ncols()) != shape {
+                return Err(LqError::Dimension {
+                    knot: self.index,
+                    field,
+                    expected: shape,
+                    got: (m.nrows(), m.ncols()),
+                });
+            }
+        }
+        let mut q = self.qmat.as_mut();
+        for j in 0..nx {
+            for i in 0..nx {
+                q[(i, j)] += H_xx[(i, j)];
+            }
+        }
+        for j in 0..nu {
+            for i in 0..nx {
+                q[(i, nx + j)] += H_xu[(i, j)];
+                q[(nx + j, i)] += H_xu[(i, j)];
+            }
+            for i in 0..nu {
+                q[(nx + i, nx + j)] += H_uu[(i, j)];
+            }
+        }
+        Ok(())
+    }
+
     /// `Q_xx` (`nx x nx`).
     pub fn Q_xx(&self) -> MatRef<'_, f64> {
         self.qmat.as_ref().submatrix(0, 0, self.nx, self.nx)

@@ -330,7 +330,15 @@ impl StageData {
         }
     }
 
-    fn second_order(&mut self, stage: &StageModel, x: &[f64], u: &[f64], y: &[f64], lambda: &[f64], nu: &[f64]) {
+    pub(crate) fn second_order(
+        &mut self,
+        stage: &StageModel,
+        x: &[f64],
+        u: &[f64],
+        y: &[f64],
+        lambda: &[f64],
+        nu: &[f64],
+    ) {
         match (&stage.dynamics, &mut self.dynamics) {
             (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
                 if m.has_vhp() {

@@ -33,3 +33,46 @@ impl Ode for Pendulum {
         d.ju[(1, 0)] = 1.0;
     }
 }
+
+/// A pendulum `(θ, ω)` on `R²` by semi-implicit Euler with a saturating actuator,
+/// `ω⁺ = ω + dt (u - 0.1 u³ - g sin θ)`,
+/// `θ⁺ = θ + dt ω⁺`, through the dual-number adapter (which gives the vector-Hessian
+/// products of the exact Hessian).
+pub struct EulerPendulum {
+    pub dt: f64,
+}
+
+impl gharial::autodiff::AutoDynamicsFn for EulerPendulum {
+    fn nx(&self) -> usize {
+        2
+    }
+    fn nu(&self) -> usize {
+        1
+    }
+    fn eval<D: gharial::autodiff::ManifoldScalar>(&self, x: &[D], u: &[D], y: &mut [D]) {
+        y[1] = x[1] + (u[0] - u[0].powi(3) * 0.1 - x[0].sin() * 9.81) * self.dt;
+        y[0] = x[0] + y[1] * self.dt;
+    }
+}
+
+/// Swing-up of [`EulerPendulum`] towards `θ = π` in `n` steps of 0.05 s: quadratic
+/// state and control costs, terminal weight 10.
+pub fn euler_swing_up(n: usize, x0: [f64; 2]) -> gharial::problem::Problem {
+    use gharial::autodiff::AutoDiff;
+    use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
+    use gharial::dynamics::Dynamics;
+    use gharial::spaces::{Manifold, VectorSpace};
+    let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(2));
+    let phi = AutoDiff::explicit_dynamics(space.clone(), space.clone(), EulerPendulum { dt: 0.05 }).unwrap();
+    let target = [std::f64::consts::PI, 0.0];
+    let state = Arc::new(QuadraticStateCost::diagonal(space.clone(), &target, &[0.05, 0.01], 1).unwrap());
+    let control = Arc::new(QuadraticControlCost::diagonal(space.as_ref(), &[0.0], &[0.02]).unwrap());
+    let stack = CostStack::new(space.as_ref(), 1)
+        .with("x", state, 1.0)
+        .unwrap()
+        .with("u", control, 1.0)
+        .unwrap();
+    let stage = gharial::problem::StageModel::new(Arc::new(stack), Dynamics::Explicit(Arc::new(phi))).unwrap();
+    let term = Arc::new(QuadraticStateCost::diagonal(space, &target, &[10.0, 10.0], 0).unwrap());
+    gharial::problem::Problem::new(&x0, vec![stage; n], term).unwrap()
+}

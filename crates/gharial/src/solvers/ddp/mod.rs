@@ -12,6 +12,9 @@
 //!   definite raises `ρ` tenfold and repeats the pass. Box variants replace the stage
 //!   solve of bounded stages by the projected-Newton box QP ([`crate::solvers::boxqp`]):
 //!   `k` its solution, `K = -H_ff⁻¹ Q_fx` on the free controls (Tassa et al. 2014).
+//!   With [`crate::solvers::HessianApprox::Exact`] and closed gaps, each stage's
+//!   Q-function Hessian gets `V_x'·f_zz` (classical DDP) from the next value gradient
+//!   before the stage's gains are computed.
 //! - *Expected improvement* of the step `α`: `ΔV_exp = α(Δ₁ + ½αΔ₂)` with
 //!   `Δ₁ = -Σ Q_uᵀk`, `Δ₂ = -Σ kᵀ(Q_uu + ρ)k` for DDP; FDDP adds the gap terms of
 //!   Mastalli et al. (2020), (19)-(20): `Δ₁ += -Σ V_xᵀ fs + Δ_v`, `Δ₂ += Σ fsᵀV_xx fs - 2Δ_v`,
@@ -357,7 +360,7 @@ fn backward(
     }
     loop {
         ws.set_reg(*reg);
-        match ws.backward(*reg, &opts.box_qp) {
+        match ws.backward(problem, *reg, &opts.box_qp) {
             Ok(()) => return Ok(ws.expected(*reg)),
             Err(LqError::NonFinite { .. }) => return Err(Status::NonFinite),
             Err(_) => {

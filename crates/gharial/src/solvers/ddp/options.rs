@@ -87,8 +87,11 @@ pub struct DdpOptions {
     /// Iterations at most (default 300).
     pub max_iters: usize,
     /// Hessian of the backward pass: Gauss-Newton (iLQR, the default) or with the
-    /// dynamics' second derivatives weighted by the value gradient (DDP). The exact
-    /// terms need dynamics with vector-Hessian products.
+    /// dynamics' second derivatives weighted by the next value gradient, `V_x'·f_zz`
+    /// (classical DDP, Tassa et al. 2012), added while the gaps are closed. The exact
+    /// terms need explicit dynamics with vector-Hessian products onto a vector space (the
+    /// dual-number adapter [`crate::autodiff::AutoDiff::explicit_dynamics`], or a model's
+    /// own `vhp`); `setup` refuses other problems, and SQP takes Gauss-Newton only.
     pub hessian: HessianApprox,
     /// Initial Levenberg-Marquardt regularisation, added to `Q_uu` and `V_xx`
     /// (default 0: exact steps while `Q_uu` is positive definite, so that one step solves

@@ -6,10 +6,11 @@ use faer::{Accum, Mat};
 
 use super::bounds::ControlBounds;
 use super::options::{DdpOptions, DdpVariant};
+use crate::dynamics::Dynamics;
 use crate::error::{Error, Result};
 use crate::linalg::{dot, matvec, norm_inf, slice, slice_mut};
 use crate::lq::{LqError, LqProblem, LqSolution, RiccatiSolver, RiccatiStage};
-use crate::problem::{InitialCondition, Problem, ProblemData, StageData, StageModel};
+use crate::problem::{DynamicsData, InitialCondition, Problem, ProblemData, StageData, StageModel};
 use crate::solvers::boxqp::{BoxQp, BoxQpOptions};
 use crate::solvers::skeleton::{Receding, SqpFilter, copy_stage_model, copy_trajectory, lq_for};
 use crate::solvers::{HessianApprox, InitialGuess};
@@ -75,6 +76,39 @@ pub(super) struct Workspace {
     /// Scratch of the initial gap of a trial.
     wu_x0: Vec<f64>,
     pub filter: SqpFilter,
+    /// Exact Hessian: whether the backward pass adds `V_x'·f_zz`, and the next value
+    /// gradients `V_x'` at the zero step that weigh it.
+    exact: bool,
+    vx_next: Vec<Vec<f64>>,
+}
+
+/// Checks that the exact Hessian `V_x'·f_zz` (classical DDP) is available on every stage
+/// of the horizon and the queue: explicit dynamics with vector-Hessian products onto a
+/// vector space (where the next co-state is the value gradient `p + P f` of the knot); SQP
+/// takes the Gauss-Newton Hessian only.
+fn check_exact_hessian(problem: &Problem, queue: &[StageModel], variant: DdpVariant) -> Result<()> {
+    let name = variant.name();
+    if variant == DdpVariant::Sqp {
+        return Err(Error::option(
+            "hessian",
+            format!("{name} implements the Gauss-Newton Hessian only"),
+        ));
+    }
+    for (t, stage) in problem.stages().iter().chain(queue).enumerate() {
+        let why = match &stage.dynamics {
+            Dynamics::Implicit(_) => "its dynamics are implicit",
+            Dynamics::Explicit(m) if !m.has_vhp() => "its dynamics provide no vector-Hessian product",
+            Dynamics::Explicit(_) if !stage.space_next().is_vector_space() => "its next state is not in a vector space",
+            Dynamics::Explicit(_) => continue,
+        };
+        return Err(Error::option(
+            "hessian",
+            format!(
+                "{name} with the exact Hessian: stage {t} cannot give V_x'·f_zz because {why} (use the Gauss-Newton Hessian)"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Refuses constraints (DDP and FDDP handle none), in the horizon or the queue.
@@ -123,11 +157,9 @@ impl Workspace {
             check_unconstrained(problem, queue, name)?;
             None
         };
-        if opts.hessian == HessianApprox::Exact {
-            return Err(Error::option(
-                "hessian",
-                format!("{name} implements the Gauss-Newton Hessian only"),
-            ));
+        let exact = opts.hessian == HessianApprox::Exact;
+        if exact {
+            check_exact_hessian(problem, queue, variant)?;
         }
         let n = problem.horizon();
         let s = crate::solvers::Solution::new(problem, 0);
@@ -174,6 +206,8 @@ impl Workspace {
                 .collect(),
             wu_x0: vec![0.0; problem.space(0).ndx()],
             filter: SqpFilter::new(opts.filter_size),
+            exact,
+            vx_next: vecs(&ndxs[1..]),
         })
     }
 
@@ -306,43 +340,63 @@ impl Workspace {
     /// while the gaps are closed. The first step from a guess is the unconstrained one,
     /// clamped in the rollout (crocoddyl's behaviour from a guess it is not told is
     /// feasible): from far away, box-QP steps whose feedback the rollout clamps heavily
-    /// are short.
-    pub fn backward(&mut self, reg: f64, qp_opts: &BoxQpOptions) -> std::result::Result<(), LqError> {
+    /// are short. With the exact Hessian and closed gaps, each stage's Q-function gets
+    /// the dynamics' second derivatives weighted by the next value gradient before its
+    /// control law. While gaps are open the step is Gauss-Newton: the co-state
+    /// `p + P f` that would weigh them grows with the regularisation on `P`, and a
+    /// regularised pass could then never make `Q_uu` positive definite.
+    pub fn backward(
+        &mut self,
+        problem: &Problem,
+        reg: f64,
+        qp_opts: &BoxQpOptions,
+    ) -> std::result::Result<(), LqError> {
         let use_qp = self.feasible && self.iterated && self.bounds.is_some();
+        let exact = self.exact && self.feasible;
         if !use_qp {
             self.qp_used.fill(false);
-            return self.riccati.backward(&self.lq, reg);
+            if !exact {
+                return self.riccati.backward(&self.lq, reg);
+            }
         }
-        let bounds = self.bounds.as_ref().expect("checked above");
+        let bounds = self.bounds.as_ref().filter(|_| use_qp);
         let (qps, qp_used, us) = (&mut self.qps, &mut self.qp_used, &self.us);
         let (hbuf, kbuf, gain_buf) = (&mut self.hbuf, &mut self.kbuf, &mut self.gain_buf);
         let (dlb, dub) = (&mut self.dlb, &mut self.dub);
+        let mut exact = exact.then_some((&mut self.data, &self.xs, &mut self.vx_next, &self.no_nus));
         let n = us.len();
         self.riccati.backward_with(&self.lq, |knot, st, next| {
             let t = st.index();
-            if t == n || !bounds.bounded(t) {
-                if t < n {
-                    qp_used[t] = false;
+            if let (Some((data, xs, vx, nus)), Some(next)) = (exact.as_mut(), next) {
+                add_dynamics_hessian(problem, data, st, next.1, (xs, us), &mut vx[t], &nus[t])?;
+            }
+            match bounds.filter(|b| t < n && b.bounded(t)) {
+                None => {
+                    if t < n {
+                        qp_used[t] = false;
+                    }
+                    st.solve_kkt(knot, next.map(|p| p.0), reg)?;
+                    st.solve_kkt_vectors(knot, next)
                 }
-                st.solve_kkt(knot, next.map(|p| p.0), reg)?;
-                return st.solve_kkt_vectors(knot, next);
+                Some(bounds) => {
+                    qp_used[t] = true;
+                    for j in 0..us[t].len() {
+                        dlb[t][j] = bounds.lb[t][j] - us[t][j];
+                        dub[t][j] = bounds.ub[t][j] - us[t][j];
+                    }
+                    box_law(
+                        st,
+                        &mut qps[t],
+                        &mut hbuf[t],
+                        &mut kbuf[t],
+                        &mut gain_buf[t],
+                        &dlb[t],
+                        &dub[t],
+                        reg,
+                        qp_opts,
+                    )
+                }
             }
-            qp_used[t] = true;
-            for j in 0..us[t].len() {
-                dlb[t][j] = bounds.lb[t][j] - us[t][j];
-                dub[t][j] = bounds.ub[t][j] - us[t][j];
-            }
-            box_law(
-                st,
-                &mut qps[t],
-                &mut hbuf[t],
-                &mut kbuf[t],
-                &mut gain_buf[t],
-                &dlb[t],
-                &dub[t],
-                reg,
-                qp_opts,
-            )
         })
     }
 
@@ -554,6 +608,29 @@ impl Workspace {
             }
         }
     }
+}
+
+/// Classical DDP's second-order dynamics term of stage `t` (Tassa et al. 2012): with the
+/// next value gradient `V_x' = p'` (the gaps are closed; the next state is in a vector
+/// space, so `E = -I` and the co-state is `V_x'`), adds
+/// `V_x'·[f_xx f_xu; f_ux f_uu]` to the Q-function's Hessian.
+fn add_dynamics_hessian(
+    problem: &Problem,
+    data: &mut ProblemData,
+    st: &mut RiccatiStage,
+    p: &[f64],
+    (xs, us): (&[Vec<f64>], &[Vec<f64>]),
+    vx: &mut [f64],
+    nu: &[f64],
+) -> std::result::Result<(), LqError> {
+    let t = st.index();
+    vx.copy_from_slice(p);
+    let sd = &mut data.stages[t];
+    sd.second_order(&problem.stages()[t], &xs[t], &us[t], &xs[t + 1], vx, nu);
+    let DynamicsData::Explicit(d) = &sd.dynamics else {
+        unreachable!("setup refuses implicit dynamics with the exact Hessian")
+    };
+    st.add_q_hessian(d.vhp_xx.as_ref(), d.vhp_xu.as_ref(), d.vhp_uu.as_ref())
 }
 
 /// Box-DDP's control law at one knot (Tassa et al. 2014, Algorithm 2): the box QP on
