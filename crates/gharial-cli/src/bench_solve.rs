@@ -113,17 +113,44 @@ pub struct ExamplesArgs {
     /// Timed solves per problem (at most 10,000).
     #[arg(long, default_value_t = 5, value_parser = count(1, MAX_REPEATS))]
     pub repeats: usize,
+    /// Every solver on every problem it takes (instead of `--solver`), then the matrix of
+    /// problems by solvers.
+    #[arg(long, conflicts_with = "solver")]
+    pub all_solvers: bool,
     // The solver and its options.
     #[command(flatten)]
     pub solver: SolverArgs,
 }
 
+/// One cell of the problems-by-solvers matrix.
+enum Outcome {
+    /// Solved: status, iterations, median milliseconds, largest KKT residual.
+    Solved(String, usize, f64, f64),
+    /// The solver does not take the problem.
+    Skipped,
+    /// The solve failed with an error.
+    Failed,
+}
+
 /// `gharial bench solve`: iterations, time and time per iteration of every example with
-/// the chosen solver (ProxDDP at the example's recommended settings), with the options
-/// given, and the largest KKT residual of the solution recomputed by [`kkt_residuals`].
-/// Problems the solver does not take are listed as skipped, with the reason.
+/// the chosen solver (ProxDDP at the example's recommended settings) or every solver,
+/// with the options given, and the largest KKT residual of the solution recomputed by
+/// [`kkt_residuals`] (the final violation of every constraint and of optimality).
+/// Problems a solver does not take are listed as skipped, with the reason.
 pub fn examples(args: &ExamplesArgs) -> i32 {
-    if let Err(e) = args.solver.check() {
+    let kinds: Vec<SolverKind> = if args.all_solvers {
+        SolverKind::ALL.to_vec()
+    } else {
+        vec![args.solver.solver]
+    };
+    let solvers: Vec<SolverArgs> = kinds
+        .iter()
+        .map(|&solver| SolverArgs {
+            solver,
+            ..args.solver.clone()
+        })
+        .collect();
+    if let Some(e) = solvers.iter().find_map(|s| s.check().err()) {
         eprintln!("gharial bench solve: {e}");
         return 2;
     }
@@ -135,10 +162,47 @@ pub fn examples(args: &ExamplesArgs) -> i32 {
     } else {
         args.problems.clone()
     };
-    out!("solver {}", args.solver.solver.name());
+    if !args.all_solvers {
+        out!("solver {}", args.solver.solver.name());
+    }
+    print_header();
+    let mut code = 0;
+    let mut matrix = Vec::new();
+    for name in &names {
+        let ex = match gharial_problems::build(name) {
+            Ok(e) => e,
+            Err(e) => {
+                eprintln!("gharial bench solve: {e}");
+                return 2;
+            }
+        };
+        let mut row = Vec::new();
+        for solver in &solvers {
+            let outcome = bench_row(name, &ex, solver, args.repeats);
+            let fine = match &outcome {
+                Outcome::Solved(status, ..) => status == "converged",
+                Outcome::Skipped => true,
+                Outcome::Failed => false,
+            };
+            if !fine {
+                code = 1;
+            }
+            row.push(outcome);
+            let _ = std::io::stdout().flush();
+        }
+        matrix.push(row);
+    }
+    if args.all_solvers {
+        print_matrix(&names, &kinds, &matrix);
+    }
+    code
+}
+
+fn print_header() {
     out!(
-        "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12} {:>10} {:>10} {:>15} {:>15} {:>9} {:>9} {:>9}",
+        "{:<20} {:<8} {:>9} {:>10} {:>6} {:>4} {:>12} {:>10} {:>10} {:>15} {:>15} {:>9} {:>9} {:>9}",
         "problem",
+        "solver",
         "rollout",
         "status",
         "iters",
@@ -152,58 +216,79 @@ pub fn examples(args: &ExamplesArgs) -> i32 {
         "dual",
         "KKT"
     );
-    let mut code = 0;
-    for name in &names {
-        let ex = match gharial_problems::build(name) {
-            Ok(e) => e,
-            Err(e) => {
-                eprintln!("gharial bench solve: {e}");
-                return 2;
-            }
-        };
-        let config = args.solver.config(&ex);
-        let rollout = match &config.options {
-            SolverOptions::ProxDdp(o) => format!("{:?}", o.rollout).to_lowercase(),
-            _ => "-".to_string(),
-        };
-        match time_solves(&ex.problem, &ex.xs0, &ex.us0, &config, args.repeats) {
-            Ok(t) => {
-                let s = &t.solution;
-                if !s.status.converged() {
-                    code = 1;
-                }
-                let kkt = kkt_residuals(&ex.problem, &s.xs, &s.us, &s.lambdas, &s.nus).map_or(f64::NAN, |k| k.max());
-                out!(
-                    "{:<20} {:>9} {:>10} {:>6} {:>4} {:>12.3} {:>10.3} {:>10.4} {:>7.3}/{:<7.3} {:>15.9e} {:>9.2e} {:>9.2e} {:>9.2e}",
-                    name,
-                    rollout,
-                    if s.status.converged() {
-                        "converged".to_string()
-                    } else {
-                        format!("{:?}", s.status)
-                    },
-                    s.iterations,
-                    s.al_iterations,
-                    t.median_ms,
-                    t.min_ms,
-                    t.median_ms / s.iterations.max(1) as f64,
-                    t.eval_ms,
-                    t.deriv_ms,
-                    s.cost,
-                    s.prim_err,
-                    s.dual_err,
-                    kkt
-                );
-            }
-            Err(TimingError::Refused(e)) => out!("{name:<20} skipped: {e}"),
-            Err(e) => {
-                eprintln!("gharial bench solve {name}: {e}");
-                code = 1;
-            }
+}
+
+/// Times `solver` on the example `name` and prints its row.
+fn bench_row(name: &str, ex: &gharial_problems::Example, solver: &SolverArgs, repeats: usize) -> Outcome {
+    let config = solver.config(ex);
+    let label = solver.solver.name();
+    let rollout = match &config.options {
+        SolverOptions::ProxDdp(o) => format!("{:?}", o.rollout).to_lowercase(),
+        _ => "-".to_string(),
+    };
+    match time_solves(&ex.problem, &ex.xs0, &ex.us0, &config, repeats) {
+        Ok(t) => {
+            let s = &t.solution;
+            let kkt = kkt_residuals(&ex.problem, &s.xs, &s.us, &s.lambdas, &s.nus).map_or(f64::NAN, |k| k.max());
+            let status = if s.status.converged() {
+                "converged".to_string()
+            } else {
+                format!("{:?}", s.status)
+            };
+            out!(
+                "{:<20} {:<8} {:>9} {:>10} {:>6} {:>4} {:>12.3} {:>10.3} {:>10.4} {:>7.3}/{:<7.3} {:>15.9e} {:>9.2e} {:>9.2e} {:>9.2e}",
+                name,
+                label,
+                rollout,
+                status,
+                s.iterations,
+                s.al_iterations,
+                t.median_ms,
+                t.min_ms,
+                t.median_ms / s.iterations.max(1) as f64,
+                t.eval_ms,
+                t.deriv_ms,
+                s.cost,
+                s.prim_err,
+                s.dual_err,
+                kkt
+            );
+            Outcome::Solved(status, s.iterations, t.median_ms, kkt)
         }
-        let _ = std::io::stdout().flush();
+        Err(TimingError::Refused(e)) => {
+            out!("{name:<20} {label:<8} skipped: {e}");
+            Outcome::Skipped
+        }
+        Err(e) => {
+            eprintln!("gharial bench solve {name} ({label}): {e}");
+            Outcome::Failed
+        }
     }
-    code
+}
+
+/// The problems-by-solvers matrix: iterations and median time of each converged solve,
+/// the status otherwise, `-` where the solver does not take the problem.
+fn print_matrix(names: &[String], kinds: &[SolverKind], matrix: &[Vec<Outcome>]) {
+    out!("");
+    out!("iterations / median ms (KKT residual of unconverged solves); - : not taken");
+    let mut head = format!("{:<20}", "problem");
+    for k in kinds {
+        head.push_str(&format!(" {:>20}", k.name()));
+    }
+    out!("{head}");
+    for (name, row) in names.iter().zip(matrix) {
+        let mut line = format!("{name:<20}");
+        for cell in row {
+            let text = match cell {
+                Outcome::Solved(status, it, ms, _) if status == "converged" => format!("{it} / {ms:.2}"),
+                Outcome::Solved(status, it, _, kkt) => format!("{status} {it} ({kkt:.0e})"),
+                Outcome::Skipped => "-".to_string(),
+                Outcome::Failed => "error".to_string(),
+            };
+            line.push_str(&format!(" {text:>20}"));
+        }
+        out!("{line}");
+    }
 }
 
 /// The arguments of `gharial bench peers`, matching the harness's environment.
