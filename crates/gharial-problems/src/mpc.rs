@@ -25,8 +25,9 @@ pub struct Metric {
     pub unit: &'static str,
 }
 
-/// Sets the parameters of the stage object `id` that entered the horizon at `cycle`.
-pub type OnShift = Box<dyn FnMut(usize, usize) -> Result<()> + Send>;
+/// Sets the parameters of the stage object `id` that entered the horizon at `cycle` (and
+/// any other time-varying reference) from the measured state `x` of the cycle.
+pub type OnShift = Box<dyn FnMut(usize, usize, &[f64]) -> Result<()> + Send>;
 /// The metrics of a recorded closed loop.
 pub type Metrics = Box<dyn Fn(&Record) -> Result<Vec<Metric>> + Send>;
 

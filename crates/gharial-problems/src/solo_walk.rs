@@ -65,25 +65,34 @@
 //! step lengths near 1e-3 and a dual residual of 0.1 after 300 iterations, so it is
 //! off; without it the first OCP converges in 7 iterations.
 //!
+//! **Terrain** ([`WalkTask::follow_terrain`], called after every shift with the measured
+//! state): the controller keeps the last contact point of each foot (the feet in stance
+//! at the measured state) and fits the plane `z = a + b x + c y` through the four; the
+//! base height target is the standing height above that plane where the base is
+//! predicted to be (the measured position moved with the command), and a landing foot's
+//! height target is the plane's height under it. The contact model itself stays flat
+//! (no position gain), and the friction cones vertical.
+//!
 //! **Results** (`gharial simulate NAME --duration 10`, release build, one thread, 834
 //! cycles of one iteration each; the machine shared with other jobs):
 //!
-//! | scenario | base height / standing | mean velocity, 2nd half | friction cones | cycle time: median, p99, max |
-//! |---|---|---|---|---|
-//! | `solo-walk-mpc` | 1.000 – 1.032 | 0.191 m/s (4.7 % below the command) | inside by 0.72 N or more | 14.6, 31.1, 33.9 ms |
-//! | `solo-walk-mpc-slope` | 0.365 – 1.001 | 0.185 m/s (7.3 % below) | out by up to 4.8 N | 14.4, 20.9, 21.9 ms |
+//! | scenario | base height / standing | mean velocity, 2nd half | friction cones |
+//! |---|---|---|---|
+//! | `solo-walk-mpc` | 1.000 – 1.034 | 0.191 m/s (4.7 % below the command) | inside by 0.80 N or more |
+//! | `solo-walk-mpc-slope` | 0.935 – 1.001 | 0.192 m/s (4.1 % below) | inside by 0.16 N or more |
+//! | `--slope -0.1` (downhill) | 0.395 – 1.107 | 0.116 m/s (42 % below) | out by up to 37 N |
 //!
-//! On the slope the controller, which believes the ground flat, keeps the base at its
-//! standing height above `z = 0` while the ground rises 0.19 m over the 1.9 m walked, so
-//! that the base ends 8 cm above the ground; the feet landing below the ground are
-//! pushed up by the plant's contacts with forces the controller does not plan, which
-//! leave the cones. Over the tests' 1.5 s (`tests/solo_walk.rs`) both scenarios keep the
-//! base within 8 % of the standing height, the velocity within 7 % of the command and
-//! every stance force inside its cone. A cycle costs 11-34 ms: each stage solves the
+//! Without the terrain estimate the controller kept the base at its standing height
+//! above `z = 0` on the slope while the ground rose 0.19 m, and the base ended 8 cm above
+//! the ground (0.365 of the standing height). Downhill the robot falls behind the
+//! command from the start and sinks after 4 s: a foot landing above the ground is pulled
+//! onto it by the plant's bilateral contact, a force no real ground exerts and the
+//! controller does not plan. Over the tests' 1.5 s (`tests/solo_walk.rs`) the flat and
+//! uphill scenarios keep the base within 8 % of the standing height, the velocity within
+//! 7 % of the command and every stance force inside its cone. Each stage solves the
 //! contact dynamics and their derivatives three times, for its dynamics, for the stacked
-//! contact-force cost and for the stacked friction cones
-//! ([`StackedContactResidual`]; with one residual per foot it was 5 to 9 times, median
-//! cycle 17.6 ms in an earlier run).
+//! contact-force cost and for the stacked friction cones ([`StackedContactResidual`];
+//! with one residual per foot it was 5 to 9 times).
 
 use std::sync::{Arc, Mutex};
 
@@ -365,9 +374,108 @@ pub struct WalkTask {
     /// The state cost of each stage object.
     state_costs: Vec<Arc<QuadraticStateCost>>,
     terminal: Arc<QuadraticStateCost>,
+    /// The impact residuals of each stage object: the foot and its translation residual,
+    /// whose height target follows the terrain estimate.
+    impacts: Vec<Vec<(usize, Arc<FrameTranslationResidual>)>>,
     /// Scratch for the state target (set in place after each shift).
     x_ref: Mutex<Vec<f64>>,
+    /// The controller's estimate of the ground from the feet's contact points.
+    terrain: Mutex<Terrain>,
     solo: Solo,
+}
+
+/// The controller's estimate of the ground under the robot: the least-squares plane
+/// `z = a + b x + c y` through the last contact point of each foot (the feet found in
+/// stance at the measured states of the MPC cycles), so that the base height and the
+/// landing heights are targeted above the ground walked on rather than above `z = 0`.
+struct Terrain {
+    /// The last contact point of each foot.
+    footholds: [Vec3; 4],
+    /// `(a, b, c)`.
+    plane: [f64; 3],
+    /// Offsets of the feet from the base in the standing posture (x, y).
+    feet_offsets: [[f64; 2]; 4],
+    /// The measured base position (x, y) and the time of the last update: the targets'
+    /// heights are taken where the base is predicted to be, not where the command's
+    /// reference is (a robot lagging behind it downhill would be sent into the ground).
+    base: [f64; 2],
+    time: f64,
+    /// Kinematics workspace.
+    data: Data,
+}
+
+impl Terrain {
+    fn new(solo: &Solo) -> Result<Self> {
+        let mut data = solo.model.create_data();
+        let footholds = feet_positions(&solo.model, &mut data, &solo.feet, &solo.x0[..solo.nq()])?;
+        let feet_offsets = footholds.map(|p| [p.x - solo.x0[0], p.y - solo.x0[1]]);
+        let mut t = Self {
+            footholds,
+            plane: [0.0; 3],
+            feet_offsets,
+            base: [solo.x0[0], solo.x0[1]],
+            time: 0.0,
+            data,
+        };
+        t.fit();
+        Ok(t)
+    }
+
+    /// Height of the estimated ground at `(x, y)`.
+    fn height(&self, x: f64, y: f64) -> f64 {
+        let [a, b, c] = self.plane;
+        a + b * x + c * y
+    }
+
+    /// The base position (x, y) predicted at time `t` from the last measured one,
+    /// moving with `command`.
+    fn base_at(&self, t: f64, command: [f64; 2]) -> [f64; 2] {
+        let d = command_ramp(t).1 - command_ramp(self.time).1;
+        [self.base[0] + command[0] * d, self.base[1] + command[1] * d]
+    }
+
+    /// Records the base position and the contact points of the feet in stance at the
+    /// state `x` of time `t`, and refits the plane.
+    fn update(&mut self, solo: &Solo, stance: [bool; 4], t: f64, x: &[f64]) -> Result<()> {
+        (self.base, self.time) = ([x[0], x[1]], t);
+        let p = feet_positions(&solo.model, &mut self.data, &solo.feet, &x[..solo.nq()])?;
+        for j in (0..4).filter(|&j| stance[j]) {
+            self.footholds[j] = p[j];
+        }
+        self.fit();
+        Ok(())
+    }
+
+    /// The least-squares plane through the footholds (normal equations, Cramer's rule);
+    /// a level plane at their mean height if they are (nearly) collinear.
+    fn fit(&mut self) {
+        let (mut m, mut r) = ([[0.0; 3]; 3], [0.0; 3]);
+        for p in &self.footholds {
+            let row = [1.0, p.x, p.y];
+            for i in 0..3 {
+                for j in 0..3 {
+                    m[i][j] += row[i] * row[j];
+                }
+                r[i] += row[i] * p.z;
+            }
+        }
+        let det = |m: &[[f64; 3]; 3]| {
+            m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+                + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+        };
+        let d = det(&m);
+        if d.abs() < 1e-9 {
+            self.plane = [r[0] / 4.0, 0.0, 0.0];
+            return;
+        }
+        for k in 0..3 {
+            let mut mk = m;
+            for i in 0..3 {
+                mk[i][k] = r[i];
+            }
+            self.plane[k] = det(&mk) / d;
+        }
+    }
 }
 
 impl std::fmt::Debug for WalkTask {
@@ -400,6 +508,7 @@ impl WalkTask {
         let weights = state_weights(solo.model.nv());
         let mut stages = Vec::with_capacity(len);
         let mut state_costs = Vec::with_capacity(len);
+        let mut impacts = Vec::with_capacity(len);
         for node in 0..len {
             let cost = Arc::new(QuadraticStateCost::diagonal(
                 solo.space.clone(),
@@ -407,9 +516,10 @@ impl WalkTask {
                 &weights,
                 u_stand.len(),
             )?);
-            let stage = stage_model(&solo, &gait, node, &dynamics, &u_stand, cost.clone())?;
+            let (stage, impact) = stage_model(&solo, &gait, node, &dynamics, &u_stand, cost.clone())?;
             stages.push(stage);
             state_costs.push(cost);
+            impacts.push(impact);
         }
         let terminal = Arc::new(QuadraticStateCost::diagonal(solo.space.clone(), &solo.x0, &weights, 0)?);
         let task = Self {
@@ -420,7 +530,9 @@ impl WalkTask {
             stages,
             state_costs,
             terminal,
+            impacts,
             x_ref: Mutex::new(solo.x0.clone()),
+            terrain: Mutex::new(Terrain::new(&solo)?),
             solo,
         };
         for node in 0..len {
@@ -430,14 +542,17 @@ impl WalkTask {
         Ok(task)
     }
 
-    /// The state target at time `t`: the standing posture moved along the command,
-    /// with the command (ramped up over [`RAMP`] from rest) as base velocity.
-    fn write_target(&self, t: f64, x_ref: &mut [f64]) {
+    /// The state target at time `t`: the standing posture moved along the command, its
+    /// height above the estimated ground where the base is predicted to be, with the
+    /// command (ramped up over [`RAMP`] from rest) as base velocity.
+    fn write_target(&self, t: f64, terrain: &Terrain, x_ref: &mut [f64]) {
         let nq = self.solo.nq();
         let (ramp, distance) = command_ramp(t);
         x_ref.copy_from_slice(&self.x0);
         x_ref[0] += self.command[0] * distance;
         x_ref[1] += self.command[1] * distance;
+        let [bx, by] = terrain.base_at(t, self.command);
+        x_ref[2] = self.x0[2] + terrain.height(bx, by);
         x_ref[nq] = self.command[0] * ramp;
         x_ref[nq + 1] = self.command[1] * ramp;
     }
@@ -453,7 +568,43 @@ impl WalkTask {
                 self.state_costs.len()
             ))
         })?;
-        self.set_target(cost, t)
+        self.set_target(cost, t)?;
+        let terrain = self.lock_terrain()?;
+        let [bx, by] = terrain.base_at(t, self.command);
+        for (j, r) in &self.impacts[id] {
+            let [dx, dy] = terrain.feet_offsets[*j];
+            r.set_target(&[0.0, 0.0, terrain.height(bx + dx, by + dy)])?;
+        }
+        Ok(())
+    }
+
+    /// Updates the ground estimate from the measured state `x` at gait node `node` (the
+    /// feet in stance there touch the ground) and moves the targets of every stage
+    /// object of the horizon starting at that node, and the terminal one, onto it.
+    ///
+    /// # Errors
+    /// If `x` is not a state of the robot.
+    pub fn follow_terrain(&self, node: usize, x: &[f64]) -> Result<()> {
+        gharial::error::check_dim("solo_walk: measured state", self.x0.len(), x.len())?;
+        let stance = self.gait.phase(node).stance();
+        self.lock_terrain()?.update(&self.solo, stance, node as f64 * DT, x)?;
+        let len = self.stages.len();
+        for t in 0..HORIZON {
+            self.set_stage_target((node + t) % len, (node + t) as f64 * DT)?;
+        }
+        self.set_terminal_target((node + HORIZON) as f64 * DT)
+    }
+
+    /// The terrain estimate (a poisoned lock is an error).
+    fn lock_terrain(&self) -> Result<std::sync::MutexGuard<'_, Terrain>> {
+        self.terrain
+            .lock()
+            .map_err(|_| Error::InvalidModel("solo_walk: poisoned terrain estimate".into()))
+    }
+
+    /// The estimated ground plane `(a, b, c)` of `z = a + b x + c y`.
+    pub fn ground_estimate(&self) -> [f64; 3] {
+        self.terrain.lock().map_or([f64::NAN; 3], |t| t.plane)
     }
 
     /// Sets the terminal state target for time `t`.
@@ -469,7 +620,7 @@ impl WalkTask {
             .x_ref
             .lock()
             .map_err(|_| Error::InvalidModel("solo_walk: poisoned target".into()))?;
-        self.write_target(t, &mut x_ref);
+        self.write_target(t, &*self.lock_terrain()?, &mut x_ref);
         cost.set_target(&x_ref)
     }
 
@@ -550,7 +701,11 @@ pub struct FirstPlan {
     pub dual_err: f64,
 }
 
-/// The stage of gait node `node` (module documentation), its state cost `state`.
+/// The residuals of the impact costs of a stage: foot and translation residual.
+type Impacts = Vec<(usize, Arc<FrameTranslationResidual>)>;
+
+/// The stage of gait node `node` (module documentation), its state cost `state`; and its
+/// impact residuals.
 fn stage_model(
     solo: &Solo,
     gait: &Gait,
@@ -558,7 +713,7 @@ fn stage_model(
     dynamics: &[Arc<MultibodyConstraintFwdDynamics>],
     u_stand: &[f64],
     state: Arc<QuadraticStateCost>,
-) -> Result<StageModel> {
+) -> Result<(StageModel, Impacts)> {
     let phase = gait.phase(node);
     let dyn_ = &dynamics[phase.index()];
     let (space, nu): (Arc<dyn Manifold>, usize) = (solo.space.clone(), u_stand.len());
@@ -570,6 +725,7 @@ fn stage_model(
     let stance = phase.stance_feet();
     let load = solo.model.total_mass() * solo.model.gravity.linear.z.abs() / stance.len() as f64;
     let touchdowns = gait.touchdowns(node);
+    let mut impacts = Vec::new();
     if W_FORCE > 0.0 {
         // One contact solve for the forces of all stance feet.
         let parts = (0..stance.len())
@@ -588,10 +744,9 @@ fn stage_model(
             cost = cost.with(format!("fly_high_{name}"), Arc::new(c), DT)?;
         }
         if touchdowns[j] {
-            let p = Unary::new(
-                Arc::new(FrameTranslationResidual::new(&solo.space, name, &[0.0; 3])?),
-                nu,
-            );
+            let r = Arc::new(FrameTranslationResidual::new(&solo.space, name, &[0.0; 3])?);
+            impacts.push((j, r.clone()));
+            let p = Unary::new(r, nu);
             let z: Arc<dyn StageFunction> = Arc::new(Slice::new(Arc::new(p), &[2])?);
             let c = QuadraticResidualCost::diagonal(z, &[W_IMPACT])?;
             cost = cost.with(format!("impact_{name}"), Arc::new(c), 1.0)?;
@@ -622,7 +777,7 @@ fn stage_model(
         .actuated_dofs()
         .ok_or_else(|| Error::InvalidModel("solo_walk: the actuation is not a joint selection".into()))?;
     stage.add_constraint(effort_limits(&solo.space, &dofs)?)?;
-    Ok(stage)
+    Ok((stage, impacts))
 }
 
 /// The ground plane `z = tan(slope) x` (module documentation).
@@ -836,11 +991,7 @@ pub fn scenario(slope: f64, command: [f64; 2]) -> Result<MpcScenario> {
         plant_dt: PLANT_DT,
         steps_per_cycle: steps_per_node(),
         options: MpcOptions::default().with(|o| o.max_iters = 1),
-        on_shift: Box::new(move |cycle, id| {
-            let t0 = cycle as f64 * DT;
-            shifted.set_stage_target(id, t0 + (HORIZON - 1) as f64 * DT)?;
-            shifted.set_terminal_target(t0 + HORIZON as f64 * DT)
-        }),
+        on_shift: Box::new(move |cycle, _, x| shifted.follow_terrain(cycle, x)),
         metrics: Box::new(move |rec| walk_metrics(&measured, ground, rec)),
     })
 }
@@ -891,4 +1042,57 @@ fn friction_violation(task: &WalkTask, ground: Ground, rec: &Record) -> Result<f
         }
     }
     Ok(worst)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The plane fit recovers a plane through four footholds exactly, takes the
+    /// least-squares plane of points off it, and falls back to a level plane at the mean
+    /// height for collinear footholds.
+    #[test]
+    fn the_terrain_estimate_fits_the_footholds() {
+        let solo = Solo::load().unwrap();
+        let mut terrain = Terrain::new(&solo).unwrap();
+        let plane = |x: f64, y: f64| 0.02 + 0.1 * x - 0.05 * y;
+        let xy = [(0.2, 0.15), (0.2, -0.15), (-0.2, 0.15), (-0.2, -0.15)];
+        terrain.footholds = xy.map(|(x, y)| Vec3::new(x, y, plane(x, y)));
+        terrain.fit();
+        for (a, b) in terrain.plane.iter().zip([0.02, 0.1, -0.05]) {
+            assert!((a - b).abs() < 1e-12, "{:?}", terrain.plane);
+        }
+        // One foot 1 cm up: the least-squares plane of a rectangle moves every corner by
+        // ±2.5 mm (the residuals alternate in sign around it).
+        terrain.footholds[0].z += 0.01;
+        terrain.fit();
+        for (k, (x, y)) in xy.iter().enumerate() {
+            let off = terrain.footholds[k].z - terrain.height(*x, *y);
+            assert!((off.abs() - 0.0025).abs() < 1e-12, "{k}: {off}");
+        }
+        terrain.footholds = [0.0, 0.1, 0.2, 0.3].map(|x| Vec3::new(x, 0.0, x));
+        terrain.fit();
+        assert!((terrain.plane[0] - 0.15).abs() < 1e-15 && terrain.plane[1..] == [0.0, 0.0]);
+    }
+
+    /// The standing robot's estimate is the ground `z = 0`; raising the measured base and
+    /// feet by 5 cm raises the base target of every stage by 5 cm.
+    #[test]
+    fn following_the_terrain_moves_the_base_targets() {
+        let task = WalkTask::new(Gait::default(), COMMAND).unwrap();
+        let level = task.ground_estimate();
+        assert!(level.iter().all(|c| c.abs() < 1e-9), "{level:?}");
+        let mut x = task.x0.clone();
+        x[2] += 0.05;
+        task.follow_terrain(0, &x).unwrap();
+        let up = task.ground_estimate();
+        assert!(
+            (up[0] - 0.05).abs() < 1e-9 && up[1].abs() < 1e-9 && up[2].abs() < 1e-9,
+            "{up:?}"
+        );
+        for cost in &task.state_costs {
+            assert!((cost.error().target()[2] - x[2]).abs() < 1e-9);
+        }
+        assert!(task.follow_terrain(0, &x[1..]).is_err());
+    }
 }

@@ -517,7 +517,7 @@ pub fn scenario(variant: CircleVariant) -> Result<crate::mpc::MpcScenario> {
         plant_dt: PLANT_DT,
         steps_per_cycle: (DT / PLANT_DT).round() as usize,
         options: gharial::mpc::MpcOptions::default().with(|o| o.max_iters = 5),
-        on_shift: Box::new(move |cycle, id| {
+        on_shift: Box::new(move |cycle, id, _| {
             let t0 = cycle as f64 * DT;
             shifted.set_stage_target(id, t0 + (n - 1) as f64 * DT)?;
             shifted.set_terminal_target(t0 + n as f64 * DT)

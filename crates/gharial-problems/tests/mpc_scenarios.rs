@@ -54,7 +54,7 @@ fn cycles<S: Solver>(
         }
         x.copy_from_slice(&sol.xs[1]);
         let id = mpc.shift().unwrap();
-        (sc.on_shift)(c, id).unwrap();
+        (sc.on_shift)(c + 1, id, x).unwrap();
         mpc.control(x, u).unwrap();
     }
     out

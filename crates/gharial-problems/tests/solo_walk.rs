@@ -144,7 +144,7 @@ impl Drive {
         for c in cycles {
             if c > 0 {
                 let id = self.mpc.shift().unwrap();
-                (self.sc.on_shift)(c, id).unwrap();
+                (self.sc.on_shift)(c, id, &self.x).unwrap();
             }
             self.mpc.solve(&self.x).unwrap();
             for k in c * spc..(c + 1) * spc {

@@ -437,7 +437,7 @@ fn closed_loop_with_the_mpc_module() {
     let sub = (DT / Plant::H).round() as usize;
     let settings = ClosedLoop::new(63 * sub, sub);
     let mut plant = gharial::mpc::DiscretePlant::new(Arc::new(Plant::new().step));
-    let rec = simulate(&mut mpc, &mut plant, &task.x0, &settings, |cycle, id| {
+    let rec = simulate(&mut mpc, &mut plant, &task.x0, &settings, |cycle, id, _| {
         let t0 = cycle as f64 * DT;
         task.set_stage_target(id, t0 + (n - 1) as f64 * DT)?;
         task.set_terminal_target(t0 + n as f64 * DT)

@@ -439,7 +439,7 @@ fn closed_loop_with_the_exact_model_follows_each_plan_and_pushes_kick_the_state(
     let mut mpc = mpc_of(&p);
     let mut plant = lq_plant(0.0);
     let mut shifts = Vec::new();
-    let rec = simulate(&mut mpc, &mut plant, &x, &ClosedLoop::new(30, 1), |c, id| {
+    let rec = simulate(&mut mpc, &mut plant, &x, &ClosedLoop::new(30, 1), |c, id, _| {
         shifts.push((c, id));
         Ok(())
     })
@@ -466,9 +466,9 @@ fn closed_loop_with_the_exact_model_follows_each_plan_and_pushes_kick_the_state(
         dx: vec![0.0, 0.5],
     });
     let mut mpc = mpc_of(&p);
-    let kicked = simulate(&mut mpc, &mut plant, &x, &pushed, |_, _| Ok(())).unwrap();
+    let kicked = simulate(&mut mpc, &mut plant, &x, &pushed, |_, _, _| Ok(())).unwrap();
     let mut mpc = mpc_of(&p);
-    let calm = simulate(&mut mpc, &mut plant, &x, &ClosedLoop::new(30, 2), |_, _| Ok(())).unwrap();
+    let calm = simulate(&mut mpc, &mut plant, &x, &ClosedLoop::new(30, 2), |_, _, _| Ok(())).unwrap();
     // The record holds the state after the push, at which the control was computed.
     assert!(max_diff(&kicked.xs[..5], &calm.xs[..5]) < 1e-14);
     assert!((kicked.xs[5][1] - calm.xs[5][1] - 0.5).abs() < 1e-14);
@@ -498,13 +498,9 @@ fn closed_loop_regulates_a_mismatched_plant_and_refuses_bad_input() {
         MpcOptions::default(),
     )
     .unwrap();
-    let rec = simulate(
-        &mut mpc,
-        &mut lq_plant(0.2),
-        &x,
-        &ClosedLoop::new(400, 1),
-        |_, _| Ok(()),
-    )
+    let rec = simulate(&mut mpc, &mut lq_plant(0.2), &x, &ClosedLoop::new(400, 1), |_, _, _| {
+        Ok(())
+    })
     .unwrap();
     let mut exact = Mpc::new(
         p.clone(),
@@ -514,9 +510,13 @@ fn closed_loop_regulates_a_mismatched_plant_and_refuses_bad_input() {
         MpcOptions::default(),
     )
     .unwrap();
-    let nominal = simulate(&mut exact, &mut lq_plant(0.0), &x, &ClosedLoop::new(400, 1), |_, _| {
-        Ok(())
-    })
+    let nominal = simulate(
+        &mut exact,
+        &mut lq_plant(0.0),
+        &x,
+        &ClosedLoop::new(400, 1),
+        |_, _, _| Ok(()),
+    )
     .unwrap();
     // Both loops settle (the horizon is time invariant), the mismatched one near the
     // nominal steady state, from a start far from it.
@@ -529,19 +529,28 @@ fn closed_loop_regulates_a_mismatched_plant_and_refuses_bad_input() {
     );
     assert!((x[0] - goal[0]).abs() > 0.09);
     assert!(
-        simulate(&mut mpc, &mut lq_plant(0.0), &[0.0], &ClosedLoop::new(4, 1), |_, _| Ok(
+        simulate(
+            &mut mpc,
+            &mut lq_plant(0.0),
+            &[0.0],
+            &ClosedLoop::new(4, 1),
+            |_, _, _| Ok(())
+        )
+        .is_err()
+    );
+    assert!(
+        simulate(&mut mpc, &mut lq_plant(0.0), &x, &ClosedLoop::new(4, 0), |_, _, _| Ok(
             ()
         ))
         .is_err()
     );
-    assert!(simulate(&mut mpc, &mut lq_plant(0.0), &x, &ClosedLoop::new(4, 0), |_, _| Ok(())).is_err());
     let mut bad = ClosedLoop::new(4, 1);
     bad.pushes.push(Push {
         step: 1,
         dx: vec![f64::NAN, 0.0],
     });
-    assert!(simulate(&mut mpc, &mut lq_plant(0.0), &x, &bad, |_, _| Ok(())).is_err());
-    let e = simulate(&mut mpc, &mut lq_plant(0.0), &x, &ClosedLoop::new(4, 1), |_, _| {
+    assert!(simulate(&mut mpc, &mut lq_plant(0.0), &x, &bad, |_, _, _| Ok(())).is_err());
+    let e = simulate(&mut mpc, &mut lq_plant(0.0), &x, &ClosedLoop::new(4, 1), |_, _, _| {
         Err(gharial::Error::InvalidModel("stop".into()))
     });
     assert!(e.is_err());

@@ -139,8 +139,9 @@ impl Record {
 }
 
 /// Runs `mpc` in closed loop with `plant` from `x0` (module documentation). After every
-/// cycle's shift, `on_shift(cycle, stage_id)` may set the parameters of the stage object
-/// that entered the horizon (see [`Mpc::shift`]). The record is allocated before the first
+/// cycle's shift, `on_shift(cycle, stage_id, x)` may set the parameters of the stage
+/// object that entered the horizon (see [`Mpc::shift`]), or any time-varying reference,
+/// from the measured state `x` the cycle's solve starts from (a terrain estimate, say). The record is allocated before the first
 /// step; the loop allocates nothing more.
 ///
 /// # Errors
@@ -152,7 +153,7 @@ pub fn simulate<S: Solver>(
     plant: &mut dyn Plant,
     x0: &[f64],
     settings: &ClosedLoop,
-    mut on_shift: impl FnMut(usize, usize) -> Result<()>,
+    mut on_shift: impl FnMut(usize, usize, &[f64]) -> Result<()>,
 ) -> Result<Record> {
     let space = plant.space().clone();
     let (nx, ndx, nu) = (space.nx(), space.ndx(), plant.nu());
@@ -181,7 +182,7 @@ pub fn simulate<S: Solver>(
         if k % settings.steps_per_cycle == 0 {
             if k > 0 {
                 let id = mpc.shift()?;
-                on_shift(rec.cycles.len(), id)?;
+                on_shift(rec.cycles.len(), id, &rec.xs[k])?;
             }
             let sol = mpc.solve(&rec.xs[k])?;
             rec.cycles.push(CycleRecord {
