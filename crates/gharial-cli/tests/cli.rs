@@ -378,6 +378,47 @@ fn bench_solve_lists_the_problems_a_solver_does_not_take_as_skipped() {
     );
 }
 
+/// `--all-solvers`: a row per problem and solver, the same optimum from every solver that
+/// takes a problem (costs to 1e-6 relative: the solvers' tolerances differ), and the
+/// matrix with `-` where a solver does not take the problem.
+#[test]
+fn bench_solve_all_solvers_prints_the_matrix_of_problems_by_solvers() {
+    let o = gharial(&["bench", "solve", "lqr", "lqr-bounds", "--all-solvers", "--repeats", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let text = stdout(&o);
+    for problem in ["lqr", "lqr-bounds"] {
+        let costs: Vec<f64> = text
+            .lines()
+            .map(|l| l.split_whitespace().collect::<Vec<_>>())
+            .filter(|w| w.first() == Some(&problem) && w.get(3) == Some(&"converged"))
+            .map(|w| w[w.len() - 4].parse().expect("the cost column"))
+            .collect();
+        let takers = if problem == "lqr" { 7 } else { 4 };
+        assert_eq!(costs.len(), takers, "{problem}: {text}");
+        for c in &costs {
+            assert!((c - costs[0]).abs() < 1e-6 * costs[0].abs(), "{problem}: {costs:?}");
+        }
+    }
+    let matrix = text.split("not taken").nth(1).expect("the matrix");
+    let row = |name: &str| -> Vec<String> {
+        let line = matrix
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap();
+        line.split("  ")
+            .map(str::trim)
+            .filter(|c| !c.is_empty())
+            .skip(1)
+            .map(String::from)
+            .collect()
+    };
+    let header: Vec<&str> = matrix.lines().nth(1).unwrap().split_whitespace().skip(1).collect();
+    assert_eq!(header, SOLVERS, "{matrix}");
+    assert!(row("lqr").iter().all(|c| c.starts_with("1 / ")), "{matrix}");
+    let taken: Vec<bool> = row("lqr-bounds").iter().map(|c| c != "-").collect();
+    assert_eq!(taken, [true, false, false, true, true, false, true], "{matrix}");
+}
+
 #[test]
 fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
     let dir = std::env::temp_dir().join(format!("gharial-cli-peers-{}", std::process::id()));
