@@ -1,0 +1,83 @@
+//! Every solver of the library on every catalogue problem it takes (the cheap ones in a
+//! debug build): where several converge on one problem they reach the same optimum. Each
+//! solver is picked by name (`SolverOptions::names`) at the problem's settings
+//! (`Example::options`), so a new solver joins the comparison when it is registered.
+
+use gharial::problem::kkt_residuals;
+use gharial::solvers::{InitialGuess, Solution, SolverOptions};
+
+/// The problems compared: every catalogue entry that two solvers or more take, except the
+/// long solves (cart-pole, acrobot, quadrotor slalom, UR10, Solo), which have one taker.
+const PROBLEMS: [&str; 19] = [
+    "lqr",
+    "lqr-bounds",
+    "lqr-term",
+    "lqr-bounds-term",
+    "clqr",
+    "pendulum",
+    "se2-car",
+    "quadrotor",
+    "peers-lqr",
+    "peers-lqr-box",
+    "peers-lqr-box-term",
+    "ur5",
+    "ur5-box",
+    "double-pendulum",
+    "double-pendulum-box",
+    "double-pendulum-box-term",
+    "ur5-circle",
+    "ur5-circle-joint-bound",
+    "ur5-circle-half-space",
+];
+
+/// Relative agreement of the optimal costs: every solver stops at a KKT residual of about
+/// its tolerance (1e-6 by default), which moves the cost by about as much.
+const COST_RTOL: f64 = 2e-6;
+
+/// The converged solutions of every solver that takes `name`, with the solver's name.
+fn converged(name: &str) -> Vec<(&'static str, Solution)> {
+    let ex = gharial_problems::build(name).unwrap();
+    let mut out = Vec::new();
+    for &solver_name in SolverOptions::names() {
+        let mut solver = ex.options(solver_name).unwrap().build();
+        if solver.setup(&ex.problem).is_err() {
+            continue; // the solver does not take the problem (refusals are tested elsewhere)
+        }
+        let sol = solver
+            .solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0))
+            .unwrap();
+        if sol.status.converged() {
+            out.push((solver_name, sol.clone()));
+        }
+    }
+    out
+}
+
+#[test]
+fn every_solver_that_converges_reaches_the_same_optimum() {
+    let mut report = Vec::new();
+    for name in PROBLEMS {
+        let ex = gharial_problems::build(name).unwrap();
+        let sols = converged(name);
+        let names: Vec<_> = sols.iter().map(|(s, _)| *s).collect();
+        assert!(sols.len() >= 2, "{name}: converged only {names:?}");
+        for (solver, s) in &sols {
+            let kkt = kkt_residuals(&ex.problem, &s.xs, &s.us, &s.lambdas, &s.nus).unwrap();
+            assert!(kkt.max() < 1e-5, "{name} / {solver}: {kkt:?}");
+        }
+        let (first, reference) = &sols[0];
+        let mut worst: f64 = 0.0;
+        for (solver, s) in &sols[1..] {
+            let rel = (s.cost - reference.cost).abs() / reference.cost.abs().max(1e-12);
+            worst = worst.max(rel);
+            assert!(
+                rel < COST_RTOL,
+                "{name}: {solver} cost {} vs {first} {} (relative {rel:.1e})",
+                s.cost,
+                reference.cost
+            );
+        }
+        report.push(format!("{name}: {names:?}, costs within {worst:.1e}"));
+    }
+    eprintln!("{}", report.join("\n"));
+}
