@@ -33,11 +33,15 @@
 //! | `ur10-ballistic` | [`ur10_ballistic`] | UR10 and mug (R²⁵, ndx 24; mug held, then flying) | 200 | 10 ms |
 //! | `solo-jump` | [`solo_jump`] | Solo-12 phase space (nx = 37, ndx = 36) | 60 | 20 ms |
 //! | `solo-com-circle` | [`solo_com_circle`] | Solo-12 phase space (nx = 37, ndx = 36) | 250 | 20 ms |
+//! | `block-move` | [`altro_table`] | R² | 20 | 100 ms |
+//! | `car-parallel-park`, `car-escape` | [`altro_table`] | R³ | 100 | 30 ms |
+//! | `car-3-obstacles` | [`altro_table`] | R³ | 100 | 50 ms |
 //!
 //! Every module documents its model, its numbers and the results measured with
 //! ProxDDP.
 
 pub mod acrobot;
+pub mod altro_table;
 pub mod cartpole;
 pub mod figures;
 pub mod lqr;
@@ -220,6 +224,22 @@ static CATALOGUE: &[ProblemInfo] = &[
         name: "solo-com-circle",
         summary: "Solo-12 on four feet, CoM on a horizontal circle (r = 6.5 cm, 0.2 Hz), friction cones mu = 0.8 (stagewise-SQP paper, Figs. 4-5), dt = 20 ms, N = 250",
     },
+    ProblemInfo {
+        name: "block-move",
+        summary: "ALTRO Table I: double integrator moved one unit, |u| <= 1.5, goal constraint, N = 20, dt = 0.1",
+    },
+    ProblemInfo {
+        name: "car-parallel-park",
+        summary: "ALTRO Table I: Dubins car moved one unit sideways inside a box, |u| <= 2, goal constraint, N = 100, T = 3 s",
+    },
+    ProblemInfo {
+        name: "car-3-obstacles",
+        summary: "ALTRO Table I: Dubins car to (1, 1) around three discs, goal constraint, N = 100, T = 5 s",
+    },
+    ProblemInfo {
+        name: "car-escape",
+        summary: "ALTRO Table I: Dubins car out of a room through a door (170 wall discs), |u| <= 5, interpolated infeasible guess, N = 100, T = 3 s",
+    },
 ];
 
 /// Every problem [`build`] knows, in catalogue order.
@@ -260,6 +280,10 @@ pub fn build(name: &str) -> Result<Example> {
         "ur10-ballistic" => ur10_ballistic::build(),
         "solo-jump" => solo_jump::build(),
         "solo-com-circle" => solo_com_circle::build(solo_com_circle::HORIZON),
+        "block-move" => altro_table::block_move(),
+        "car-parallel-park" => altro_table::parallel_park(),
+        "car-3-obstacles" => altro_table::three_obstacles(),
+        "car-escape" => altro_table::escape(),
         _ => Err(Error::InvalidModel(format!(
             "unknown problem `{name}`; valid names: {}",
             CATALOGUE.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")

@@ -20,7 +20,8 @@ fn every_catalogue_entry_builds_a_consistent_example() {
         assert_eq!(p.x0().unwrap(), ex.xs0[0].as_slice(), "{}", info.name);
         // ur10-ballistic: the flight nodes hold the released mug at rest (cold start);
         // solo-com-circle: x0 at every node (the rollout of u_qs leaves the unstable
-        // standing equilibrium).
+        // standing equilibrium); car-escape: states through six poses (ALTRO's infeasible
+        // start).
         let not_rollouts = [
             "clqr",
             "pendulum",
@@ -28,6 +29,7 @@ fn every_catalogue_entry_builds_a_consistent_example() {
             "solo-jump",
             "ur10-ballistic",
             "solo-com-circle",
+            "car-escape",
         ];
         if !not_rollouts.contains(&info.name) {
             let xs = gharial_problems::rollout(p, &ex.us0).unwrap();
@@ -48,6 +50,10 @@ fn horizons_and_steps_are_as_documented() {
         ("quadrotor", 60, Some(0.033)),
         ("peers-lqr", 100, None),
         ("solo-com-circle", 250, Some(0.02)),
+        ("block-move", 20, Some(0.1)),
+        ("car-parallel-park", 100, Some(0.03)),
+        ("car-3-obstacles", 100, Some(0.05)),
+        ("car-escape", 100, Some(0.03)),
     ] {
         let ex = gharial_problems::build(name).unwrap();
         assert_eq!(ex.problem.horizon(), n, "{name}");

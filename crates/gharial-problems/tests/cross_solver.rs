@@ -6,9 +6,10 @@
 use gharial::problem::kkt_residuals;
 use gharial::solvers::{InitialGuess, Solution, SolverOptions};
 
-/// The problems compared: every catalogue entry that two solvers or more take, except the
-/// long solves (cart-pole, acrobot, quadrotor slalom, UR10, Solo), which have one taker.
-const PROBLEMS: [&str; 19] = [
+/// The problems compared: every catalogue entry on which two solvers or more converge,
+/// except the long solves (cart-pole, acrobot, quadrotor slalom, UR10, Solo), which have
+/// one taker.
+const PROBLEMS: [&str; 20] = [
     "lqr",
     "lqr-bounds",
     "lqr-term",
@@ -28,6 +29,7 @@ const PROBLEMS: [&str; 19] = [
     "ur5-circle",
     "ur5-circle-joint-bound",
     "ur5-circle-half-space",
+    "block-move",
 ];
 
 /// Relative agreement of the optimal costs: every solver stops at a KKT residual of about
