@@ -14,7 +14,9 @@ fn gharial(args: &[&str]) -> Output {
 }
 
 /// The solvers' command-line names.
-const SOLVERS: [&str; 7] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp"];
+const SOLVERS: [&str; 8] = [
+    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp",
+];
 
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()

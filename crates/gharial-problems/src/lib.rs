@@ -32,6 +32,8 @@
 //! | `ur5-circle`, `ur5-circle-joint-bound`, `ur5-circle-half-space` | [`ur5_circle`] | UR5 phase space (R¹²) | 10 | 50 ms |
 //! | `ur10-ballistic` | [`ur10_ballistic`] | UR10 and mug (R²⁵, ndx 24; mug held, then flying) | 200 | 10 ms |
 //! | `solo-jump` | [`solo_jump`] | Solo-12 phase space (nx = 37, ndx = 36) | 60 | 20 ms |
+//! | `ecddp-cartpole`, `ecddp-cartpole-advanced` | [`ecddp`] | R² × R² | 200 | 10 ms |
+//! | `ecddp-ur5` | [`ecddp`] | UR5 phase space (R¹²) | 200 | 10 ms |
 //! | `solo-com-circle` | [`solo_com_circle`] | Solo-12 phase space (nx = 37, ndx = 36) | 250 | 20 ms |
 //!
 //! Every module documents its model, its numbers and the results measured with
@@ -39,6 +41,7 @@
 
 pub mod acrobot;
 pub mod cartpole;
+pub mod ecddp;
 pub mod figures;
 pub mod lqr;
 pub mod mpc;
@@ -220,6 +223,18 @@ static CATALOGUE: &[ProblemInfo] = &[
         name: "solo-com-circle",
         summary: "Solo-12 on four feet, CoM on a horizontal circle (r = 6.5 cm, 0.2 Hz), friction cones mu = 0.8 (stagewise-SQP paper, Figs. 4-5), dt = 20 ms, N = 250",
     },
+    ProblemInfo {
+        name: "ecddp-cartpole",
+        summary: "ECDDP cart-pole swing-up (El Kazdadi et al. 2021, Figs. 1-4): force norm, terminal configuration upright, N = 200, dt = 10 ms",
+    },
+    ProblemInfo {
+        name: "ecddp-cartpole-advanced",
+        summary: "ecddp-cartpole with the terminal configuration constraint written on the last control (ECDDP (29))",
+    },
+    ProblemInfo {
+        name: "ecddp-ur5",
+        summary: "ECDDP UR5 (Fig. 6): the tool through three targets at t = 0.66, 1.33 and 2 s (equalities), N = 200, dt = 10 ms",
+    },
 ];
 
 /// Every problem [`build`] knows, in catalogue order.
@@ -260,6 +275,9 @@ pub fn build(name: &str) -> Result<Example> {
         "ur10-ballistic" => ur10_ballistic::build(),
         "solo-jump" => solo_jump::build(),
         "solo-com-circle" => solo_com_circle::build(solo_com_circle::HORIZON),
+        "ecddp-cartpole" => ecddp::cartpole(false),
+        "ecddp-cartpole-advanced" => ecddp::cartpole(true),
+        "ecddp-ur5" => ecddp::ur5(),
         _ => Err(Error::InvalidModel(format!(
             "unknown problem `{name}`; valid names: {}",
             CATALOGUE.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")

@@ -48,6 +48,8 @@ fn horizons_and_steps_are_as_documented() {
         ("quadrotor", 60, Some(0.033)),
         ("peers-lqr", 100, None),
         ("solo-com-circle", 250, Some(0.02)),
+        ("ecddp-cartpole", 200, Some(0.01)),
+        ("ecddp-ur5", 200, Some(0.01)),
     ] {
         let ex = gharial_problems::build(name).unwrap();
         assert_eq!(ex.problem.horizon(), n, "{name}");

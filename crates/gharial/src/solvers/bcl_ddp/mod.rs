@@ -422,13 +422,14 @@ impl Outer {
         self.refresh_merit(ws);
     }
 
-    /// Sets the penalty to `mu` (`false`, leaving it, if above `mu_max`) and the merit.
+    /// Sets the penalty to `mu`, at most `mu_max`, and the merit; `false` (nothing
+    /// changed) if the penalty is at `mu_max` already.
     fn raise_penalty(&mut self, ws: &mut Workspace, problem: &Problem, mu: f64, opts: &BclDdpOptions) -> bool {
-        if !(mu <= opts.mu_max) {
+        if ws.al_mut().mu >= opts.mu_max {
             return false;
         }
         ws.data.evaluate(problem, &ws.xs, &ws.us);
-        ws.al_mut().mu = mu;
+        ws.al_mut().mu = mu.min(opts.mu_max);
         self.refresh_merit(ws);
         true
     }

@@ -58,8 +58,8 @@ pub struct BclDdpOptions {
     pub max_iters: usize,
     /// Initial penalty `μ_0` (default 10).
     pub mu_init: f64,
-    /// Largest penalty: exceeding it stops the solve as
-    /// [`crate::solvers::Status::Stalled`] (default `1e12`).
+    /// Largest penalty: an increase stops there, and one asked at this value stops the
+    /// solve as [`crate::solvers::Status::Stalled`] (default `1e12`).
     pub mu_max: f64,
     /// Initial constraint tolerance `η_0` of Alg. 1 (default `0.1`).
     pub eta_init: f64,
