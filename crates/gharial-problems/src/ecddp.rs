@@ -17,7 +17,7 @@
 //! equality on the configuration; `ecddp-cartpole-advanced` writes it on the last stage
 //! instead, `h(x, u) = q(f(x, u)) - q*` by (29) (the authors advance it in time the same
 //! way), so that it depends on the control and the affine multipliers of III-B have a
-//! policy to act on. Results: the tests `tests/ecddp.rs`.
+//! policy to act on. Results: the tests `tests/ecddp.rs` and the crate README.
 //!
 //! # UR5 reaching three targets (IV-B, Fig. 6): `ecddp-ur5`
 //! "The system dynamics are integrated over 2 seconds, with a discretization step of
