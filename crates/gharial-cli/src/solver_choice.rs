@@ -11,6 +11,7 @@
 use clap::ValueEnum;
 use clap::builder::PossibleValue;
 use gharial::error::Num;
+use gharial::solvers::bcl_ddp::BclDdpOptions;
 use gharial::solvers::csqp::CsqpOptions;
 use gharial::solvers::ddp::{DdpOptions, DdpVariant};
 use gharial::solvers::log::Table;
@@ -30,11 +31,13 @@ pub enum SolverKind {
     Ddp(DdpVariant),
     /// CSQP.
     Csqp,
+    /// BCL-DDP.
+    BclDdp,
 }
 
 impl SolverKind {
     /// Every solver, in the order `gharial list` shows them.
-    pub const ALL: [SolverKind; 7] = [
+    pub const ALL: [SolverKind; 8] = [
         SolverKind::ProxDdp,
         SolverKind::Ddp(DdpVariant::Ddp),
         SolverKind::Ddp(DdpVariant::Fddp),
@@ -42,14 +45,16 @@ impl SolverKind {
         SolverKind::Ddp(DdpVariant::BoxFddp),
         SolverKind::Ddp(DdpVariant::Sqp),
         SolverKind::Csqp,
+        SolverKind::BclDdp,
     ];
 
     /// The command-line name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`,
-    /// `csqp`).
+    /// `csqp`, `bcl-ddp`).
     pub fn name(self) -> &'static str {
         match self {
             SolverKind::ProxDdp => "proxddp",
             SolverKind::Csqp => "csqp",
+            SolverKind::BclDdp => "bcl-ddp",
             SolverKind::Ddp(v) => v.name(),
         }
     }
@@ -65,6 +70,7 @@ impl SolverKind {
             SolverKind::Ddp(DdpVariant::BoxFddp) => "BoxFDDP",
             SolverKind::Ddp(DdpVariant::Sqp) => "SQP",
             SolverKind::Csqp => "CSQP",
+            SolverKind::BclDdp => "BCL-DDP",
         }
     }
 
@@ -87,6 +93,9 @@ impl SolverKind {
             }
             SolverKind::Csqp => {
                 "SQP with QPs by stagewise ADMM (Jordana et al. 2023); equality, orthant and box constraints"
+            }
+            SolverKind::BclDdp => {
+                "augmented-Lagrangian DDP with the BCL globalisation (El Kazdadi et al. 2021); equality constraints"
             }
         }
     }
@@ -112,6 +121,7 @@ impl SolverKind {
             SolverKind::ProxDdp => Fields::ProxDdp(PROXDDP_FIELDS),
             SolverKind::Ddp(_) => Fields::Ddp(DDP_FIELDS),
             SolverKind::Csqp => Fields::Csqp(CSQP_FIELDS),
+            SolverKind::BclDdp => Fields::BclDdp(BCL_DDP_FIELDS),
         }
     }
 }
@@ -353,6 +363,7 @@ impl SolverArgs {
                 self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads);
                 o.hessian = self.common.hessian.map_or(o.hessian, Into::into);
             }
+            SolverOptions::BclDdp(o) => self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.ddp.num_threads),
             SolverOptions::Csqp(o) => {
                 // Single-threaded: --threads is refused by `check`.
                 let mut threads = 1;
@@ -457,6 +468,7 @@ enum Fields {
     ProxDdp(&'static [Field<ProxDdpOptions>]),
     Ddp(&'static [Field<DdpOptions>]),
     Csqp(&'static [Field<CsqpOptions>]),
+    BclDdp(&'static [Field<BclDdpOptions>]),
 }
 
 impl Fields {
@@ -466,6 +478,7 @@ impl Fields {
             Fields::ProxDdp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
             Fields::Ddp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
             Fields::Csqp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
+            Fields::BclDdp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
         }
     }
 }
@@ -556,6 +569,44 @@ const DDP_FIELDS: &[Field<DdpOptions>] = &[
     },
 ];
 
+const BCL_DDP_FIELDS: &[Field<BclDdpOptions>] = &[
+    Field {
+        name: "tol",
+        value: |o| Setting::Real(o.tol),
+        flag: Some(TOL),
+    },
+    Field {
+        name: "max_iters",
+        value: |o| Setting::Count(o.max_iters),
+        flag: Some(MAX_ITERS),
+    },
+    Field {
+        name: "mu_init",
+        value: |o| Setting::Real(o.mu_init),
+        flag: None,
+    },
+    Field {
+        name: "multipliers",
+        value: |o| Setting::Name(format!("{:?}", o.multipliers)),
+        flag: None,
+    },
+    Field {
+        name: "penalty",
+        value: |o| Setting::Name(format!("{:?}", o.penalty)),
+        flag: None,
+    },
+    Field {
+        name: "inner",
+        value: |o| Setting::Name(o.ddp.variant.name().to_string()),
+        flag: None,
+    },
+    Field {
+        name: "num_threads",
+        value: |o| Setting::Count(o.ddp.num_threads),
+        flag: Some(THREADS),
+    },
+];
+
 const CSQP_FIELDS: &[Field<CsqpOptions>] = &[
     Field {
         name: "tol",
@@ -594,6 +645,7 @@ fn settings(options: &SolverOptions) -> Vec<(&'static str, Setting, Option<Flag>
         SolverOptions::ProxDdp(o) => values(PROXDDP_FIELDS, o),
         SolverOptions::Ddp(o) => values(DDP_FIELDS, o),
         SolverOptions::Csqp(o) => values(CSQP_FIELDS, o),
+        SolverOptions::BclDdp(o) => values(BCL_DDP_FIELDS, o),
         _ => Vec::new(),
     }
 }

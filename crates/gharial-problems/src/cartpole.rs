@@ -75,10 +75,16 @@ pub struct CartpoleOde {
 impl CartpoleOde {
     /// The cart-pole of the module documentation.
     pub fn new() -> Self {
-        let (m, l, r) = (0.1, 1.0, 0.1);
+        Self::with_pole(1.0, 0.1, 1.0, 0.1)
+    }
+
+    /// A cart of mass `cart_mass` carrying at `length` a sphere of mass `pole_mass` and
+    /// radius `radius` (0: a point mass), `g = 9.81`.
+    pub fn with_pole(cart_mass: f64, pole_mass: f64, length: f64, radius: f64) -> Self {
+        let (m, l, r) = (pole_mass, length, radius);
         Self {
             space: Arc::new(VectorSpace::new(4)),
-            cart_mass: 1.0,
+            cart_mass,
             pole_mass: m,
             length: l,
             pole_inertia: m * l * l + 0.4 * m * r * r,

@@ -32,6 +32,8 @@
 //! | `ur5-circle`, `ur5-circle-joint-bound`, `ur5-circle-half-space` | [`ur5_circle`] | UR5 phase space (R¹²) | 10 | 50 ms |
 //! | `ur10-ballistic` | [`ur10_ballistic`] | UR10 and mug (R²⁵, ndx 24; mug held, then flying) | 200 | 10 ms |
 //! | `solo-jump` | [`solo_jump`] | Solo-12 phase space (nx = 37, ndx = 36) | 60 | 20 ms |
+//! | `ecddp-cartpole`, `ecddp-cartpole-advanced` | [`ecddp`] | R² × R² | 200 | 10 ms |
+//! | `ecddp-ur5` | [`ecddp`] | UR5 phase space (R¹²) | 200 | 10 ms |
 //! | `solo-com-circle` | [`solo_com_circle`] | Solo-12 phase space (nx = 37, ndx = 36) | 250 | 20 ms |
 //! | `block-move` | [`altro_table`] | R² | 20 | 100 ms |
 //! | `car-parallel-park`, `car-escape` | [`altro_table`] | R³ | 100 | 30 ms |
@@ -43,6 +45,7 @@
 pub mod acrobot;
 pub mod altro_table;
 pub mod cartpole;
+pub mod ecddp;
 pub mod figures;
 pub mod lqr;
 pub mod mpc;
@@ -240,6 +243,18 @@ static CATALOGUE: &[ProblemInfo] = &[
         name: "car-escape",
         summary: "ALTRO Table I: Dubins car out of a room through a door (170 wall discs), |u| <= 5, interpolated infeasible guess, N = 100, T = 3 s",
     },
+    ProblemInfo {
+        name: "ecddp-cartpole",
+        summary: "ECDDP cart-pole swing-up (El Kazdadi et al. 2021, Figs. 1-4): force norm, terminal configuration upright, N = 200, dt = 10 ms",
+    },
+    ProblemInfo {
+        name: "ecddp-cartpole-advanced",
+        summary: "ecddp-cartpole with the terminal configuration constraint written on the last control (ECDDP (29))",
+    },
+    ProblemInfo {
+        name: "ecddp-ur5",
+        summary: "ECDDP UR5 (Fig. 6): the tool through three targets at t = 0.66, 1.33 and 2 s (equalities), N = 200, dt = 10 ms",
+    },
 ];
 
 /// Every problem [`build`] knows, in catalogue order.
@@ -284,6 +299,9 @@ pub fn build(name: &str) -> Result<Example> {
         "car-parallel-park" => altro_table::parallel_park(),
         "car-3-obstacles" => altro_table::three_obstacles(),
         "car-escape" => altro_table::escape(),
+        "ecddp-cartpole" => ecddp::cartpole(false),
+        "ecddp-cartpole-advanced" => ecddp::cartpole(true),
+        "ecddp-ur5" => ecddp::ur5(),
         _ => Err(Error::InvalidModel(format!(
             "unknown problem `{name}`; valid names: {}",
             CATALOGUE.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")

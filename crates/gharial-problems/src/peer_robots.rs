@@ -67,22 +67,22 @@ pub enum PendulumVariant {
 }
 
 /// Weights of the quadratic terms of a stage (`wq`, `wv`, `wu`, `wee`).
-struct Weights {
-    q: f64,
-    v: f64,
-    u: f64,
-    ee: f64,
+pub(crate) struct Weights {
+    pub q: f64,
+    pub v: f64,
+    pub u: f64,
+    pub ee: f64,
 }
 
 /// A fixed-base robot of the harness: its model, phase space and the pieces every
 /// problem shares.
-struct Robot {
-    space: Arc<MultibodyPhaseSpace>,
-    dynamics: Dynamics,
+pub(crate) struct Robot {
+    pub space: Arc<MultibodyPhaseSpace>,
+    pub dynamics: Dynamics,
 }
 
 impl Robot {
-    fn load(urdf: &str) -> Result<Self> {
+    pub(crate) fn load(urdf: &str) -> Result<Self> {
         let model = Model::from_urdf_str(urdf, RootJoint::Fixed)
             .map_err(|e| Error::InvalidModel(format!("robot model: {e}")))?;
         let model = Arc::new(model);
@@ -95,13 +95,20 @@ impl Robot {
         })
     }
 
-    fn nu(&self) -> usize {
+    pub(crate) fn nu(&self) -> usize {
         self.space.nv()
     }
 
     /// `scale · ½ (wq ‖q − q_ref‖² + wv ‖v‖² + wu ‖u‖² + wee ‖p_ee(q) − p*‖²)`; the
     /// control term only when `nu > 0`, the end-effector term only with `ee`.
-    fn cost(&self, x_ref: &[f64], w: &Weights, ee: Option<(&str, &[f64])>, nu: usize, scale: f64) -> Result<CostStack> {
+    pub(crate) fn cost(
+        &self,
+        x_ref: &[f64],
+        w: &Weights,
+        ee: Option<(&str, &[f64])>,
+        nu: usize,
+        scale: f64,
+    ) -> Result<CostStack> {
         let (space, nv): (Arc<dyn Manifold>, usize) = (self.space.clone(), self.space.nv());
         let state_w: Vec<f64> = (0..2 * nv).map(|i| if i < nv { w.q } else { w.v }).collect();
         let mut cost = CostStack::new(space.as_ref(), nu).with(

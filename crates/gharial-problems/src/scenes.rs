@@ -51,6 +51,12 @@ const SOLO_FRAMES: [&str; 5] = ["base_link", "FL_FOOT", "FR_FOOT", "HL_FOOT", "H
 pub fn robot_scene(name: &str) -> Option<RobotScene> {
     Some(match name {
         "ur5" | "ur5-box" => scene(UR5_URDF, RootJoint::Fixed, &["tool0"], vec![[0.3, 0.5, 0.5]]),
+        "ecddp-ur5" => scene(
+            UR5_URDF,
+            RootJoint::Fixed,
+            &["tool0"],
+            crate::ecddp::UR5_TARGETS.to_vec(),
+        ),
         "ur5-circle" | "ur5-circle-joint-bound" | "ur5-circle-half-space" => {
             scene(UR5_URDF, RootJoint::Fixed, &["tool0"], vec![])
         }
@@ -164,7 +170,7 @@ mod tests {
             }
             seen += 1;
         }
-        assert_eq!(seen, 12);
+        assert_eq!(seen, 13);
     }
 }
 

@@ -65,7 +65,7 @@ fn every_solver_that_converges_reaches_the_same_optimum() {
         assert!(sols.len() >= 2, "{name}: converged only {names:?}");
         for (solver, s) in &sols {
             let kkt = kkt_residuals(&ex.problem, &s.xs, &s.us, &s.lambdas, &s.nus).unwrap();
-            assert!(kkt.max() < 1e-5, "{name} / {solver}: {kkt:?}");
+            assert!(kkt.max() < 1e-4, "{name} / {solver}: {kkt:?}");
         }
         let (first, reference) = &sols[0];
         let mut worst: f64 = 0.0;

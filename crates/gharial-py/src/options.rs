@@ -2,6 +2,7 @@
 
 use std::time::Duration;
 
+use gharial::solvers::bcl_ddp::{BclDdpOptions, Multipliers, PenaltyUpdate, Schedule};
 use gharial::solvers::csqp::CsqpOptions;
 use gharial::solvers::ddp::DdpOptions;
 use gharial::solvers::proxddp::{Merit, ProxDdpOptions, Rollout, StepAcceptance};
@@ -27,6 +28,7 @@ pub fn field<'a>(options: &'a mut SolverOptions, name: &str) -> Option<Field<'a>
         SolverOptions::ProxDdp(o) => proxddp_field(o, name),
         SolverOptions::Ddp(o) => ddp_field(o, name),
         SolverOptions::Csqp(o) => csqp_field(o, name),
+        SolverOptions::BclDdp(o) => bcl_ddp_field(o, name),
         _ => None,
     }
 }
@@ -37,6 +39,7 @@ pub fn option_names(options: &SolverOptions) -> &'static [&'static str] {
         SolverOptions::ProxDdp(_) => PROXDDP,
         SolverOptions::Ddp(_) => DDP,
         SolverOptions::Csqp(_) => CSQP,
+        SolverOptions::BclDdp(_) => BCL_DDP,
         _ => &[],
     }
 }
@@ -61,6 +64,12 @@ pub enum Field<'a> {
     Merit(&'a mut Merit),
     /// The Hessian approximation.
     Hessian(&'a mut HessianApprox),
+    /// BCL-DDP's multipliers.
+    Multipliers(&'a mut Multipliers),
+    /// BCL-DDP's penalty update.
+    Penalty(&'a mut PenaltyUpdate),
+    /// BCL-DDP's schedule.
+    Schedule(&'a mut Schedule),
 }
 
 const PROXDDP: &[&str] = &[
@@ -207,6 +216,45 @@ const CSQP: &[&str] = &[
     "max_time",
 ];
 
+const BCL_DDP: &[&str] = &[
+    "tol",
+    "max_iters",
+    "mu_init",
+    "mu_max",
+    "eta_init",
+    "omega_init",
+    "bcl_alpha",
+    "multipliers",
+    "penalty",
+    "penalty_factor",
+    "adaptive_beta",
+    "max_growth",
+    "schedule",
+    "max_time",
+    "num_threads",
+];
+
+fn bcl_ddp_field<'a>(o: &'a mut BclDdpOptions, name: &str) -> Option<Field<'a>> {
+    Some(match name {
+        "tol" => Field::F64(&mut o.tol),
+        "max_iters" => Field::Usize(&mut o.max_iters),
+        "mu_init" => Field::F64(&mut o.mu_init),
+        "mu_max" => Field::F64(&mut o.mu_max),
+        "eta_init" => Field::F64(&mut o.eta_init),
+        "omega_init" => Field::F64(&mut o.omega_init),
+        "bcl_alpha" => Field::F64(&mut o.bcl_alpha),
+        "multipliers" => Field::Multipliers(&mut o.multipliers),
+        "penalty" => Field::Penalty(&mut o.penalty),
+        "penalty_factor" => Field::F64(&mut o.penalty_factor),
+        "adaptive_beta" => Field::F64(&mut o.adaptive_beta),
+        "max_growth" => Field::F64(&mut o.max_growth),
+        "schedule" => Field::Schedule(&mut o.schedule),
+        "max_time" => Field::Time(&mut o.max_time),
+        "num_threads" => Field::Usize(&mut o.ddp.num_threads),
+        _ => return None,
+    })
+}
+
 fn csqp_field<'a>(o: &'a mut CsqpOptions, name: &str) -> Option<Field<'a>> {
     Some(match name {
         "tol" => Field::F64(&mut o.tol),
@@ -244,6 +292,9 @@ const ACCEPTANCES: &[(&str, StepAcceptance)] = &[
     ("nonmonotone", StepAcceptance::NonmonotoneLinesearch),
 ];
 const MERITS: &[(&str, Merit)] = &[("primal-dual", Merit::PrimalDual), ("primal", Merit::Primal)];
+const MULTIPLIERS: &[(&str, Multipliers)] = &[("constant", Multipliers::Constant), ("affine", Multipliers::Affine)];
+const PENALTIES: &[(&str, PenaltyUpdate)] = &[("factor", PenaltyUpdate::Factor), ("adaptive", PenaltyUpdate::Adaptive)];
+const SCHEDULES: &[(&str, Schedule)] = &[("bcl", Schedule::Bcl), ("every-iteration", Schedule::EveryIteration)];
 const HESSIANS: &[(&str, HessianApprox)] = &[
     ("gauss-newton", HessianApprox::GaussNewton),
     ("exact", HessianApprox::Exact),
@@ -262,6 +313,9 @@ impl Field<'_> {
             Field::Acceptance(v) => name_of(**v, ACCEPTANCES).into_py_any(py),
             Field::Merit(v) => name_of(**v, MERITS).into_py_any(py),
             Field::Hessian(v) => name_of(**v, HESSIANS).into_py_any(py),
+            Field::Multipliers(v) => name_of(**v, MULTIPLIERS).into_py_any(py),
+            Field::Penalty(v) => name_of(**v, PENALTIES).into_py_any(py),
+            Field::Schedule(v) => name_of(**v, SCHEDULES).into_py_any(py),
         }
     }
 
@@ -285,6 +339,9 @@ impl Field<'_> {
             Field::Acceptance(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, ACCEPTANCES)?,
             Field::Merit(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, MERITS)?,
             Field::Hessian(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, HESSIANS)?,
+            Field::Multipliers(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, MULTIPLIERS)?,
+            Field::Penalty(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, PENALTIES)?,
+            Field::Schedule(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, SCHEDULES)?,
         }
         Ok(())
     }

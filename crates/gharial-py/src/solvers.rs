@@ -414,9 +414,15 @@ named_solver!(
     "csqp",
     "Constrained stagewise SQP (mim_solvers' SolverCSQP)."
 );
+named_solver!(
+    PyBclDdp,
+    "SolverBCLDDP",
+    "bcl-ddp",
+    "Equality-constrained DDP with the BCL globalisation (El Kazdadi et al. 2021)."
+);
 
-/// A solver by name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`)
-/// with options.
+/// A solver by name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`,
+/// `bcl-ddp`) with options.
 #[pyfunction]
 #[pyo3(signature = (name, **options))]
 fn solver(name: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<PySolver> {
@@ -603,6 +609,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyBoxFddp>()?;
     m.add_class::<PySqp>()?;
     m.add_class::<PyCsqp>()?;
+    m.add_class::<PyBclDdp>()?;
     m.add_class::<PyResults>()?;
     m.add_function(wrap_pyfunction!(solver, m)?)?;
     m.add_function(wrap_pyfunction!(solver_names, m)?)?;

@@ -36,6 +36,7 @@ def test_named_classes_match_the_names():
         (gharial.SolverBoxFDDP, "box-fddp"),
         (gharial.SolverSQP, "sqp"),
         (gharial.SolverCSQP, "csqp"),
+        (gharial.SolverBCLDDP, "bcl-ddp"),
     ]:
         s = cls(tol=1e-7, max_iters=50)
         assert s.name == name and s.tol == 1e-7 and s.max_iters == 50

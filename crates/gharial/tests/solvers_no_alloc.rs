@@ -21,6 +21,7 @@ use gharial::mpc::{Mpc, MpcOptions};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::InitialGuess;
 use gharial::solvers::Solver;
+use gharial::solvers::bcl_ddp::{BclDdp, BclDdpOptions, Multipliers, PenaltyUpdate, Schedule};
 use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::proxddp::{HessianApprox, ProxDdp, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::spaces::{Manifold, VectorSpace};
@@ -184,6 +185,70 @@ fn proxddp_solve_does_not_allocate_after_setup() {
                         count, 0,
                         "implicit {implicit} {rollout:?} {step_acceptance:?} {hessian:?} K {active_set_iters}"
                     );
+                }
+            }
+        }
+    }
+}
+
+/// BCL-DDP on the swing-up with its terminal equality and a path equality on the
+/// controls of the first stages (`u = 0.1`), for every multiplier, penalty and schedule
+/// and both inner solvers.
+#[test]
+fn bcl_ddp_solve_does_not_allocate_after_setup() {
+    for implicit in [false, true] {
+        let mut p = problem(implicit, 0);
+        let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(2));
+        let target = [std::f64::consts::PI, 0.0];
+        let f = Arc::new(Unary::new(
+            Arc::new(StateError::new(space.clone(), &target).unwrap()),
+            0,
+        ));
+        p.add_terminal_constraint(StageConstraint::new("x_N", f, Arc::new(EqualityConstraintSet)))
+            .unwrap();
+        let u_pin = StageConstraint::new(
+            "u_pin",
+            Arc::new(ControlError::new(space.as_ref(), &[0.1]).unwrap()),
+            Arc::new(EqualityConstraintSet),
+        );
+        let stages: Vec<StageModel> = p
+            .stages()
+            .iter()
+            .enumerate()
+            .map(|(t, s)| {
+                if t < 3 {
+                    s.clone().with_constraint(u_pin.clone()).unwrap()
+                } else {
+                    s.clone()
+                }
+            })
+            .collect();
+        let mut q = Problem::new(p.x0().unwrap(), stages, p.terminal_cost().clone()).unwrap();
+        for c in p.terminal_constraints() {
+            q.add_terminal_constraint(c.clone()).unwrap();
+        }
+        let (xs, us) = guess(&q);
+        for multipliers in [Multipliers::Constant, Multipliers::Affine] {
+            for penalty in [PenaltyUpdate::Factor, PenaltyUpdate::Adaptive] {
+                for schedule in [Schedule::Bcl, Schedule::EveryIteration] {
+                    for variant in [DdpVariant::Ddp, DdpVariant::Fddp] {
+                        let opts = BclDdpOptions::default().with(|o| {
+                            o.multipliers = multipliers;
+                            o.penalty = penalty;
+                            o.schedule = schedule;
+                            o.ddp = DdpOptions::new(variant);
+                            o.max_iters = 30;
+                        });
+                        let mut solver = BclDdp::new(opts);
+                        solver.setup(&q).unwrap();
+                        let mut iterations = 0;
+                        let count = counting_alloc::allocations(|| {
+                            iterations = solver.solve(&q, InitialGuess::primal(&xs, &us)).unwrap().iterations;
+                        });
+                        let what = format!("implicit {implicit} {multipliers:?} {penalty:?} {schedule:?} {variant:?}");
+                        assert!(iterations > 3, "{what}: the solves must do real work");
+                        assert_eq!(count, 0, "{what}");
+                    }
                 }
             }
         }

@@ -1,6 +1,7 @@
 //! The options of any solver of the library, chosen by name ([`SolverOptions`]).
 
 use super::Solver;
+use super::bcl_ddp::{BclDdp, BclDdpOptions};
 use super::csqp::{Csqp, CsqpOptions};
 use super::ddp::{Ddp, DdpOptions, DdpVariant};
 use super::log::LogSink;
@@ -19,13 +20,17 @@ pub enum SolverOptions {
     Ddp(DdpOptions),
     /// CSQP (Jordana et al. 2023).
     Csqp(CsqpOptions),
+    /// BCL-DDP (El Kazdadi et al. 2021): equality constraints only.
+    BclDdp(BclDdpOptions),
 }
 
 /// The solver names, in the order of [`SolverOptions::names`].
-const NAMES: [&str; 7] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp"];
+const NAMES: [&str; 8] = [
+    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp",
+];
 
 impl SolverOptions {
-    /// Every solver name: `proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`.
+    /// Every solver name: `proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`, `bcl-ddp`.
     pub fn names() -> &'static [&'static str] {
         &NAMES
     }
@@ -38,6 +43,7 @@ impl SolverOptions {
         match name {
             "proxddp" => Ok(SolverOptions::ProxDdp(ProxDdpOptions::default())),
             "csqp" => Ok(SolverOptions::Csqp(CsqpOptions::default())),
+            "bcl-ddp" => Ok(SolverOptions::BclDdp(BclDdpOptions::default())),
             _ => DdpVariant::from_name(name)
                 .map(|v| SolverOptions::Ddp(DdpOptions::new(v)))
                 .ok_or_else(|| {
@@ -55,6 +61,7 @@ impl SolverOptions {
             SolverOptions::ProxDdp(_) => "proxddp",
             SolverOptions::Ddp(o) => o.variant.name(),
             SolverOptions::Csqp(_) => "csqp",
+            SolverOptions::BclDdp(_) => "bcl-ddp",
         }
     }
 
@@ -64,6 +71,7 @@ impl SolverOptions {
             SolverOptions::ProxDdp(o) => o.log = log,
             SolverOptions::Ddp(o) => o.log = log,
             SolverOptions::Csqp(o) => o.log = log,
+            SolverOptions::BclDdp(o) => o.log = log,
         }
     }
 
@@ -76,6 +84,7 @@ impl SolverOptions {
             SolverOptions::ProxDdp(o) => o.validate(),
             SolverOptions::Ddp(o) => o.validate(),
             SolverOptions::Csqp(o) => o.validate(),
+            SolverOptions::BclDdp(o) => o.validate(),
         }
     }
 
@@ -85,6 +94,7 @@ impl SolverOptions {
             SolverOptions::ProxDdp(o) => Box::new(ProxDdp::new(o.clone())),
             SolverOptions::Ddp(o) => Box::new(Ddp::new(o.clone())),
             SolverOptions::Csqp(o) => Box::new(Csqp::new(o.clone())),
+            SolverOptions::BclDdp(o) => Box::new(BclDdp::new(o.clone())),
         }
     }
 }

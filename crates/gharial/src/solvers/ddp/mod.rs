@@ -46,9 +46,10 @@
 //! controls only (recognised among the path constraints as [`crate::constraints::ConstraintSet::box_bounds`] describes), anything else is refused with an error naming the
 //! constraint. All need a fixed initial state.
 
+pub(crate) mod augmented;
 mod bounds;
 mod options;
-mod workspace;
+pub(crate) mod workspace;
 
 pub use bounds::{StageBounds, control_bounds};
 pub use options::{DdpOptions, DdpVariant};
@@ -150,13 +151,15 @@ impl std::fmt::Debug for Ddp {
 
 /// The outcome of a line search.
 #[derive(Debug, Clone, Copy)]
-struct Step {
+pub(crate) struct Step {
     /// Accepted step length, or the last one tried.
-    alpha: f64,
-    /// Cost of the accepted trial.
-    cost: Option<f64>,
-    expected: f64,
-    decrease: f64,
+    pub alpha: f64,
+    /// Cost (merit) of the accepted trial.
+    pub cost: Option<f64>,
+    /// Expected decrease of the step.
+    pub expected: f64,
+    /// Actual decrease of the step.
+    pub decrease: f64,
 }
 
 /// Residuals and stopping criterion after a backward pass.
@@ -192,7 +195,7 @@ impl Ddp {
     fn setup_with(&mut self, problem: &Problem, queue: Option<&[StageModel]>) -> Result<()> {
         self.options.validate()?;
         self.signature = Signature::default();
-        self.ws = Some(Box::new(Workspace::new(problem, &self.options, queue)?));
+        self.ws = Some(Box::new(Workspace::new(problem, &self.options, queue, None)?));
         self.solution = solution_for(problem, self.options.max_iters, queue)?;
         self.signature = Signature::of(problem);
         Ok(())
@@ -348,7 +351,7 @@ impl Loop {
 /// The backward pass at the current point (knots rebuilt after a step, else only the
 /// regularisation changed), raising the regularisation until it succeeds; then the
 /// expected improvement and the dual residual.
-fn backward(
+pub(crate) fn backward(
     ws: &mut Workspace,
     problem: &Problem,
     opts: &DdpOptions,
@@ -374,7 +377,7 @@ fn backward(
 
 /// Backtracking on the step length with crocoddyl's acceptance rules (module docs), or
 /// with SQP's filter (`filter_linesearch`).
-fn line_search(ws: &mut Workspace, problem: &Problem, e: Expected, opts: &DdpOptions) -> Step {
+pub(crate) fn line_search(ws: &mut Workspace, problem: &Problem, e: Expected, opts: &DdpOptions) -> Step {
     let multiple_shooting = opts.variant.multiple_shooting();
     let mut step = Step {
         alpha: 1.0,
@@ -444,7 +447,7 @@ fn filter_line_search(ws: &mut Workspace, problem: &Problem, opts: &DdpOptions) 
 
 /// Levenberg-Marquardt update after a line search; `false` when the regularisation
 /// reaches its upper bound.
-fn update_reg(reg: &mut f64, step: &Step, opts: &DdpOptions) -> bool {
+pub(crate) fn update_reg(reg: &mut f64, step: &Step, opts: &DdpOptions) -> bool {
     if step.cost.is_some() && step.alpha > opts.step_decrease_reg {
         *reg /= opts.reg_decrease;
         if *reg < opts.reg_min {

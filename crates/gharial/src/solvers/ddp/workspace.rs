@@ -4,6 +4,7 @@
 
 use faer::{Accum, Mat};
 
+use super::augmented::Augmented;
 use super::bounds::ControlBounds;
 use super::options::{DdpOptions, DdpVariant};
 use crate::dynamics::Dynamics;
@@ -18,12 +19,12 @@ use crate::solvers::{HessianApprox, InitialGuess};
 /// The terms of the expected improvement of FDDP (Mastalli et al. 2020, (19)-(20)) that do
 /// not depend on the trial: `Δ_g` and `Δ_q` (crocoddyl's `dg`, `dq`).
 #[derive(Debug, Clone, Copy, Default)]
-pub(super) struct Expected {
+pub(crate) struct Expected {
     pub dg: f64,
     pub dq: f64,
 }
 
-pub(super) struct Workspace {
+pub(crate) struct Workspace {
     variant: DdpVariant,
     /// Current iterate.
     pub xs: Vec<Vec<f64>>,
@@ -50,7 +51,7 @@ pub(super) struct Workspace {
     /// Solution of the LQ subproblem (for the co-states of the solution).
     pub lq_sol: LqSolution,
     pub data: ProblemData,
-    pub bounds: Option<ControlBounds>,
+    pub(super) bounds: Option<ControlBounds>,
     qps: Vec<BoxQp>,
     /// Whether the box QP gave the gains of stage `t` in the last backward pass.
     qp_used: Vec<bool>,
@@ -62,6 +63,11 @@ pub(super) struct Workspace {
     dub: Vec<Vec<f64>>,
     /// Scratch of control size.
     wu: Vec<f64>,
+    /// Scratch of control size: the augmented control gradient `Q_u^c` (23).
+    wq: Vec<f64>,
+    /// BCL-DDP: the augmented-Lagrangian terms of equality constraints (the merit is then
+    /// the augmented Lagrangian and the knots carry the constraint rows).
+    pub al: Option<Augmented>,
     pub cost: f64,
     /// Whether an iteration of this solve has ended (the box QP is used from the second).
     iterated: bool,
@@ -138,8 +144,14 @@ fn check_unconstrained(problem: &Problem, queue: &[StageModel], name: &str) -> R
 
 impl Workspace {
     /// The workspace of `problem`; with `queue`, also for a receding horizon through
-    /// the stages queued to enter it ([`Workspace::shift`]).
-    pub fn new(problem: &Problem, opts: &DdpOptions, queue: Option<&[StageModel]>) -> Result<Self> {
+    /// the stages queued to enter it ([`Workspace::shift`]); with `al`, for BCL-DDP (whose
+    /// [`Augmented::new`] checked that the constraints are equalities).
+    pub fn new(
+        problem: &Problem,
+        opts: &DdpOptions,
+        queue: Option<&[StageModel]>,
+        al: Option<Augmented>,
+    ) -> Result<Self> {
         let variant = opts.variant;
         let name = variant.name();
         let InitialCondition::Fixed(x0) = problem.initial_condition() else {
@@ -153,6 +165,8 @@ impl Workspace {
         let queue = queue.unwrap_or(&[]);
         let bounds = if variant.control_bounds() {
             Some(ControlBounds::new(problem, queue, name)?)
+        } else if al.is_some() {
+            None
         } else {
             check_unconstrained(problem, queue, name)?;
             None
@@ -166,7 +180,7 @@ impl Workspace {
         let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
         let vecs = |sizes: &[usize]| sizes.iter().map(|&k| vec![0.0; k]).collect::<Vec<_>>();
         let nus: Vec<usize> = (0..n).map(|t| problem.nu(t)).collect();
-        let lq = lq_for(problem, false, None);
+        let lq = lq_for(problem, al.is_some(), None);
         let riccati = RiccatiSolver::new(&lq)?;
         let lq_sol = LqSolution::new(&lq);
         Ok(Self {
@@ -195,6 +209,8 @@ impl Workspace {
             dlb: vecs(&nus),
             dub: vecs(&nus),
             wu: vec![0.0; nus.iter().copied().max().unwrap_or(0)],
+            wq: vec![0.0; nus.iter().copied().max().unwrap_or(0)],
+            al,
             cost: 0.0,
             iterated: false,
             spare: queue.iter().map(StageData::new).collect(),
@@ -253,6 +269,9 @@ impl Workspace {
         self.iterated = false;
         self.data.invalidate_constant_derivatives();
         self.cost = self.data.evaluate(problem, &self.xs, &self.us);
+        if let Some(al) = &mut self.al {
+            self.cost += al.value(&self.data, None);
+        }
         if !self.values_finite() {
             return Ok(false);
         }
@@ -316,6 +335,9 @@ impl Workspace {
             } else {
                 crate::linalg::copy(knot.Q.as_mut(), self.data.terminal_cost.lxx.as_ref());
                 slice_mut(&mut knot.q).copy_from_slice(self.data.terminal_cost.lx());
+            }
+            if let Some(al) = &self.al {
+                al.fill_knot(t, knot, self.data.constraint_data(t));
             }
             for i in 0..knot.nx {
                 knot.Q[(i, i)] += reg;
@@ -410,10 +432,21 @@ impl Workspace {
         let mut dual: f64 = 0.0;
         for t in 0..n {
             let st = &stages[t];
-            let (k, qu) = (st.k(), st.Q_u());
+            let k = st.k();
+            let knot = &self.lq.knots[t];
+            let qu = if knot.nc > 0 {
+                // The constraint rows' part of the augmented Q-function (23); `qu` is
+                // its control gradient.
+                let (dg, dq) = Augmented::condensed(knot, st, &mut self.wq[..k.len()]);
+                e.dg += dg;
+                e.dq += dq;
+                &self.wq[..k.len()]
+            } else {
+                st.Q_u()
+            };
             let w = &mut self.wu[..k.len()];
             matvec(w, Accum::Replace, st.Q_uu(), k, 1.0);
-            e.dg -= dot(qu, k);
+            e.dg -= dot(st.Q_u(), k);
             for j in 0..k.len() {
                 if !self.qp_used[t] || self.qps[t].is_free(j) {
                     dual = dual.max(qu[j].abs());
@@ -498,7 +531,10 @@ impl Workspace {
         problem
             .space(n)
             .difference(&self.xs[n], &self.xs_try[n], &mut self.dx[n]);
-        let cost = self.data.evaluate_terminal(problem, &self.xs_try);
+        let mut cost = self.data.evaluate_terminal(problem, &self.xs_try);
+        if let Some(al) = &mut self.al {
+            cost += al.value(&self.data, Some(&self.dx));
+        }
         cost.is_finite().then_some(cost)
     }
 
@@ -567,6 +603,9 @@ impl Workspace {
         std::mem::swap(&mut self.xs, &mut self.xs_try);
         std::mem::swap(&mut self.us, &mut self.us_try);
         self.cost = cost;
+        if let Some(al) = &mut self.al {
+            al.move_origin(&self.dx);
+        }
         // A single-shooting trial is a rollout; a multiple-shooting one closes the gaps
         // at the full step (crocoddyl: `setCandidate(.., was_feasible || α == 1)`); SQP
         // reads them.
