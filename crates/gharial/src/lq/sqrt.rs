@@ -11,17 +11,16 @@
 //!       [ U                        ]   cost                          (paper: √ℓ_uu, √ℓ_xx)
 //!       [ √ρ I      0              ]   regularisation of Q_uu
 //! ```
-//! has `WᵀW = [[Q_uu + ρI, Q_ux], [Q_xu, Q_xx]]`, the Q-function Hessian of (17)-(19) of
-//! the paper, whose square-root forms (23)-(24) are the blocks of its QR factor: the
+//! has `WᵀW = [[Q_uu + ρI, Q_ux], [Q_xu, Q_xx]]`, the Q-function Hessian of (7)-(10) of
+//! the paper, whose square-root forms (19)-(21) are the blocks of its QR factor: the
 //! Householder QR of `W` leaves
 //! ```text
 //!   R = [ Z_uu  Z_ux ]      Q_uu + ρI = Z_uuᵀZ_uu,  Q_ux = Z_uuᵀZ_ux,
 //!       [ 0     S_t  ]      Q_xx = Z_uxᵀZ_ux + S_tᵀS_t,
 //! ```
-//! so that `K = -Z_uu⁻¹Z_ux`, `k = -Z_uu⁻¹Z_uu⁻ᵀQ_u` (eq. 25) and the value Hessian
+//! so that `K = -Z_uu⁻¹Z_ux`, `k = -Z_uu⁻¹Z_uu⁻ᵀQ_u` ((22)-(23)) and the value Hessian
 //! `P_t = Q_xx - Q_xuQ_uu⁻¹Q_ux = S_tᵀS_t` is the trailing block: the factor update of
-//! (26)-(27), which the paper writes as a QR update followed by rank-one downdates for
-//! the `KᵀQ_uuK` terms, comes out of the same decomposition without a downdate (the
+//! (26)-(29), which the paper writes as a QR followed by a downdate `DD(Z_uu, Z_xx⁻ᵀQ_xu)`, comes out of the same decomposition without a downdate (the
 //! elimination of `u` is the Schur complement that the partial QR computes). The value
 //! gradient is `p_t = Q_x - Z_uxᵀZ_uu⁻ᵀQ_u`.
 //!
@@ -137,7 +136,7 @@ pub(super) fn step(
     write_stage(st, sq, knot, reg)
 }
 
-/// The stage's results from the triangular factor `R` (module docs): gains (25),
+/// The stage's results from the triangular factor `R` (module docs): gains (22)-(23),
 /// Q-function, value function `P = SᵀS`, `p = Sᵀs + p̂`, multiplier gains.
 fn write_stage(st: &mut RiccatiStage, sq: &mut SqrtKnot, knot: &LqKnot, reg: f64) -> Result<(), LqError> {
     let (nx, nu) = (knot.nx, knot.nu);
@@ -159,7 +158,7 @@ fn write_stage(st: &mut RiccatiStage, sq: &mut SqrtKnot, knot: &LqKnot, reg: f64
         let a = (j + nu) % n;
         parts.qvec[j] = (0..=a).map(|k| r[(k, a)] * r[(k, n)]).sum::<f64>() + sq.g[a];
     }
-    // w = Z_uu⁻ᵀĝ_u, k = -Z_uu⁻¹(z_u + w), p̂ = ĝ_x - Z_uxᵀw (25)-(27).
+    // w = Z_uu⁻ᵀĝ_u, k = -Z_uu⁻¹(z_u + w) (23), p̂ = ĝ_x - Z_uxᵀw (24).
     let g = slice(&sq.g);
     let ff = linalg::col_of_mut(parts.gains, 0);
     ff[..nu].copy_from_slice(&g[..nu]);

@@ -1,6 +1,7 @@
 //! The options of any solver of the library, chosen by name ([`SolverOptions`]).
 
 use super::Solver;
+use super::altro::{Altro, AltroOptions};
 use super::csqp::{Csqp, CsqpOptions};
 use super::ddp::{Ddp, DdpOptions, DdpVariant};
 use super::log::LogSink;
@@ -19,13 +20,16 @@ pub enum SolverOptions {
     Ddp(DdpOptions),
     /// CSQP (Jordana et al. 2023).
     Csqp(CsqpOptions),
+    /// ALTRO's AL-iLQR (Howell et al. 2019).
+    Altro(AltroOptions),
 }
 
 /// The solver names, in the order of [`SolverOptions::names`].
-const NAMES: [&str; 7] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp"];
+const NAMES: [&str; 8] = ["proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "altro"];
 
 impl SolverOptions {
-    /// Every solver name: `proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`.
+    /// Every solver name: `proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`,
+    /// `altro`.
     pub fn names() -> &'static [&'static str] {
         &NAMES
     }
@@ -38,6 +42,7 @@ impl SolverOptions {
         match name {
             "proxddp" => Ok(SolverOptions::ProxDdp(ProxDdpOptions::default())),
             "csqp" => Ok(SolverOptions::Csqp(CsqpOptions::default())),
+            "altro" => Ok(SolverOptions::Altro(AltroOptions::default())),
             _ => DdpVariant::from_name(name)
                 .map(|v| SolverOptions::Ddp(DdpOptions::new(v)))
                 .ok_or_else(|| {
@@ -55,6 +60,7 @@ impl SolverOptions {
             SolverOptions::ProxDdp(_) => "proxddp",
             SolverOptions::Ddp(o) => o.variant.name(),
             SolverOptions::Csqp(_) => "csqp",
+            SolverOptions::Altro(_) => "altro",
         }
     }
 
@@ -64,6 +70,7 @@ impl SolverOptions {
             SolverOptions::ProxDdp(o) => o.log = log,
             SolverOptions::Ddp(o) => o.log = log,
             SolverOptions::Csqp(o) => o.log = log,
+            SolverOptions::Altro(o) => o.log = log,
         }
     }
 
@@ -76,6 +83,7 @@ impl SolverOptions {
             SolverOptions::ProxDdp(o) => o.validate(),
             SolverOptions::Ddp(o) => o.validate(),
             SolverOptions::Csqp(o) => o.validate(),
+            SolverOptions::Altro(o) => o.validate(),
         }
     }
 
@@ -85,6 +93,7 @@ impl SolverOptions {
             SolverOptions::ProxDdp(o) => Box::new(ProxDdp::new(o.clone())),
             SolverOptions::Ddp(o) => Box::new(Ddp::new(o.clone())),
             SolverOptions::Csqp(o) => Box::new(Csqp::new(o.clone())),
+            SolverOptions::Altro(o) => Box::new(Altro::new(o.clone())),
         }
     }
 }

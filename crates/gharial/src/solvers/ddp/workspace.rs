@@ -24,6 +24,8 @@ pub(super) struct Expected {
 
 pub(super) struct Workspace {
     variant: DdpVariant,
+    /// Whether the backward pass is the square-root one.
+    square_root: bool,
     /// Current iterate.
     pub xs: Vec<Vec<f64>>,
     pub us: Vec<Vec<f64>>,
@@ -102,6 +104,25 @@ fn check_unconstrained(problem: &Problem, queue: &[StageModel], name: &str) -> R
     Ok(())
 }
 
+/// The square-root pass needs `E = -I`: explicit dynamics on vector spaces, in the
+/// horizon and the queue.
+fn check_square_root(problem: &Problem, queue: &[StageModel], name: &str) -> Result<()> {
+    let stages = problem.stages().iter().chain(queue);
+    for (t, s) in stages.enumerate() {
+        let explicit = matches!(s.dynamics, crate::dynamics::Dynamics::Explicit(_));
+        if !explicit || !s.space_next().is_vector_space() {
+            return Err(Error::option(
+                "square_root",
+                format!(
+                    "{name} with the square-root pass needs explicit dynamics on vector spaces \
+                     (stage {t} has implicit dynamics or a manifold state)"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 impl Workspace {
     /// The workspace of `problem`; with `queue`, also for a receding horizon through
     /// the stages queued to enter it ([`Workspace::shift`]).
@@ -135,10 +156,16 @@ impl Workspace {
         let vecs = |sizes: &[usize]| sizes.iter().map(|&k| vec![0.0; k]).collect::<Vec<_>>();
         let nus: Vec<usize> = (0..n).map(|t| problem.nu(t)).collect();
         let lq = lq_for(problem, false, None);
-        let riccati = RiccatiSolver::new(&lq)?;
+        let riccati = if opts.square_root {
+            check_square_root(problem, queue, name)?;
+            RiccatiSolver::with_square_root(&lq)?
+        } else {
+            RiccatiSolver::new(&lq)?
+        };
         let lq_sol = LqSolution::new(&lq);
         Ok(Self {
             variant,
+            square_root: opts.square_root,
             xs_try: s.xs.clone(),
             us_try: s.us.clone(),
             xs: s.xs,
@@ -308,6 +335,10 @@ impl Workspace {
     /// feasible): from far away, box-QP steps whose feedback the rollout clamps heavily
     /// are short.
     pub fn backward(&mut self, reg: f64, qp_opts: &BoxQpOptions) -> std::result::Result<(), LqError> {
+        if self.square_root {
+            self.qp_used.fill(false);
+            return self.riccati.backward_square_root(&self.lq, reg);
+        }
         let use_qp = self.feasible && self.iterated && self.bounds.is_some();
         if !use_qp {
             self.qp_used.fill(false);

@@ -1,0 +1,108 @@
+//! ALTRO's AL-iLQR on constrained linear-quadratic problems, against independent
+//! references: the optimal costs of the Clarabel QP solver (box-constrained LQs), the
+//! dense KKT solve (terminal equality), and ProxDDP's optimum on the same problems.
+
+#[path = "support/lq_ocp.rs"]
+mod lq_ocp;
+
+use gharial::lq::dense;
+use gharial::problem::Problem;
+use gharial::solvers::altro::{Altro, AltroOptions};
+use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions};
+use gharial::solvers::{InitialGuess, Solution, Solver, SolverOptions, Status};
+use lq_ocp::*;
+
+fn altro(p: &Problem, opts: AltroOptions) -> Solution {
+    let (xs, us) = zero_guess(p);
+    let mut solver = Altro::new(opts);
+    solver.setup(p).unwrap();
+    solver.solve(p, InitialGuess::primal(&xs, &us)).unwrap().clone()
+}
+
+fn tight() -> AltroOptions {
+    AltroOptions::default().with(|o| {
+        o.constraint_tolerance = 1e-8;
+        o.cost_tolerance = 1e-12;
+    })
+}
+
+fn traj_diff(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
+    a.iter()
+        .zip(b)
+        .flat_map(|(x, y)| x.iter().zip(y).map(|(p, q)| (p - q).abs()))
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn box_constrained_lq_has_the_optimal_cost_of_an_independent_qp_solver() {
+    let cases = qp_reference_cases();
+    for case in cases.iter().filter(|c| c.seed < 40) {
+        let (seed, reference) = (case.seed, case.clarabel_cost);
+        let p = ocp(&case.lq, Some(case.umax), case.target.as_deref());
+        let prox = {
+            let (xs, us) = zero_guess(&p);
+            let mut s = ProxDdp::new(ProxDdpOptions::default().with(|o| o.tol = 1e-9));
+            s.setup(&p).unwrap();
+            s.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().clone()
+        };
+        assert_eq!(prox.status, Status::Converged);
+        for square_root in [false, true] {
+            let sol = altro(&p, tight().with(|o| o.square_root = square_root));
+            assert_eq!(sol.status, Status::Converged, "seed {seed} sqrt {square_root}");
+            assert!(sol.prim_err <= 1e-8);
+            let rel = (sol.cost - reference).abs() / reference.abs().max(1.0);
+            assert!(rel < 1e-6, "seed {seed}: cost {} vs QP {reference} ({rel:e})", sol.cost);
+            // The same optimum as ProxDDP's (the constraints are met to 1e-8, so the
+            // trajectories agree to about that over the conditioning of the problem).
+            let d = traj_diff(&sol.us, &prox.us).max(traj_diff(&sol.xs, &prox.xs));
+            assert!(d < 1e-5, "seed {seed} sqrt {square_root}: |ALTRO - ProxDDP| = {d:e}");
+        }
+    }
+}
+
+#[test]
+fn terminal_equality_lq_reaches_the_dense_kkt_solution() {
+    for seed in [1, 2, 3] {
+        let lq = random_lq(4, 2, 15, seed);
+        let target = reachable_target(&lq, 1.0);
+        let p = ocp(&lq, None, Some(&target));
+        let reference = dense::solve(&exact_lq(&lq, Some(&target))).unwrap();
+        let sol = altro(&p, tight());
+        assert_eq!(sol.status, Status::Converged, "seed {seed}");
+        let d = max_diff(&sol.xs, &reference.xs).max(max_diff(&sol.us, &reference.us));
+        assert!(d < 1e-6, "seed {seed}: {d:e}");
+        // The multipliers of the terminal constraint are the AL's λ (17).
+        let n = p.horizon();
+        let dn = max_diff(&sol.nus[n..], &reference.nus[n..]);
+        assert!(dn < 1e-4 * (1.0 + reference.nus[n].norm_max()), "seed {seed}: {dn:e}");
+        // Square-root and plain backward passes: the same iterates to round-off.
+        let s2 = altro(&p, tight().with(|o| o.square_root = true));
+        assert_eq!(s2.status, Status::Converged);
+        assert!(traj_diff(&s2.us, &sol.us) < 1e-7);
+    }
+}
+
+#[test]
+fn altro_is_built_by_name_and_refuses_bad_options() {
+    let opts = SolverOptions::from_name("altro").unwrap();
+    assert_eq!(opts.name(), "altro");
+    let lq = random_lq(3, 1, 5, 4);
+    let p = ocp(&lq, Some(1.0), None);
+    let mut s = opts.build();
+    s.setup(&p).unwrap();
+    for bad in [
+        AltroOptions::default().with(|o| o.penalty_scaling = 1.0),
+        AltroOptions::default().with(|o| o.constraint_tolerance = 0.0),
+        AltroOptions::default().with(|o| o.penalty_initial = f64::NAN),
+        AltroOptions::default().with(|o| o.iterations_outer = 0),
+    ] {
+        let mut s = Altro::new(bad);
+        assert!(s.setup(&p).is_err());
+    }
+    let mut s = Altro::new(AltroOptions::default());
+    let (xs, us) = zero_guess(&p);
+    assert!(
+        s.solve(&p, InitialGuess::primal(&xs, &us)).is_err(),
+        "solve before setup"
+    );
+}
