@@ -19,10 +19,13 @@ fn altro(p: &Problem, opts: AltroOptions) -> Solution {
     solver.solve(p, InitialGuess::primal(&xs, &us)).unwrap().clone()
 }
 
+/// AL-iLQR alone to a tight tolerance: the multipliers converge, so the primal optimum
+/// is reached (the projection only restores feasibility).
 fn tight() -> AltroOptions {
     AltroOptions::default().with(|o| {
         o.constraint_tolerance = 1e-8;
         o.cost_tolerance = 1e-12;
+        o.projected_newton = false;
     })
 }
 
@@ -79,6 +82,26 @@ fn terminal_equality_lq_reaches_the_dense_kkt_solution() {
         let s2 = altro(&p, tight().with(|o| o.square_root = true));
         assert_eq!(s2.status, Status::Converged);
         assert!(traj_diff(&s2.us, &sol.us) < 1e-7);
+    }
+}
+
+#[test]
+fn the_projection_takes_a_coarse_solution_to_the_constraint_tolerance() {
+    let cases = qp_reference_cases();
+    for case in cases.iter().filter(|c| c.seed < 40 && c.target.is_some()) {
+        let p = ocp(&case.lq, Some(case.umax), case.target.as_deref());
+        let opts = AltroOptions::default().with(|o| {
+            o.constraint_tolerance = 1e-10;
+            o.projected_newton_tolerance = 1e-3;
+        });
+        let sol = altro(&p, opts);
+        assert_eq!(sol.status, Status::Converged, "seed {}", case.seed);
+        assert!(sol.prim_err <= 1e-10, "seed {}: {:e}", case.seed, sol.prim_err);
+        // The last row is the projection's; the AL stage stopped at the coarse tolerance.
+        let h = &sol.history;
+        assert!(h[h.len() - 2].prim_err > 1e-10 && h[h.len() - 2].prim_err <= 1e-3);
+        let rel = (sol.cost - case.clarabel_cost).abs() / case.clarabel_cost.abs().max(1.0);
+        assert!(rel < 1e-2, "seed {}: {rel:e}", case.seed);
     }
 }
 

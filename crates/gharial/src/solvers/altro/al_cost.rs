@@ -66,6 +66,11 @@ impl AlCost {
         }
     }
 
+    /// `λ` of row `i` of constraint `k`.
+    pub(super) fn lambda_of(&self, k: usize, i: usize) -> f64 {
+        self.lambda.get(self.offsets[k] + i)
+    }
+
     /// The constraints.
     pub(super) fn constraints(&self) -> &[StageConstraint] {
         &self.cons

@@ -37,6 +37,7 @@
 
 mod al_cost;
 mod options;
+mod projection;
 
 pub use options::AltroOptions;
 
@@ -130,6 +131,7 @@ struct Workspace {
     no_u: Vec<f64>,
     /// Cost of the original problem at the current point.
     cost: f64,
+    projection: projection::Projection,
 }
 
 impl Workspace {
@@ -175,6 +177,7 @@ impl Workspace {
             us: sol.us,
             no_u: Vec::new(),
             cost: 0.0,
+            projection: projection::Projection::new(problem, vector_spaces(problem))?,
         })
     }
 
@@ -230,6 +233,14 @@ impl Workspace {
     }
 }
 
+/// Whether every knot's LQ has `E = -I` (explicit dynamics on vector spaces).
+fn vector_spaces(problem: &Problem) -> bool {
+    problem
+        .stages()
+        .iter()
+        .all(|s| matches!(s.dynamics, crate::dynamics::Dynamics::Explicit(_)) && s.space_next().is_vector_space())
+}
+
 impl Altro {
     /// A solver with the given options (nothing allocated until `setup`).
     pub fn new(options: AltroOptions) -> Self {
@@ -278,9 +289,14 @@ impl Altro {
         ws.init_multipliers(guess.nus, opts);
         let mut status = Status::MaxIterations;
         let mut inner_iters = 0;
+        let tol = if opts.projected_newton {
+            opts.projected_newton_tolerance.max(opts.constraint_tolerance)
+        } else {
+            opts.constraint_tolerance
+        };
         let mut viol = f64::INFINITY;
         for outer in 0..opts.iterations_outer {
-            let last = viol <= opts.constraint_tolerance;
+            let last = viol <= tol;
             let th = if last {
                 opts.cost_tolerance
             } else {
@@ -313,7 +329,7 @@ impl Altro {
             push_record(sol, record, &opts.log, &TABLE);
             // The inner solve converged to cost_tolerance when it ran with it.
             let inner_ok = last && matches!(inner_status, Status::Converged | Status::Stalled);
-            if viol <= opts.constraint_tolerance && inner_ok {
+            if viol <= tol && inner_ok {
                 status = Status::Converged;
                 break;
             }
@@ -322,7 +338,7 @@ impl Altro {
                 break;
             }
             // (17)-(18), unless the constraints are met and only the cost tolerance is not.
-            if viol > opts.constraint_tolerance {
+            if viol > tol {
                 ws.constraints(true, opts.dual_max);
                 ws.scale_penalties(opts);
             }
@@ -333,10 +349,49 @@ impl Altro {
                 break;
             }
         }
+        if status == Status::Converged && opts.projected_newton {
+            (status, viol) = project(ws, problem, opts, sol, inner_iters);
+        }
         write_solution(sol, ws, status, inner_iters, viol);
         sol.solve_time = start.elapsed();
         Ok(&self.solution)
     }
+}
+
+/// Algorithm 2 from the AL-iLQR solution: the status and the violation reached (a row of
+/// the table with `al_iter` one past the last outer iteration).
+fn project(
+    ws: &mut Workspace,
+    problem: &Problem,
+    opts: &AltroOptions,
+    sol: &mut Solution,
+    iters: usize,
+) -> (Status, f64) {
+    let v = ws.projection.run(
+        problem,
+        &mut ws.data,
+        &ws.costs,
+        &mut ws.xs,
+        &mut ws.us,
+        opts.constraint_tolerance,
+        opts.projected_newton_steps,
+    );
+    ws.cost = ws.data.evaluate(problem, &ws.xs, &ws.us);
+    let record = IterationRecord {
+        iter: iters,
+        al_iter: sol.history.len(),
+        cost: ws.cost,
+        prim_err: v,
+        mu: ws.max_penalty(),
+        ..Default::default()
+    };
+    push_record(sol, record, &opts.log, &TABLE);
+    let status = if v <= opts.constraint_tolerance {
+        Status::Converged
+    } else {
+        Status::Stalled
+    };
+    (status, v)
 }
 
 /// The inner tolerance before the constraints are met: `cost_tolerance_intermediate`, but

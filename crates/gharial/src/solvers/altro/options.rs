@@ -34,6 +34,15 @@ pub struct AltroOptions {
     pub iterations_inner: usize,
     /// Backward pass on Cholesky factors (III-A; default false).
     pub square_root: bool,
+    /// Finish with the objective-weighted Newton projection of Algorithm 2 (default true):
+    /// AL-iLQR stops at `projected_newton_tolerance`, the projection takes the solution to
+    /// `constraint_tolerance`.
+    pub projected_newton: bool,
+    /// Constraint tolerance of the AL-iLQR stage when the projection follows (default
+    /// `1e-3`, the paper's coarse tolerance).
+    pub projected_newton_tolerance: f64,
+    /// Newton steps of the projection at most (default 10).
+    pub projected_newton_steps: usize,
     /// Regularisation and line search of the inner iLQR (the DDP of
     /// [`crate::solvers::ddp`], variant DDP; its `tol`, `max_iters`, `square_root`,
     /// `log` and `max_time` are set by ALTRO).
@@ -57,6 +66,9 @@ impl Default for AltroOptions {
             iterations_outer: 30,
             iterations_inner: 300,
             square_root: false,
+            projected_newton: true,
+            projected_newton_tolerance: 1e-3,
+            projected_newton_steps: 10,
             inner: DdpOptions::new(DdpVariant::Ddp),
             max_time: None,
             log: LogSink::Silent,
@@ -83,6 +95,7 @@ impl AltroOptions {
         pos("penalty_initial", self.penalty_initial)?;
         pos("penalty_max", self.penalty_max)?;
         pos("dual_max", self.dual_max)?;
+        pos("projected_newton_tolerance", self.projected_newton_tolerance)?;
         if !(self.penalty_scaling.is_finite() && self.penalty_scaling > 1.0) {
             return Err(Error::option("penalty_scaling", "must be finite and greater than 1"));
         }
