@@ -28,6 +28,9 @@
 //! - *Updates*: after each inner solve, `λ ← μ(y - proj_K(y))` with `y = c + λ/μ` (17)
 //!   and `μ ← min(φμ, penalty_max)` (18).
 //!
+//! The initial states are the rollout of the guess's controls from `x_0` (Algorithm 4,
+//! line 6): the guess's states are not used.
+//!
 //! The solve has converged when `c_max ≤ constraint_tolerance` after an inner solve that
 //! converged to `cost_tolerance`. The returned `nus` are the multipliers `λ`, `lambdas` the
 //! co-states of the inner solve's last backward pass.
@@ -286,6 +289,11 @@ impl Altro {
         }
         copy_trajectory(&mut ws.xs, guess.xs);
         copy_trajectory(&mut ws.us, guess.us);
+        // Algorithm 4, line 6: the states simulated from x_0 under the guess's controls.
+        if let Some(x0) = problem.x0() {
+            ws.xs[0].copy_from_slice(x0);
+        }
+        ws.data.rollout(problem, &mut ws.xs, &ws.us)?;
         ws.init_multipliers(guess.nus, opts);
         let mut status = Status::MaxIterations;
         let mut inner_iters = 0;
