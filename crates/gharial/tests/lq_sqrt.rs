@@ -259,7 +259,7 @@ fn square_root_pass_survives_penalties_where_the_plain_pass_fails() {
         if i == 0 {
             assert!(e_plain < 1e-8, "the plain pass works at small penalties: {e_plain:e}");
         }
-        if !(e_plain < 1e-2) {
+        if e_plain >= 1e-2 || e_plain.is_nan() {
             plain_failures += 1;
         }
     }

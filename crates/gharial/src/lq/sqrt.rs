@@ -120,7 +120,7 @@ pub(super) fn step(
     let r = sq.w.as_ref();
     let z_uu = r.submatrix(0, 0, nu, nu);
     let dmax = (0..nu).map(|i| z_uu[(i, i)].abs()).fold(0.0, f64::max);
-    if (0..nu).any(|i| !(z_uu[(i, i)].abs() > 1e-13 * dmax) || !z_uu[(i, i)].is_finite()) {
+    if (0..nu).any(|i| z_uu[(i, i)].abs() <= 1e-13 * dmax || !z_uu[(i, i)].is_finite()) {
         return Err(LqError::Singular {
             knot: t,
             system: "square-root factor Z_uu of Q_uu",
