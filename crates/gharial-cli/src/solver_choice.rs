@@ -30,11 +30,13 @@ pub enum SolverKind {
     Ddp(DdpVariant),
     /// CSQP.
     Csqp,
+    /// ALTRO.
+    Altro,
 }
 
 impl SolverKind {
     /// Every solver, in the order `gharial list` shows them.
-    pub const ALL: [SolverKind; 7] = [
+    pub const ALL: [SolverKind; 8] = [
         SolverKind::ProxDdp,
         SolverKind::Ddp(DdpVariant::Ddp),
         SolverKind::Ddp(DdpVariant::Fddp),
@@ -42,14 +44,16 @@ impl SolverKind {
         SolverKind::Ddp(DdpVariant::BoxFddp),
         SolverKind::Ddp(DdpVariant::Sqp),
         SolverKind::Csqp,
+        SolverKind::Altro,
     ];
 
     /// The command-line name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`,
-    /// `csqp`).
+    /// `csqp`, `altro`).
     pub fn name(self) -> &'static str {
         match self {
             SolverKind::ProxDdp => "proxddp",
             SolverKind::Csqp => "csqp",
+            SolverKind::Altro => "altro",
             SolverKind::Ddp(v) => v.name(),
         }
     }
@@ -65,6 +69,7 @@ impl SolverKind {
             SolverKind::Ddp(DdpVariant::BoxFddp) => "BoxFDDP",
             SolverKind::Ddp(DdpVariant::Sqp) => "SQP",
             SolverKind::Csqp => "CSQP",
+            SolverKind::Altro => "ALTRO",
         }
     }
 
@@ -88,6 +93,7 @@ impl SolverKind {
             SolverKind::Csqp => {
                 "SQP with QPs by stagewise ADMM (Jordana et al. 2023); equality, orthant and box constraints"
             }
+            SolverKind::Altro => "AL-iLQR with a Newton projection (Howell et al. 2019); constraints with a projection",
         }
     }
 
@@ -112,6 +118,7 @@ impl SolverKind {
             SolverKind::ProxDdp => Fields::ProxDdp(PROXDDP_FIELDS),
             SolverKind::Ddp(_) => Fields::Ddp(DDP_FIELDS),
             SolverKind::Csqp => Fields::Csqp(CSQP_FIELDS),
+            SolverKind::Altro => Fields::None,
         }
     }
 }
@@ -430,6 +437,8 @@ enum Fields {
     ProxDdp(&'static [Field<ProxDdpOptions>]),
     Ddp(&'static [Field<DdpOptions>]),
     Csqp(&'static [Field<CsqpOptions>]),
+    /// A solver without command-line options.
+    None,
 }
 
 impl Fields {
@@ -439,6 +448,7 @@ impl Fields {
             Fields::ProxDdp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
             Fields::Ddp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
             Fields::Csqp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
+            Fields::None => Box::new(std::iter::empty()),
         }
     }
 }

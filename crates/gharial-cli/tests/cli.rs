@@ -414,11 +414,20 @@ fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
         "BoxFDDP",
         "SQP",
         "CSQP",
+        "ALTRO",
     ];
     assert_eq!(solvers("lqr"), all);
     assert_eq!(
         solvers("lqr_box"),
-        ["ProxDDP", "ProxDDP_ls", "ProxDDP_as", "BoxDDP", "BoxFDDP", "CSQP"]
+        [
+            "ProxDDP",
+            "ProxDDP_ls",
+            "ProxDDP_as",
+            "BoxDDP",
+            "BoxFDDP",
+            "CSQP",
+            "ALTRO"
+        ]
     );
     // All solvers of one problem together.
     assert!(lines[..all.len()].iter().all(|l| l["problem"] == "lqr"));

@@ -52,6 +52,20 @@ fn cartpole_reaches_the_constraint_tolerance_only_with_the_projection() {
         tail.iter().all(|r| r.prim_err > 1e-8),
         "AL-iLQR alone stalls above the tolerance"
     );
+    // The square-root backward pass (III-A) gives the same solution.
+    let sqrt = solve(
+        &ex,
+        AltroOptions::default().with(|o| {
+            o.constraint_tolerance = 1e-8;
+            o.square_root = true;
+        }),
+    );
+    eprintln!(
+        "square root: {:?} c_max {:e} cost {} iters {} time {:?}",
+        sqrt.status, sqrt.prim_err, sqrt.cost, sqrt.iterations, sqrt.solve_time
+    );
+    assert_eq!(sqrt.status, Status::Converged);
+    assert!((sqrt.cost - with.cost).abs() < 1e-6 * with.cost);
     // Both trajectories swing the pole up (θ from π to 0) within the force limits.
     for s in [&with, &without] {
         assert!(s.us.iter().all(|u| u[0].abs() <= 6.0 + 1e-7));

@@ -106,6 +106,27 @@ fn the_projection_takes_a_coarse_solution_to_the_constraint_tolerance() {
 }
 
 #[test]
+fn a_warm_start_from_the_solution_converges_at_once() {
+    let case = &qp_reference_cases()[0];
+    let p = ocp(&case.lq, Some(case.umax), case.target.as_deref());
+    let (xs, us) = zero_guess(&p);
+    let mut solver = Altro::new(tight());
+    solver.setup(&p).unwrap();
+    let cold = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().clone();
+    assert_eq!(cold.status, Status::Converged);
+    let warm = solver.solve(&p, InitialGuess::from_solution(&cold)).unwrap().clone();
+    assert_eq!(warm.status, Status::Converged);
+    assert!(
+        warm.al_iterations < cold.al_iterations,
+        "{} vs {}",
+        warm.al_iterations,
+        cold.al_iterations
+    );
+    assert!(warm.iterations < cold.iterations);
+    assert!((warm.cost - cold.cost).abs() < 1e-8 * cold.cost.abs().max(1.0));
+}
+
+#[test]
 fn altro_is_built_by_name_and_refuses_bad_options() {
     let opts = SolverOptions::from_name("altro").unwrap();
     assert_eq!(opts.name(), "altro");

@@ -227,6 +227,18 @@ impl Workspace {
         m
     }
 
+    /// The inner iLQR on the augmented Lagrangian from the current point, to the expected
+    /// decrease `th`; the current point becomes its solution. Returns its status, its last
+    /// expected decrease and its iterations.
+    fn inner_solve(&mut self, th: f64, budget: Option<std::time::Duration>) -> Result<(Status, f64, usize)> {
+        self.inner.options.th_stop = Some(th);
+        self.inner.options.max_time = budget;
+        let s = self.inner.solve(&self.aug, InitialGuess::primal(&self.xs, &self.us))?;
+        copy_trajectory(&mut self.xs, &s.xs);
+        copy_trajectory(&mut self.us, &s.us);
+        Ok((s.status, s.history.last().map_or(0.0, |r| r.stop), s.iterations))
+    }
+
     fn max_penalty(&self) -> f64 {
         let mut m: f64 = 0.0;
         for c in &self.costs {
@@ -310,15 +322,9 @@ impl Altro {
             } else {
                 inner_tolerance(opts, viol, ws.max_penalty())
             };
-            ws.inner.options.th_stop = Some(th);
-            ws.inner.options.max_time = opts.max_time.map(|b| b.saturating_sub(start.elapsed()));
-            let (inner_status, stop) = {
-                let s = ws.inner.solve(&ws.aug, InitialGuess::primal(&ws.xs, &ws.us))?;
-                copy_trajectory(&mut ws.xs, &s.xs);
-                copy_trajectory(&mut ws.us, &s.us);
-                inner_iters += s.iterations;
-                (s.status, s.history.last().map_or(0.0, |r| r.stop))
-            };
+            let budget = opts.max_time.map(|b| b.saturating_sub(start.elapsed()));
+            let (inner_status, stop, iters) = ws.inner_solve(th, budget)?;
+            inner_iters += iters;
             if inner_status == Status::NonFinite {
                 status = Status::NonFinite;
                 break;
@@ -460,6 +466,7 @@ impl Solver for Altro {
     fn table(&self) -> Table {
         TABLE
     }
+    /// `max_iters` bounds each inner iLQR solve (`iterations_inner`).
     fn set_limits(&mut self, max_iters: usize, max_time: Option<std::time::Duration>) {
         self.options.iterations_inner = max_iters;
         self.options.max_time = max_time;

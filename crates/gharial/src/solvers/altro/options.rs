@@ -44,7 +44,7 @@ pub struct AltroOptions {
     /// Newton steps of the projection at most (default 10).
     pub projected_newton_steps: usize,
     /// Regularisation and line search of the inner iLQR (the DDP of
-    /// [`crate::solvers::ddp`], variant DDP; its `tol`, `max_iters`, `square_root`,
+    /// [`crate::solvers::ddp`], variant DDP; its `th_stop`, `max_iters`, `square_root`,
     /// `log` and `max_time` are set by ALTRO).
     pub inner: DdpOptions,
     /// Wall-time budget (default none).
