@@ -144,9 +144,31 @@ fn altro_is_built_by_name_and_refuses_bad_options() {
         assert!(s.setup(&p).is_err());
     }
     let mut s = Altro::new(AltroOptions::default());
-    let (xs, us) = zero_guess(&p);
+    let (xs, mut us) = zero_guess(&p);
     assert!(
         s.solve(&p, InitialGuess::primal(&xs, &us)).is_err(),
         "solve before setup"
     );
+    // A non-finite guess is an error or a NonFinite status, never a panic or a NaN result.
+    s.setup(&p).unwrap();
+    us[2][0] = f64::NAN;
+    match s.solve(&p, InitialGuess::primal(&xs, &us)) {
+        Err(_) => {}
+        Ok(sol) => assert_eq!(sol.status, Status::NonFinite),
+    }
+}
+
+#[test]
+fn the_square_root_pass_is_refused_on_implicit_dynamics() {
+    let lq = random_lq(3, 1, 5, 4);
+    let (p, _) = implicit_euler_ocp(&lq, 0.1);
+    let mut s = Altro::new(AltroOptions::default().with(|o| o.square_root = true));
+    let e = s.setup(&p).unwrap_err().to_string();
+    assert!(e.contains("square_root") && e.contains("explicit dynamics"), "{e}");
+    // Without it ALTRO solves the implicit problem.
+    let mut s = Altro::new(tight());
+    s.setup(&p).unwrap();
+    let (xs, us) = zero_guess(&p);
+    let sol = s.solve(&p, InitialGuess::primal(&xs, &us)).unwrap();
+    assert_eq!(sol.status, Status::Converged);
 }

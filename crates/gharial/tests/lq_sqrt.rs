@@ -265,3 +265,58 @@ fn square_root_pass_survives_penalties_where_the_plain_pass_fails() {
     }
     assert!(plain_failures > 0, "the family should break the plain pass");
 }
+
+#[test]
+fn square_root_pass_refuses_what_it_does_not_handle() {
+    let mut rng = SplitMix64::new(11);
+    let base = VariedOptions {
+        mu_c: (0.1, 1.0),
+        ..Default::default()
+    };
+    let cases = [
+        (
+            VariedOptions {
+                general_e: true,
+                ..base.clone()
+            },
+            "E must be -I",
+        ),
+        (
+            VariedOptions {
+                mu_dyn: 1e-3,
+                ..base.clone()
+            },
+            "mu_dyn",
+        ),
+        (
+            VariedOptions {
+                hard_rows: true,
+                ..base.clone()
+            },
+            "mu_c > 0",
+        ),
+    ];
+    for (opts, what) in cases {
+        let problem = random::varied_problem(&mut rng, &opts);
+        let mut s = RiccatiSolver::with_square_root(&problem).unwrap();
+        match s.backward_square_root(&problem, 0.0) {
+            Err(LqError::Unsupported { what: w, .. }) => assert!(w.contains(what), "{w}"),
+            other => panic!("expected Unsupported for {what}, got {other:?}"),
+        }
+        assert!(s.square_root_factor(0).is_none());
+        let mut sol = LqSolution::new(&problem);
+        assert_eq!(s.forward(&problem, &mut sol), Err(LqError::NotFactored));
+    }
+    // A solver built without the square-root storage refuses the pass.
+    let problem = random::varied_problem(&mut rng, &base);
+    let mut plain = RiccatiSolver::new(&problem).unwrap();
+    assert!(matches!(
+        plain.backward_square_root(&problem, 0.0),
+        Err(LqError::Option { .. })
+    ));
+    // After a square-root pass the vector-only pass (which needs the plain factorizations)
+    // is refused.
+    let mut s = RiccatiSolver::with_square_root(&problem).unwrap();
+    s.backward_square_root(&problem, 0.0).unwrap();
+    assert_eq!(s.backward_vectors(&problem), Err(LqError::NotFactored));
+}
