@@ -72,3 +72,32 @@ fn cartpole_reaches_the_constraint_tolerance_only_with_the_projection() {
         assert!(s.xs.last().unwrap()[1].abs() < 1e-6);
     }
 }
+
+/// The infeasible start (III-B) on the catalogue cart-pole with the tip constraint: from
+/// the rollout of the zero-force guess the pole hangs, where the tip constraint's
+/// Jacobian leaves no direction to swing up, and AL-iLQR stays there; started from the
+/// guess's swing-up states with slack controls it converges. (AL-iLQR alone, to 1e-6:
+/// the tip's height is at its maximum at the solution, where the constraint's Jacobian
+/// vanishes, so the Newton projection of Algorithm 2 does not apply.)
+#[test]
+fn cartpole_tip_needs_the_infeasible_start() {
+    let ex = gharial_problems::cartpole::build().unwrap();
+    let opts = AltroOptions::default().with(|o| {
+        o.constraint_tolerance = 1e-6;
+        o.projected_newton = false;
+        o.iterations_outer = 15;
+    });
+    let rollout = solve(&ex, opts.clone());
+    let infeasible = solve(&ex, opts.with(|o| o.infeasible_start = true));
+    for (name, s) in [("rollout", &rollout), ("infeasible start", &infeasible)] {
+        eprintln!(
+            "{name}: {:?} c_max {:e} cost {} iters {} outer {} time {:?}",
+            s.status, s.prim_err, s.cost, s.iterations, s.al_iterations, s.solve_time
+        );
+    }
+    assert_ne!(rollout.status, Status::Converged);
+    assert!(rollout.prim_err > 1.0, "{:e}", rollout.prim_err);
+    assert_eq!(infeasible.status, Status::Converged);
+    assert!(infeasible.prim_err <= 1e-6);
+    assert!(infeasible.us.iter().all(|u| u[0].abs() <= 6.0 + 1e-7));
+}

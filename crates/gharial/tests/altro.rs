@@ -49,16 +49,31 @@ fn box_constrained_lq_has_the_optimal_cost_of_an_independent_qp_solver() {
             s.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().clone()
         };
         assert_eq!(prox.status, Status::Converged);
-        for square_root in [false, true] {
-            let sol = altro(&p, tight().with(|o| o.square_root = square_root));
-            assert_eq!(sol.status, Status::Converged, "seed {seed} sqrt {square_root}");
+        // Plain and square-root passes, and the infeasible start from the zero states
+        // (slack controls, III-B).
+        for (square_root, infeasible) in [(false, false), (true, false), (false, true)] {
+            let sol = altro(
+                &p,
+                tight().with(|o| {
+                    o.square_root = square_root;
+                    o.infeasible_start = infeasible;
+                }),
+            );
+            assert_eq!(
+                sol.status,
+                Status::Converged,
+                "seed {seed} sqrt {square_root} {infeasible}"
+            );
             assert!(sol.prim_err <= 1e-8);
             let rel = (sol.cost - reference).abs() / reference.abs().max(1.0);
             assert!(rel < 1e-6, "seed {seed}: cost {} vs QP {reference} ({rel:e})", sol.cost);
             // The same optimum as ProxDDP's (the constraints are met to 1e-8, so the
             // trajectories agree to about that over the conditioning of the problem).
             let d = traj_diff(&sol.us, &prox.us).max(traj_diff(&sol.xs, &prox.xs));
-            assert!(d < 1e-5, "seed {seed} sqrt {square_root}: |ALTRO - ProxDDP| = {d:e}");
+            assert!(
+                d < 1e-5,
+                "seed {seed} sqrt {square_root} {infeasible}: |ALTRO - ProxDDP| = {d:e}"
+            );
         }
     }
 }

@@ -175,10 +175,17 @@ fn proxddp_solve_does_not_allocate_after_setup() {
 fn altro_solve_does_not_allocate_after_setup() {
     use gharial::solvers::altro::{Altro, AltroOptions};
     // Explicit dynamics only with the square-root pass (it needs E = -I).
-    for (implicit, square_root) in [(false, false), (false, true), (true, false)] {
+    // The infeasible start (slack controls) with explicit dynamics only as well.
+    for (implicit, square_root, infeasible) in [
+        (false, false, false),
+        (false, true, false),
+        (true, false, false),
+        (false, false, true),
+    ] {
         let p = problem(implicit, 2);
         let (xs, us) = guess(&p);
         let mut solver = Altro::new(AltroOptions::default().with(|o| {
+            o.infeasible_start = infeasible;
             o.square_root = square_root;
             o.iterations_outer = 6;
             o.iterations_inner = 30;
@@ -189,7 +196,10 @@ fn altro_solve_does_not_allocate_after_setup() {
             iterations = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().iterations;
         });
         assert!(iterations > 3, "the solves must do real work");
-        assert_eq!(count, 0, "altro implicit {implicit} square root {square_root}");
+        assert_eq!(
+            count, 0,
+            "altro implicit {implicit} square root {square_root} infeasible {infeasible}"
+        );
     }
 }
 

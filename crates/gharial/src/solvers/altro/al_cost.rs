@@ -33,8 +33,15 @@ pub(super) struct AlCost {
     offsets: Vec<usize>,
     /// `λ`, one entry per constraint row.
     pub lambda: ParamVec,
-    /// `μ`, one entry per constraint (the constraint's scale included).
+    /// `μ`, one entry per constraint (the constraint's scale included), then the slack's.
     pub mu: ParamVec,
+    /// Controls of the base cost and the constraints; slack controls after them (III-B).
+    nu: usize,
+    ns: usize,
+    /// `R_s` of the slack cost (32).
+    slack_weight: f64,
+    /// Rows of the constraints (the slack's multipliers follow).
+    nr: usize,
 }
 
 /// Scratch of [`AlCost`].
@@ -51,6 +58,12 @@ struct AlWs {
 impl AlCost {
     /// The AL cost of `base` and `cons`, with `λ = 0` and `μ = 1`.
     pub(super) fn new(base: Arc<dyn Cost>, cons: Vec<StageConstraint>) -> Self {
+        Self::with_slack(base, cons, 0, 0.0)
+    }
+
+    /// The AL cost with `ns` slack controls after the base's (III-B): the cost
+    /// `½ R_s|s|²` (32) and the constraint `s = 0` in the augmented Lagrangian.
+    pub(super) fn with_slack(base: Arc<dyn Cost>, cons: Vec<StageConstraint>, ns: usize, slack_weight: f64) -> Self {
         let mut offsets = Vec::with_capacity(cons.len());
         let mut nr = 0;
         for c in &cons {
@@ -58,12 +71,28 @@ impl AlCost {
             nr += c.nr();
         }
         Self {
-            lambda: ParamVec::new(&vec![0.0; nr]),
-            mu: ParamVec::new(&vec![1.0; cons.len()]),
+            lambda: ParamVec::new(&vec![0.0; nr + ns]),
+            mu: ParamVec::new(&vec![1.0; cons.len() + usize::from(ns > 0)]),
+            nu: base.nu(),
+            ns,
+            slack_weight,
+            nr,
             base,
             cons,
             offsets,
         }
+    }
+
+    /// The slack part of the AL at the slack controls `s`: `½R_s|s|² + λ_sᵀs + ½μ_s|s|²`.
+    fn slack_value(&self, s: &[f64]) -> f64 {
+        if self.ns == 0 {
+            return 0.0;
+        }
+        let mu = self.mu.get(self.cons.len());
+        s.iter()
+            .enumerate()
+            .map(|(i, si)| (0.5 * (self.slack_weight + mu) * si + self.lambda.get(self.nr + i)) * si)
+            .sum()
     }
 
     /// `λ` of row `i` of constraint `k`.
@@ -94,6 +123,14 @@ impl AlCost {
         update: bool,
     ) -> f64 {
         let mut viol: f64 = 0.0;
+        let (u, slack) = u.split_at(self.nu.min(u.len()));
+        for (i, s) in slack.iter().enumerate() {
+            viol = viol.max(s.abs());
+            if update {
+                let mu = self.mu.get(self.cons.len());
+                self.lambda.set(self.nr + i, self.lambda.get(self.nr + i) + mu * s);
+            }
+        }
         for (i, c) in self.cons.iter().enumerate() {
             c.func.evaluate(x, u, &mut fdata[i]);
             let v = slice(&fdata[i].value);
@@ -132,7 +169,7 @@ impl Cost for AlCost {
         self.base.ndx()
     }
     fn nu(&self) -> usize {
-        self.base.nu()
+        self.nu + self.ns
     }
 
     fn create_workspace(&self) -> Workspace {
@@ -150,8 +187,9 @@ impl Cost for AlCost {
 
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut CostData) {
         let ws = data.ws::<AlWs>();
+        let (u, slack) = u.split_at(self.nu);
         self.base.evaluate(x, u, &mut ws.base);
-        let mut value = ws.base.value;
+        let mut value = ws.base.value + self.slack_value(slack);
         for (i, c) in self.cons.iter().enumerate() {
             c.func.evaluate(x, u, &mut ws.fdata[i]);
             let m = c.nr();
@@ -172,13 +210,23 @@ impl Cost for AlCost {
             ..
         } = data;
         let ws = ws.downcast_mut::<AlWs>().expect("AL cost data");
+        let (u, slack) = u.split_at(self.nu);
+        let (ndx, nu) = (self.ndx(), self.nu);
         self.base.derivatives(x, u, &mut ws.base);
         linalg::copy(lxx.as_mut(), ws.base.lxx.as_ref());
-        linalg::copy(lxu.as_mut(), ws.base.lxu.as_ref());
-        linalg::copy(luu.as_mut(), ws.base.luu.as_ref());
+        lxu.fill(0.0);
+        luu.fill(0.0);
+        linalg::copy(lxu.as_mut().subcols_mut(0, nu), ws.base.lxu.as_ref());
+        linalg::copy(luu.as_mut().submatrix_mut(0, 0, nu, nu), ws.base.luu.as_ref());
         slice_mut(lx).copy_from_slice(ws.base.lx());
-        slice_mut(lu).copy_from_slice(ws.base.lu());
-        let (ndx, nu) = (self.ndx(), self.nu());
+        let lu = slice_mut(lu);
+        lu[..nu].copy_from_slice(ws.base.lu());
+        // Slack (32) and s = 0: gradient (R_s + μ_s)s + λ_s, Hessian (R_s + μ_s)I.
+        let mu_s = if self.ns > 0 { self.mu.get(self.cons.len()) } else { 0.0 };
+        for (i, si) in slack.iter().enumerate() {
+            lu[nu + i] = (self.slack_weight + mu_s) * si + self.lambda.get(self.nr + i);
+            luu[(nu + i, nu + i)] = self.slack_weight + mu_s;
+        }
         for (i, c) in self.cons.iter().enumerate() {
             let m = c.nr();
             // `evaluate` ran at this point on this data: the residual is current.
@@ -188,7 +236,7 @@ impl Cost for AlCost {
             self.shifted(i, slice(&fd.value), mu, &mut ws.y[..m], &mut ws.e[..m]);
             // Gradient Jᵀλ⁺ with λ⁺ = μe (11)-(12).
             matvec_t(slice_mut(lx), faer::Accum::Add, fd.jx.as_ref(), &ws.e[..m], mu);
-            matvec_t(slice_mut(lu), faer::Accum::Add, fd.ju.as_ref(), &ws.e[..m], mu);
+            matvec_t(&mut lu[..nu], faer::Accum::Add, fd.ju.as_ref(), &ws.e[..m], mu);
             // Gauss-Newton Hessian μ Jᵀ(I - P)J (8)-(10).
             let mut jac = ws.jac.as_mut().subrows_mut(0, m);
             linalg::copy(jac.rb_mut().subcols_mut(0, ndx), fd.jx.as_ref());
@@ -198,21 +246,11 @@ impl Cost for AlCost {
             c.set.apply_normal_cone_jacobian(&ws.y[..m], 1.0 / mu, pj.rb_mut());
             let (j, pj) = (ws.jac.as_ref().subrows(0, m), ws.pjac.as_ref().subrows(0, m));
             let add = faer::Accum::Add;
-            matmul(lxx.as_mut(), add, j.subcols(0, ndx).transpose(), pj.subcols(0, ndx), mu);
-            matmul(
-                lxu.as_mut(),
-                add,
-                j.subcols(0, ndx).transpose(),
-                pj.subcols(ndx, nu),
-                mu,
-            );
-            matmul(
-                luu.as_mut(),
-                add,
-                j.subcols(ndx, nu).transpose(),
-                pj.subcols(ndx, nu),
-                mu,
-            );
+            let (jx, ju) = (j.subcols(0, ndx), j.subcols(ndx, nu));
+            let (pjx, pju) = (pj.subcols(0, ndx), pj.subcols(ndx, nu));
+            matmul(lxx.as_mut(), add, jx.transpose(), pjx, mu);
+            matmul(lxu.as_mut().subcols_mut(0, nu), add, jx.transpose(), pju, mu);
+            matmul(luu.as_mut().submatrix_mut(0, 0, nu, nu), add, ju.transpose(), pju, mu);
         }
     }
 }

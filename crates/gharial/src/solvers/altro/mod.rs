@@ -29,18 +29,24 @@
 //!   and `μ ← min(φμ, penalty_max)` (18).
 //!
 //! The initial states are the rollout of the guess's controls from `x_0` (Algorithm 4,
-//! line 6): the guess's states are not used.
+//! line 6), or with the infeasible start the guess's states (line 4).
 //!
 //! The solve has converged when `c_max ≤ constraint_tolerance` after an inner solve that
 //! converged to `cost_tolerance`. The returned `nus` are the multipliers `λ`, `lambdas` the
 //! co-states of the inner solve's last backward pass.
 //!
-//! Not implemented (yet): the projection of Algorithm 2, the infeasible start with slack
-//! controls (III-B) and minimum-time problems (III-C).
+//! - *Infeasible start* (III-B, [`AltroOptions::infeasible_start`]): slack controls `s`
+//!   with `x_{k+1} = f(x_k, u_k) + s_k` (30) start from the guess's states with the slacks
+//!   (31) that make them feasible; the cost `½R_s|s|²` (32) and the constraint `s = 0` join
+//!   the augmented Lagrangian, and the projection closes what is left of the gaps.
+//! - *Projection* (Algorithm 2, [`AltroOptions::projected_newton`]): module `projection`.
+//!
+//! Not implemented: minimum-time problems (III-C).
 
 mod al_cost;
 mod options;
 mod projection;
+mod slack;
 
 pub use options::AltroOptions;
 
@@ -49,6 +55,7 @@ use std::time::Instant;
 
 use al_cost::AlCost;
 
+use crate::dynamics::Dynamics;
 use crate::error::{Error, Result};
 use crate::functions::StageFunctionData;
 use crate::problem::{Problem, ProblemData, StageModel};
@@ -130,7 +137,10 @@ struct Workspace {
     y: Vec<f64>,
     e: Vec<f64>,
     xs: Vec<Vec<f64>>,
+    /// Controls of the augmented problem (with the slack controls of III-B after the
+    /// problem's own), and the problem's own.
     us: Vec<Vec<f64>>,
+    us_orig: Vec<Vec<f64>>,
     no_u: Vec<f64>,
     /// Cost of the original problem at the current point.
     cost: f64,
@@ -139,11 +149,25 @@ struct Workspace {
 
 impl Workspace {
     fn new(problem: &Problem, opts: &AltroOptions) -> Result<Self> {
+        if opts.infeasible_start && !vector_spaces(problem) {
+            return Err(Error::option(
+                "infeasible_start",
+                "needs explicit dynamics on vector spaces (the slack controls are added to the next state)",
+            ));
+        }
         let mut costs = Vec::with_capacity(problem.horizon() + 1);
         let mut stages = Vec::with_capacity(problem.horizon());
         for s in problem.stages() {
-            let c = Arc::new(AlCost::new(s.cost.clone(), s.constraints().to_vec()));
-            stages.push(StageModel::new(c.clone(), s.dynamics.clone())?);
+            let cons = s.constraints().to_vec();
+            let (cost, dynamics) = match &s.dynamics {
+                Dynamics::Explicit(d) if opts.infeasible_start => (
+                    AlCost::with_slack(s.cost.clone(), cons, s.space_next().ndx(), opts.slack_weight),
+                    Dynamics::Explicit(Arc::new(slack::SlackDynamics::new(d.clone()))),
+                ),
+                _ => (AlCost::new(s.cost.clone(), cons), s.dynamics.clone()),
+            };
+            let c = Arc::new(cost);
+            stages.push(StageModel::new(c.clone(), dynamics)?);
             costs.push(c);
         }
         let term = Arc::new(AlCost::new(
@@ -168,6 +192,7 @@ impl Workspace {
             .max()
             .unwrap_or(0);
         let sol = Solution::new(problem, 0);
+        let aug_us = Solution::new(&aug, 0).us;
         Ok(Self {
             fdata: costs.iter().map(|c| c.create_function_data()).collect(),
             costs,
@@ -177,7 +202,8 @@ impl Workspace {
             y: vec![0.0; nr],
             e: vec![0.0; nr],
             xs: sol.xs,
-            us: sol.us,
+            us: aug_us,
+            us_orig: sol.us,
             no_u: Vec::new(),
             cost: 0.0,
             projection: projection::Projection::new(problem, vector_spaces(problem))?,
@@ -188,11 +214,48 @@ impl Workspace {
     fn init_multipliers(&mut self, nus: Option<&[Vec<f64>]>, opts: &AltroOptions) {
         for (t, c) in self.costs.iter().enumerate() {
             for i in 0..c.lambda.len() {
-                c.lambda.set(i, nus.map_or(0.0, |n| n[t][i]));
+                c.lambda.set(i, nus.and_then(|n| n[t].get(i).copied()).unwrap_or(0.0));
             }
-            for (i, k) in c.constraints().iter().enumerate() {
-                c.mu.set(i, opts.penalty_initial * k.scale);
+            let cons = c.constraints();
+            for i in 0..c.mu.len() {
+                c.mu.set(i, opts.penalty_initial * cons.get(i).map_or(1.0, |k| k.scale));
             }
+        }
+    }
+
+    /// The starting point (Algorithm 4, lines 3-7): the guess's controls; with the
+    /// infeasible start, its states and the slack controls (31) `s_k = x̃_{k+1} - f(x̃_k, u_k)`
+    /// that make them feasible; otherwise the states simulated from `x_0`.
+    fn start(&mut self, problem: &Problem, guess: &InitialGuess<'_>, infeasible: bool) -> Result<()> {
+        copy_trajectory(&mut self.xs, guess.xs);
+        copy_trajectory(&mut self.us_orig, guess.us);
+        if let Some(x0) = problem.x0() {
+            self.xs[0].copy_from_slice(x0);
+        }
+        for (u, g) in self.us.iter_mut().zip(guess.us) {
+            u[..g.len()].copy_from_slice(g);
+            u[g.len()..].fill(0.0);
+        }
+        if !infeasible {
+            return self.data.rollout(problem, &mut self.xs, guess.us);
+        }
+        self.data.evaluate(problem, &self.xs, guess.us);
+        for (t, (u, g)) in self.us.iter_mut().zip(guess.us).enumerate() {
+            let f = self.data.stages[t]
+                .xnext()
+                .expect("explicit dynamics (checked in setup)");
+            for ((s, y), fi) in u[g.len()..].iter_mut().zip(&self.xs[t + 1]).zip(f) {
+                *s = y - fi;
+            }
+        }
+        Ok(())
+    }
+
+    /// The problem's own controls from the augmented ones.
+    fn sync_controls(&mut self) {
+        for (o, u) in self.us_orig.iter_mut().zip(&self.us) {
+            let n = o.len();
+            o.copy_from_slice(&u[..n]);
         }
     }
 
@@ -299,13 +362,7 @@ impl Altro {
         if opts.log.is_active() {
             opts.log.line(format_args!("{}", TABLE.header()));
         }
-        copy_trajectory(&mut ws.xs, guess.xs);
-        copy_trajectory(&mut ws.us, guess.us);
-        // Algorithm 4, line 6: the states simulated from x_0 under the guess's controls.
-        if let Some(x0) = problem.x0() {
-            ws.xs[0].copy_from_slice(x0);
-        }
-        ws.data.rollout(problem, &mut ws.xs, &ws.us)?;
+        ws.start(problem, &guess, opts.infeasible_start)?;
         ws.init_multipliers(guess.nus, opts);
         let mut status = Status::MaxIterations;
         let mut inner_iters = 0;
@@ -330,7 +387,8 @@ impl Altro {
                 break;
             }
             viol = ws.constraints(false, opts.dual_max);
-            ws.cost = ws.data.evaluate(problem, &ws.xs, &ws.us);
+            ws.sync_controls();
+            ws.cost = ws.data.evaluate(problem, &ws.xs, &ws.us_orig);
             let record = IterationRecord {
                 iter: inner_iters,
                 al_iter: outer,
@@ -386,11 +444,11 @@ fn project(
         &mut ws.data,
         &ws.costs,
         &mut ws.xs,
-        &mut ws.us,
+        &mut ws.us_orig,
         opts.constraint_tolerance,
         opts.projected_newton_steps,
     );
-    ws.cost = ws.data.evaluate(problem, &ws.xs, &ws.us);
+    ws.cost = ws.data.evaluate(problem, &ws.xs, &ws.us_orig);
     let record = IterationRecord {
         iter: iters,
         al_iter: sol.history.len(),
@@ -424,14 +482,17 @@ fn inner_tolerance(opts: &AltroOptions, viol: f64, mu: f64) -> f64 {
 
 fn write_solution(sol: &mut Solution, ws: &mut Workspace, status: Status, iters: usize, viol: f64) {
     copy_trajectory(&mut sol.xs, &ws.xs);
-    copy_trajectory(&mut sol.us, &ws.us);
+    copy_trajectory(&mut sol.us, &ws.us_orig);
     let inner = ws.inner.solution();
     copy_trajectory(&mut sol.lambdas, &inner.lambdas);
+    // The gains of the problem's own controls (the slack controls' rows dropped).
     for (f, g) in sol.feedforward.iter_mut().zip(&inner.feedforward) {
-        f.copy_from(g);
+        let n = f.nrows();
+        f.copy_from(g.subrows(0, n));
     }
     for (f, g) in sol.feedback.iter_mut().zip(&inner.feedback) {
-        f.copy_from(g);
+        let n = f.nrows();
+        f.copy_from(g.subrows(0, n));
     }
     for (t, c) in ws.costs.iter().enumerate() {
         c.lambda.read(&mut sol.nus[t]);

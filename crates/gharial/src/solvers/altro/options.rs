@@ -43,6 +43,12 @@ pub struct AltroOptions {
     pub projected_newton_tolerance: f64,
     /// Newton steps of the projection at most (default 10).
     pub projected_newton_steps: usize,
+    /// Start from the guess's states, made feasible by slack controls (III-B; default
+    /// false: the states are the rollout of the guess's controls). Explicit dynamics on
+    /// vector spaces.
+    pub infeasible_start: bool,
+    /// Weight `R_s` of the slack cost `½R_s|s|²` (32) (default 1).
+    pub slack_weight: f64,
     /// Regularisation and line search of the inner iLQR (the DDP of
     /// [`crate::solvers::ddp`], variant DDP; its `th_stop`, `max_iters`, `square_root`,
     /// `log` and `max_time` are set by ALTRO).
@@ -69,6 +75,8 @@ impl Default for AltroOptions {
             projected_newton: true,
             projected_newton_tolerance: 1e-3,
             projected_newton_steps: 10,
+            infeasible_start: false,
+            slack_weight: 1.0,
             inner: DdpOptions::new(DdpVariant::Ddp),
             max_time: None,
             log: LogSink::Silent,
@@ -96,6 +104,7 @@ impl AltroOptions {
         pos("penalty_max", self.penalty_max)?;
         pos("dual_max", self.dual_max)?;
         pos("projected_newton_tolerance", self.projected_newton_tolerance)?;
+        pos("slack_weight", self.slack_weight)?;
         if !(self.penalty_scaling.is_finite() && self.penalty_scaling > 1.0) {
             return Err(Error::option("penalty_scaling", "must be finite and greater than 1"));
         }

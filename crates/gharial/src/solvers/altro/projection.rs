@@ -10,7 +10,8 @@
 //! by the LQ kernels instead of forming `DH⁻¹Dᵀ` (the "sequential" implementation the
 //! paper mentions). Active rows: those where the normal-cone projection at
 //! `y = c + λ/μ` (the AL multipliers) is the identity (equalities, bounds at which the
-//! multiplier pushes), with the target `c = proj_K(y)`. The step is taken with
+//! multiplier pushes), with the target `c = proj_K(y)`, and those violated at the current
+//! point, with the target `proj_K(c)`. The step is taken with
 //! `α = 1, 1/2, ...` until the violation `v = max(|gaps|, c_max)` decreases
 //! (Algorithm 3), and the Jacobians are relinearised at every step (the paper reuses
 //! them while the convergence rate `log v⁺/log v` stays high).
@@ -38,6 +39,7 @@ pub(super) struct Projection {
     dx: Vec<Vec<f64>>,
     y: Vec<f64>,
     p: Vec<f64>,
+    pc: Vec<f64>,
     unit: Vec<f64>,
 }
 
@@ -59,6 +61,7 @@ impl Projection {
             us_try: sol.us,
             y: vec![0.0; nr],
             p: vec![0.0; nr],
+            pc: vec![0.0; nr],
             unit: vec![0.0; nr],
         })
     }
@@ -145,15 +148,23 @@ impl Projection {
                 let m = c.nr();
                 let mu = costs[t].mu.get(k);
                 let (y, p, unit) = (&mut self.y[..m], &mut self.p[..m], &mut self.unit[..m]);
+                let pc = &mut self.pc[..m];
                 let cv = slice(&cd.value);
                 for i in 0..m {
                     y[i] = cv[i] + costs[t].lambda_of(k, i) / mu;
                 }
                 c.set.project(y, 1.0 / mu, p);
+                c.set.project(cv, 1.0 / mu, pc);
                 for i in 0..m {
                     unit.fill(0.0);
                     unit[i] = 1.0;
                     c.set.apply_normal_cone_jacobian_vec(y, 1.0 / mu, unit);
+                    // Active: pushed by its multiplier (target proj_K(y)), or violated at
+                    // the current point (target proj_K(c)).
+                    if unit[i] <= 0.5 && cv[i] != pc[i] {
+                        p[i] = pc[i];
+                        unit[i] = 1.0;
+                    }
                     let active = unit[i] > 0.5;
                     for j in 0..knot.nx {
                         knot.C[(row + i, j)] = if active { cd.jx[(i, j)] } else { 0.0 };
