@@ -11,6 +11,7 @@
 use clap::ValueEnum;
 use clap::builder::PossibleValue;
 use gharial::error::Num;
+use gharial::solvers::altro::AltroOptions;
 use gharial::solvers::bcl_ddp::BclDdpOptions;
 use gharial::solvers::csqp::CsqpOptions;
 use gharial::solvers::ddp::{DdpOptions, DdpVariant};
@@ -33,11 +34,13 @@ pub enum SolverKind {
     Csqp,
     /// BCL-DDP.
     BclDdp,
+    /// ALTRO.
+    Altro,
 }
 
 impl SolverKind {
     /// Every solver, in the order `gharial list` shows them.
-    pub const ALL: [SolverKind; 8] = [
+    pub const ALL: [SolverKind; 9] = [
         SolverKind::ProxDdp,
         SolverKind::Ddp(DdpVariant::Ddp),
         SolverKind::Ddp(DdpVariant::Fddp),
@@ -46,15 +49,17 @@ impl SolverKind {
         SolverKind::Ddp(DdpVariant::Sqp),
         SolverKind::Csqp,
         SolverKind::BclDdp,
+        SolverKind::Altro,
     ];
 
     /// The command-line name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`,
-    /// `csqp`, `bcl-ddp`).
+    /// `csqp`, `bcl-ddp`, `altro`).
     pub fn name(self) -> &'static str {
         match self {
             SolverKind::ProxDdp => "proxddp",
             SolverKind::Csqp => "csqp",
             SolverKind::BclDdp => "bcl-ddp",
+            SolverKind::Altro => "altro",
             SolverKind::Ddp(v) => v.name(),
         }
     }
@@ -71,6 +76,7 @@ impl SolverKind {
             SolverKind::Ddp(DdpVariant::Sqp) => "SQP",
             SolverKind::Csqp => "CSQP",
             SolverKind::BclDdp => "BCL-DDP",
+            SolverKind::Altro => "ALTRO",
         }
     }
 
@@ -97,6 +103,7 @@ impl SolverKind {
             SolverKind::BclDdp => {
                 "augmented-Lagrangian DDP with the BCL globalisation (El Kazdadi et al. 2021); equality constraints"
             }
+            SolverKind::Altro => "AL-iLQR with a Newton projection (Howell et al. 2019); constraints with a projection",
         }
     }
 
@@ -122,6 +129,7 @@ impl SolverKind {
             SolverKind::Ddp(_) => Fields::Ddp(DDP_FIELDS),
             SolverKind::Csqp => Fields::Csqp(CSQP_FIELDS),
             SolverKind::BclDdp => Fields::BclDdp(BCL_DDP_FIELDS),
+            SolverKind::Altro => Fields::Altro(ALTRO_FIELDS),
         }
     }
 }
@@ -364,6 +372,13 @@ impl SolverArgs {
                 o.hessian = self.common.hessian.map_or(o.hessian, Into::into);
             }
             SolverOptions::BclDdp(o) => self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.ddp.num_threads),
+            // ALTRO's tolerance is its constraint tolerance c_max, its iteration limit the
+            // outer (multiplier) iterations.
+            SolverOptions::Altro(o) => self.common.apply(
+                &mut o.constraint_tolerance,
+                &mut o.iterations_outer,
+                &mut o.inner.num_threads,
+            ),
             SolverOptions::Csqp(o) => {
                 // Single-threaded: --threads is refused by `check`.
                 let mut threads = 1;
@@ -469,6 +484,7 @@ enum Fields {
     Ddp(&'static [Field<DdpOptions>]),
     Csqp(&'static [Field<CsqpOptions>]),
     BclDdp(&'static [Field<BclDdpOptions>]),
+    Altro(&'static [Field<AltroOptions>]),
 }
 
 impl Fields {
@@ -479,6 +495,7 @@ impl Fields {
             Fields::Ddp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
             Fields::Csqp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
             Fields::BclDdp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
+            Fields::Altro(f) => Box::new(f.iter().filter_map(|f| f.flag)),
         }
     }
 }
@@ -569,6 +586,54 @@ const DDP_FIELDS: &[Field<DdpOptions>] = &[
     },
 ];
 
+const ALTRO_FIELDS: &[Field<AltroOptions>] = &[
+    Field {
+        name: "constraint_tolerance",
+        value: |o| Setting::Real(o.constraint_tolerance),
+        flag: Some(TOL),
+    },
+    Field {
+        name: "iterations_outer",
+        value: |o| Setting::Count(o.iterations_outer),
+        flag: Some(MAX_ITERS),
+    },
+    Field {
+        name: "iterations_inner",
+        value: |o| Setting::Count(o.iterations_inner),
+        flag: None,
+    },
+    Field {
+        name: "penalty_initial",
+        value: |o| Setting::Real(o.penalty_initial),
+        flag: None,
+    },
+    Field {
+        name: "penalty_scaling",
+        value: |o| Setting::Real(o.penalty_scaling),
+        flag: None,
+    },
+    Field {
+        name: "projected_newton",
+        value: |o| Setting::Name(o.projected_newton.to_string()),
+        flag: None,
+    },
+    Field {
+        name: "square_root",
+        value: |o| Setting::Name(o.square_root.to_string()),
+        flag: None,
+    },
+    Field {
+        name: "infeasible_start",
+        value: |o| Setting::Name(o.infeasible_start.to_string()),
+        flag: None,
+    },
+    Field {
+        name: "num_threads",
+        value: |o| Setting::Count(o.inner.num_threads),
+        flag: Some(THREADS),
+    },
+];
+
 const BCL_DDP_FIELDS: &[Field<BclDdpOptions>] = &[
     Field {
         name: "tol",
@@ -646,6 +711,7 @@ fn settings(options: &SolverOptions) -> Vec<(&'static str, Setting, Option<Flag>
         SolverOptions::Ddp(o) => values(DDP_FIELDS, o),
         SolverOptions::Csqp(o) => values(CSQP_FIELDS, o),
         SolverOptions::BclDdp(o) => values(BCL_DDP_FIELDS, o),
+        SolverOptions::Altro(o) => values(ALTRO_FIELDS, o),
         _ => Vec::new(),
     }
 }

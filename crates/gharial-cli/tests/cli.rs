@@ -14,8 +14,8 @@ fn gharial(args: &[&str]) -> Output {
 }
 
 /// The solvers' command-line names.
-const SOLVERS: [&str; 8] = [
-    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp",
+const SOLVERS: [&str; 9] = [
+    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp", "altro",
 ];
 
 fn stdout(o: &Output) -> String {
@@ -395,7 +395,7 @@ fn bench_solve_all_solvers_prints_the_matrix_of_problems_by_solvers() {
             .filter(|w| w.first() == Some(&problem) && w.get(3) == Some(&"converged"))
             .map(|w| w[w.len() - 4].parse().expect("the cost column"))
             .collect();
-        let takers = if problem == "lqr" { SOLVERS.len() } else { 4 };
+        let takers = if problem == "lqr" { SOLVERS.len() } else { 5 };
         assert_eq!(costs.len(), takers, "{problem}: {text}");
         for c in &costs {
             assert!((c - costs[0]).abs() < 1e-6 * costs[0].abs(), "{problem}: {costs:?}");
@@ -418,7 +418,7 @@ fn bench_solve_all_solvers_prints_the_matrix_of_problems_by_solvers() {
     assert_eq!(header, SOLVERS, "{matrix}");
     assert!(row("lqr").iter().all(|c| c.starts_with("1 / ")), "{matrix}");
     let taken: Vec<bool> = row("lqr-bounds").iter().map(|c| c != "-").collect();
-    let takes_bounds = ["proxddp", "box-ddp", "box-fddp", "csqp"];
+    let takes_bounds = ["proxddp", "box-ddp", "box-fddp", "csqp", "altro"];
     let expected: Vec<bool> = SOLVERS.iter().map(|s| takes_bounds.contains(s)).collect();
     assert_eq!(taken, expected, "{matrix}");
 }
@@ -460,11 +460,20 @@ fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
         "SQP",
         "CSQP",
         "BCL-DDP",
+        "ALTRO",
     ];
     assert_eq!(solvers("lqr"), all);
     assert_eq!(
         solvers("lqr_box"),
-        ["ProxDDP", "ProxDDP_ls", "ProxDDP_as", "BoxDDP", "BoxFDDP", "CSQP"]
+        [
+            "ProxDDP",
+            "ProxDDP_ls",
+            "ProxDDP_as",
+            "BoxDDP",
+            "BoxFDDP",
+            "CSQP",
+            "ALTRO"
+        ]
     );
     // All solvers of one problem together.
     assert!(lines[..all.len()].iter().all(|l| l["problem"] == "lqr"));

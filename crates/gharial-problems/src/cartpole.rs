@@ -188,11 +188,8 @@ impl AutoUnaryFn for CartpoleTipError {
     }
 }
 
-/// Builds `cartpole` (module documentation).
-///
-/// # Errors
-/// Never for these fixed numbers.
-pub fn build() -> Result<Example> {
+/// The stage of both variants: semi-implicit Euler, quadratic regularisation, `|F| ≤ F_MAX`.
+fn stage() -> Result<(StageModel, Arc<dyn Manifold>)> {
     let ode = Arc::new(CartpoleOde::new());
     let space = ode.space.clone();
     let nu = 1;
@@ -219,6 +216,45 @@ pub fn build() -> Result<Example> {
         )?;
     let stage =
         StageModel::new(Arc::new(cost), dynamics)?.with_constraint(control_box(space.as_ref(), nu, F_MAX, 1.0)?)?;
+    Ok((stage, space))
+}
+
+/// The cart-pole of the ALTRO paper (Howell et al. 2019, Fig. 1): the same model, costs
+/// and force limits as [`build`], with the terminal *state* constraint `x_N = 0` (upright,
+/// cart at the origin, at rest) instead of the tip position, and the zero-force guess
+/// with its rollout (the pole hanging) as initial trajectory (the paper's Algorithm 4,
+/// line 6).
+///
+/// # Errors
+/// Never for these fixed numbers.
+pub fn build_state_target() -> Result<Example> {
+    let (stage, space) = stage()?;
+    let target = Arc::new(gharial::functions::StateError::new(space.clone(), &[0.0; 4])?);
+    let term_cost = Arc::new(gharial::costs::ConstantCost::zero(space.as_ref(), 0));
+    let x0 = [0.0, std::f64::consts::PI, 0.0, 0.0];
+    let problem = Problem::new(&x0, vec![stage; HORIZON], term_cost)?.with_terminal_constraint(
+        StageConstraint::new("x_N", Arc::new(Unary::new(target, 0)), Arc::new(EqualityConstraintSet)),
+    )?;
+    let us0 = vec![vec![0.0]; HORIZON];
+    let xs0 = vec![x0.to_vec(); HORIZON + 1];
+    Ok(Example {
+        name: "cartpole-state",
+        problem,
+        xs0,
+        us0,
+        dt: Some(DT),
+        proxddp: ProxDdpOptions::default(),
+        description: "Cart-pole swing-up with a terminal state constraint (ALTRO paper, Fig. 1): semi-implicit \
+                      Euler, dt = 10 ms, T = 5 s, |F| <= 6, x_N = 0 (upright, at rest).",
+    })
+}
+
+/// Builds `cartpole` (module documentation).
+///
+/// # Errors
+/// Never for these fixed numbers.
+pub fn build() -> Result<Example> {
+    let (stage, space) = stage()?;
     let tip = AutoDiff::unary(
         space.clone(),
         CartpoleTipError {

@@ -2,6 +2,7 @@
 
 use std::time::Duration;
 
+use gharial::solvers::altro::AltroOptions;
 use gharial::solvers::bcl_ddp::{BclDdpOptions, Multipliers, PenaltyUpdate, Schedule};
 use gharial::solvers::csqp::CsqpOptions;
 use gharial::solvers::ddp::DdpOptions;
@@ -29,6 +30,7 @@ pub fn field<'a>(options: &'a mut SolverOptions, name: &str) -> Option<Field<'a>
         SolverOptions::Ddp(o) => ddp_field(o, name),
         SolverOptions::Csqp(o) => csqp_field(o, name),
         SolverOptions::BclDdp(o) => bcl_ddp_field(o, name),
+        SolverOptions::Altro(o) => altro_field(o, name),
         _ => None,
     }
 }
@@ -40,6 +42,7 @@ pub fn option_names(options: &SolverOptions) -> &'static [&'static str] {
         SolverOptions::Ddp(_) => DDP,
         SolverOptions::Csqp(_) => CSQP,
         SolverOptions::BclDdp(_) => BCL_DDP,
+        SolverOptions::Altro(_) => ALTRO,
         _ => &[],
     }
 }
@@ -251,6 +254,53 @@ fn bcl_ddp_field<'a>(o: &'a mut BclDdpOptions, name: &str) -> Option<Field<'a>> 
         "schedule" => Field::Schedule(&mut o.schedule),
         "max_time" => Field::Time(&mut o.max_time),
         "num_threads" => Field::Usize(&mut o.ddp.num_threads),
+        _ => return None,
+    })
+}
+
+const ALTRO: &[&str] = &[
+    "tol",
+    "max_iters",
+    "constraint_tolerance",
+    "cost_tolerance",
+    "cost_tolerance_intermediate",
+    "penalty_initial",
+    "penalty_scaling",
+    "penalty_max",
+    "dual_max",
+    "iterations_outer",
+    "iterations_inner",
+    "square_root",
+    "projected_newton",
+    "projected_newton_tolerance",
+    "projected_newton_steps",
+    "infeasible_start",
+    "slack_weight",
+    "max_time",
+    "num_threads",
+];
+
+fn altro_field<'a>(o: &'a mut AltroOptions, name: &str) -> Option<Field<'a>> {
+    Some(match name {
+        // As on the command line: the tolerance is c_max, the limit the outer iterations.
+        "tol" | "constraint_tolerance" => Field::F64(&mut o.constraint_tolerance),
+        "max_iters" => Field::Usize(&mut o.iterations_outer),
+        "cost_tolerance" => Field::F64(&mut o.cost_tolerance),
+        "cost_tolerance_intermediate" => Field::F64(&mut o.cost_tolerance_intermediate),
+        "penalty_initial" => Field::F64(&mut o.penalty_initial),
+        "penalty_scaling" => Field::F64(&mut o.penalty_scaling),
+        "penalty_max" => Field::F64(&mut o.penalty_max),
+        "dual_max" => Field::F64(&mut o.dual_max),
+        "iterations_outer" => Field::Usize(&mut o.iterations_outer),
+        "iterations_inner" => Field::Usize(&mut o.iterations_inner),
+        "square_root" => Field::Bool(&mut o.square_root),
+        "projected_newton" => Field::Bool(&mut o.projected_newton),
+        "projected_newton_tolerance" => Field::F64(&mut o.projected_newton_tolerance),
+        "projected_newton_steps" => Field::Usize(&mut o.projected_newton_steps),
+        "infeasible_start" => Field::Bool(&mut o.infeasible_start),
+        "slack_weight" => Field::F64(&mut o.slack_weight),
+        "max_time" => Field::Time(&mut o.max_time),
+        "num_threads" => Field::Usize(&mut o.inner.num_threads),
         _ => return None,
     })
 }

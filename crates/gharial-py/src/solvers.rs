@@ -420,9 +420,15 @@ named_solver!(
     "bcl-ddp",
     "Equality-constrained DDP with the BCL globalisation (El Kazdadi et al. 2021)."
 );
+named_solver!(
+    PyAltro,
+    "SolverALTRO",
+    "altro",
+    "AL-iLQR with the Newton projection (ALTRO, Howell et al. 2019)."
+);
 
 /// A solver by name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`,
-/// `bcl-ddp`) with options.
+/// `bcl-ddp`, `altro`) with options.
 #[pyfunction]
 #[pyo3(signature = (name, **options))]
 fn solver(name: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<PySolver> {
@@ -610,6 +616,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySqp>()?;
     m.add_class::<PyCsqp>()?;
     m.add_class::<PyBclDdp>()?;
+    m.add_class::<PyAltro>()?;
     m.add_class::<PyResults>()?;
     m.add_function(wrap_pyfunction!(solver, m)?)?;
     m.add_function(wrap_pyfunction!(solver_names, m)?)?;

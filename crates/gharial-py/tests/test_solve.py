@@ -37,6 +37,7 @@ def test_named_classes_match_the_names():
         (gharial.SolverSQP, "sqp"),
         (gharial.SolverCSQP, "csqp"),
         (gharial.SolverBCLDDP, "bcl-ddp"),
+        (gharial.SolverALTRO, "altro"),
     ]:
         s = cls(tol=1e-7, max_iters=50)
         assert s.name == name and s.tol == 1e-7 and s.max_iters == 50

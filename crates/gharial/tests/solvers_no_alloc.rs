@@ -255,6 +255,38 @@ fn bcl_ddp_solve_does_not_allocate_after_setup() {
     }
 }
 
+#[test]
+fn altro_solve_does_not_allocate_after_setup() {
+    use gharial::solvers::altro::{Altro, AltroOptions};
+    // Explicit dynamics only with the square-root pass (it needs E = -I).
+    // The infeasible start (slack controls) with explicit dynamics only as well.
+    for (implicit, square_root, infeasible) in [
+        (false, false, false),
+        (false, true, false),
+        (true, false, false),
+        (false, false, true),
+    ] {
+        let p = problem(implicit, 2);
+        let (xs, us) = guess(&p);
+        let mut solver = Altro::new(AltroOptions::default().with(|o| {
+            o.infeasible_start = infeasible;
+            o.square_root = square_root;
+            o.iterations_outer = 6;
+            o.iterations_inner = 30;
+        }));
+        solver.setup(&p).unwrap();
+        let mut iterations = 0;
+        let count = counting_alloc::allocations(|| {
+            iterations = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().iterations;
+        });
+        assert!(iterations > 3, "the solves must do real work");
+        assert_eq!(
+            count, 0,
+            "altro implicit {implicit} square root {square_root} infeasible {infeasible}"
+        );
+    }
+}
+
 /// A horizon mixing stages with 0, 1 and 3 constraint rows, and a queue of them.
 fn mixed_horizon(implicit: bool, box_only: bool) -> (Problem, Vec<StageModel>) {
     let kinds: Vec<usize> = if box_only { vec![0, 1] } else { vec![0, 1, 2] };

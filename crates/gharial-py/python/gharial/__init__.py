@@ -20,6 +20,7 @@ from ._gharial import (  # noqa: F401
     QuadraticStateCost,
     Results,
     Solver,
+    SolverALTRO,
     SolverBCLDDP,
     SolverBoxDDP,
     SolverBoxFDDP,

@@ -8,7 +8,8 @@
 //! One operation family per file: products (`matmul`), matrix-vector products (`matvec`),
 //! reductions (`reduce`), copies (`copy`), symmetrization (`symmetric`), views of owned
 //! storage (`views`), and the factorizations LLᵀ (`llt`), LDLᵀ (`ldlt`), Bunch-Kaufman
-//! (`bunch_kaufman`) and LU (`lu`), the first two with fixed-size kernels up to 12 x 12
+//! (`bunch_kaufman`) and LU (`lu`), the square-root kernels (`qr`: Householder QR's
+//! triangular factor, semidefinite Cholesky, triangular solves), the first two with fixed-size kernels up to 12 x 12
 //! (`small`). Products, matrix-vector products, copies and symmetrizations have
 //! fixed-size kernels for 1 to 16 rows, with the additions in the order of the generic
 //! loops (bit-identical results).
@@ -68,6 +69,7 @@ mod llt;
 mod lu;
 mod matmul;
 mod matvec;
+mod qr;
 mod reduce;
 mod small;
 mod symmetric;
@@ -87,6 +89,7 @@ pub(crate) use ldlt::Ldlt;
 pub(crate) use llt::Llt;
 pub(crate) use matmul::{matmul_lower, matmul_tn_lower};
 pub(crate) use matvec::matvec_t;
+pub(crate) use qr::{householder_r, semidefinite_cholesky_upper, upper_solve, upper_t_solve};
 pub(crate) use reduce::{all_finite, dot, norm_inf, norm_l1, norm_max, sum_is_finite};
 pub(crate) use symmetric::{identity_plus_scaled_lower, symmetrize, symmetrize_from_lower};
 #[cfg(test)]

@@ -85,6 +85,11 @@
 //!
 //! # Other solvers
 //!
+//! - The square-root pass of ALTRO ([`RiccatiSolver::with_square_root`],
+//!   [`RiccatiSolver::backward_square_root`]): the same recursion on Cholesky factors of
+//!   the value Hessians, propagated by QR, for knots with `E = -I`, `mu_dyn = 0` and
+//!   constraint rows as penalties (`mu_c > 0`); robust where the penalties make `P`
+//!   ill-conditioned (module `sqrt`).
 //! - [`ParallelRiccatiSolver`]: the horizon split into legs solved on threads, each leg
 //!   parameterised by its boundary co-state, then a condensed system over the legs'
 //!   boundaries; the same solution as the serial solver.
@@ -105,6 +110,7 @@ mod parallel;
 pub mod random;
 mod riccati;
 mod solver;
+mod sqrt;
 mod stage;
 
 pub use parallel::ParallelRiccatiSolver;
@@ -789,6 +795,15 @@ pub enum LqError {
         /// Which system, e.g. `"E"`.
         system: &'static str,
     },
+    /// The square-root pass does not handle this knot (it needs `E = -I`, `mu_dyn = 0`
+    /// and penalty rows, `mu_c > 0`).
+    #[error("LQ knot {knot}: {what}")]
+    Unsupported {
+        /// Knot index.
+        knot: usize,
+        /// What is not handled.
+        what: &'static str,
+    },
     /// `backward_vectors` or `forward` was called without a successful full backward pass.
     #[error("the LQ solver has no factorization: call backward first (or after an error)")]
     NotFactored,
@@ -811,7 +826,7 @@ impl From<LqError> for crate::Error {
             LqError::NonFinite { .. } => crate::Error::non_finite(e.to_string()),
             LqError::Inertia { .. } | LqError::Singular { .. } => crate::Error::singular(e.to_string()),
             LqError::Option { name, reason } => crate::Error::option(name, reason),
-            LqError::Empty | LqError::Negative { .. } | LqError::NotFactored => {
+            LqError::Empty | LqError::Negative { .. } | LqError::NotFactored | LqError::Unsupported { .. } => {
                 crate::Error::InvalidModel(e.to_string())
             }
         }

@@ -3,6 +3,7 @@
 use faer::prelude::ReborrowMut;
 use faer::{Col, Mat, MatRef};
 
+use super::sqrt::SqrtKnot;
 use super::stage::{ExtraGains, RiccatiStage, StageScratch};
 use super::{
     KnotDims, KnotVectors, LqError, LqKnot, LqProblem, LqSolution, LqVectors, blame, check_regularisation,
@@ -57,6 +58,11 @@ pub struct RiccatiSolver {
     /// Whether the stages hold storage for the rollout gains.
     rollout_storage: bool,
     factored: bool,
+    /// Storage of the square-root pass, if allocated ([`RiccatiSolver::with_square_root`]).
+    sqrt: Vec<SqrtKnot>,
+    /// Whether the last backward pass was the square-root one (its stages hold no stage
+    /// KKT factorization: no vector pass, no refinement).
+    square_root_factored: bool,
 }
 
 /// Storage of iterative refinement: the residual and the correction.
@@ -101,13 +107,71 @@ impl RiccatiSolver {
             dims,
             stages,
             factored: false,
+            sqrt: Vec::new(),
+            square_root_factored: false,
         })
+    }
+
+    /// Allocates a solver that can also run the square-root backward pass
+    /// ([`backward_square_root`](Self::backward_square_root)).
+    pub fn with_square_root(problem: &LqProblem) -> Result<Self, LqError> {
+        let mut s = Self::new(problem)?;
+        s.sqrt = s
+            .dims
+            .iter()
+            .map(|d| SqrtKnot::new(d.nx, d.nu, d.nc, d.nx_next))
+            .collect();
+        Ok(s)
+    }
+
+    /// The square-root backward pass of ALTRO (Howell et al. 2019, III-A; module `sqrt`
+    /// of [`crate::lq`]) with the regularisation `primal_reg` on `Q_uu`: the value
+    /// Hessians propagated as Cholesky factors `P_t = S_tᵀS_t` by QR of stacked factors,
+    /// then the factorization of the initial stage. Afterwards [`stage`](Self::stage)
+    /// gives the same quantities as after [`backward`](Self::backward) (gains, Q-function
+    /// and value function, formed from the factors) and [`forward`](Self::forward) rolls
+    /// them out; [`square_root_factor`](Self::square_root_factor) gives `S_t`.
+    ///
+    /// # Errors
+    /// [`LqError::Unsupported`] for a knot with `E ≠ -I`, `mu_dyn > 0` or a constraint row
+    /// with `mu_c = 0`; [`LqError::Singular`] when `Q_uu + ρI` is singular (a larger `ρ`
+    /// helps) or a cost Hessian is not positive semidefinite; [`LqError::Option`] if the
+    /// solver was not built by [`with_square_root`](Self::with_square_root).
+    pub fn backward_square_root(&mut self, problem: &LqProblem, primal_reg: f64) -> Result<(), LqError> {
+        self.factored = false;
+        self.square_root_factored = false;
+        if self.sqrt.len() != self.stages.len() {
+            return Err(LqError::Option {
+                name: "square_root",
+                reason: "the solver was not built by RiccatiSolver::with_square_root",
+            });
+        }
+        check_same_dims(problem, &self.dims, self.nc0)?;
+        check_primal_reg(primal_reg)?;
+        check_regularisation(problem)?;
+        let n = self.stages.len();
+        for t in (0..n).rev() {
+            let (head, rest) = self.sqrt.split_at_mut(t + 1);
+            let st = &mut self.stages[t];
+            super::sqrt::step(st, &mut head[t], &problem.knots[t], rest.first(), primal_reg)
+                .map_err(|e| st.blame(problem, e))?;
+        }
+        self.initial.factor(problem, self.stages[0].P())?;
+        self.factored = true;
+        self.square_root_factored = true;
+        Ok(())
+    }
+
+    /// The factor `S_t` (`P_t = S_tᵀS_t`, upper triangular) of the last square-root pass.
+    pub fn square_root_factor(&self, t: usize) -> Option<MatRef<'_, f64>> {
+        self.square_root_factored.then(|| self.sqrt[t].s())
     }
 
     /// Backward pass with the primal regularisation `primal_reg ≥ 0` added to every
     /// `Q_uu`: matrix and vector parts, then the factorization of the initial stage.
     pub fn backward(&mut self, problem: &LqProblem, primal_reg: f64) -> Result<(), LqError> {
         self.factored = false;
+        self.square_root_factored = false;
         check_same_dims(problem, &self.dims, self.nc0)?;
         check_primal_reg(primal_reg)?;
         check_regularisation(problem)?;
@@ -129,7 +193,7 @@ impl RiccatiSolver {
     /// only `q, r, f, d, g0` changed, recomputes `k, ζ, p` (and the rollout feedforward
     /// terms) with the factorizations already computed.
     pub fn backward_vectors(&mut self, problem: &LqProblem) -> Result<(), LqError> {
-        if !self.factored {
+        if !self.factored || self.square_root_factored {
             return Err(LqError::NotFactored);
         }
         check_same_dims(problem, &self.dims, self.nc0)?;
@@ -156,6 +220,7 @@ impl RiccatiSolver {
         F: FnMut(&LqKnot, &mut RiccatiStage, Option<(MatRef<'_, f64>, &[f64])>) -> Result<(), LqError>,
     {
         self.factored = false;
+        self.square_root_factored = false;
         check_same_dims(problem, &self.dims, self.nc0)?;
         check_regularisation(problem)?;
         let n = self.stages.len();
@@ -190,7 +255,7 @@ impl RiccatiSolver {
             slice_mut(&mut sol.lambdas[0]),
         )?;
         rollout_all(&mut self.stages, problem, sol)?;
-        if let Some(r) = &mut self.refinement {
+        if let Some(r) = self.refinement.as_mut().filter(|_| !self.square_root_factored) {
             for _ in 0..r.steps {
                 r.residual.set_kkt_residual(problem, sol)?;
                 self.stages.iter_mut().for_each(RiccatiStage::save_vector_part);

@@ -1056,6 +1056,22 @@ impl RiccatiStage {
         self.g.as_ref()
     }
 
+    /// The results a square-root step ([`super::sqrt`]) writes: the Q-function, the gains,
+    /// the value function and `f̃`; marks the knot as one with `E = -I` and `mu_dyn = 0`
+    /// (the only knots that step accepts), so that the forward pass (50) reads it as such.
+    pub(super) fn square_root_parts(&mut self) -> SquareRootParts<'_> {
+        self.e_minus_identity = true;
+        self.mu_dyn = 0.0;
+        SquareRootParts {
+            qmat: &mut self.qmat,
+            qvec: &mut self.qvec,
+            gains: &mut self.gains,
+            P: &mut self.P,
+            p: &mut self.p,
+            f_tilde: &mut self.f_tilde,
+        }
+    }
+
     /// Names the offending input after a numerical failure of this knot.
     pub(crate) fn blame(&self, problem: &super::LqProblem, e: LqError) -> LqError {
         match e {
@@ -1063,6 +1079,22 @@ impl RiccatiStage {
             _ => e,
         }
     }
+}
+
+/// The fields of a [`RiccatiStage`] that the square-root step writes.
+pub(super) struct SquareRootParts<'a> {
+    /// `[Q_xx Q_xu; Q_ux Q_uu]`.
+    pub qmat: &'a mut Mat<f64>,
+    /// `[Q_x; Q_u]`.
+    pub qvec: &'a mut Col<f64>,
+    /// `[k K; ζ Z]`.
+    pub gains: &'a mut Mat<f64>,
+    /// `P = V_xx`.
+    pub P: &'a mut Mat<f64>,
+    /// `p = V_x`.
+    pub p: &'a mut Col<f64>,
+    /// `f̃ = f` (`E = -I`).
+    pub f_tilde: &'a mut Col<f64>,
 }
 
 /// The factorization of `M = I + P'G`: Cholesky when possible, LU otherwise.

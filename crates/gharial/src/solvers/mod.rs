@@ -7,6 +7,7 @@
 //! is always kept, so a solution can warm-start the next solve.
 
 pub mod admm;
+pub mod altro;
 pub mod bcl_ddp;
 pub mod boxqp;
 pub mod csqp;

@@ -1,6 +1,7 @@
 //! The options of any solver of the library, chosen by name ([`SolverOptions`]).
 
 use super::Solver;
+use super::altro::{Altro, AltroOptions};
 use super::bcl_ddp::{BclDdp, BclDdpOptions};
 use super::csqp::{Csqp, CsqpOptions};
 use super::ddp::{Ddp, DdpOptions, DdpVariant};
@@ -22,15 +23,18 @@ pub enum SolverOptions {
     Csqp(CsqpOptions),
     /// BCL-DDP (El Kazdadi et al. 2021): equality constraints only.
     BclDdp(BclDdpOptions),
+    /// ALTRO's AL-iLQR (Howell et al. 2019).
+    Altro(AltroOptions),
 }
 
 /// The solver names, in the order of [`SolverOptions::names`].
-const NAMES: [&str; 8] = [
-    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp",
+const NAMES: [&str; 9] = [
+    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp", "altro",
 ];
 
 impl SolverOptions {
-    /// Every solver name: `proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`, `bcl-ddp`.
+    /// Every solver name: `proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`,
+    /// `bcl-ddp`, `altro`.
     pub fn names() -> &'static [&'static str] {
         &NAMES
     }
@@ -44,6 +48,7 @@ impl SolverOptions {
             "proxddp" => Ok(SolverOptions::ProxDdp(ProxDdpOptions::default())),
             "csqp" => Ok(SolverOptions::Csqp(CsqpOptions::default())),
             "bcl-ddp" => Ok(SolverOptions::BclDdp(BclDdpOptions::default())),
+            "altro" => Ok(SolverOptions::Altro(AltroOptions::default())),
             _ => DdpVariant::from_name(name)
                 .map(|v| SolverOptions::Ddp(DdpOptions::new(v)))
                 .ok_or_else(|| {
@@ -62,6 +67,7 @@ impl SolverOptions {
             SolverOptions::Ddp(o) => o.variant.name(),
             SolverOptions::Csqp(_) => "csqp",
             SolverOptions::BclDdp(_) => "bcl-ddp",
+            SolverOptions::Altro(_) => "altro",
         }
     }
 
@@ -72,6 +78,7 @@ impl SolverOptions {
             SolverOptions::Ddp(o) => o.log = log,
             SolverOptions::Csqp(o) => o.log = log,
             SolverOptions::BclDdp(o) => o.log = log,
+            SolverOptions::Altro(o) => o.log = log,
         }
     }
 
@@ -85,6 +92,7 @@ impl SolverOptions {
             SolverOptions::Ddp(o) => o.validate(),
             SolverOptions::Csqp(o) => o.validate(),
             SolverOptions::BclDdp(o) => o.validate(),
+            SolverOptions::Altro(o) => o.validate(),
         }
     }
 
@@ -95,6 +103,7 @@ impl SolverOptions {
             SolverOptions::Ddp(o) => Box::new(Ddp::new(o.clone())),
             SolverOptions::Csqp(o) => Box::new(Csqp::new(o.clone())),
             SolverOptions::BclDdp(o) => Box::new(BclDdp::new(o.clone())),
+            SolverOptions::Altro(o) => Box::new(Altro::new(o.clone())),
         }
     }
 }

@@ -136,6 +136,11 @@ pub struct DdpOptions {
     pub filter_linesearch: bool,
     /// The box QP of the box variants.
     pub box_qp: BoxQpOptions,
+    /// Backward pass on Cholesky factors of the value Hessians (ALTRO's square-root pass,
+    /// [`crate::lq::RiccatiSolver::backward_square_root`]) instead of the plain Riccati
+    /// recursion (default false). DDP, FDDP and SQP on vector-space states with explicit
+    /// dynamics.
+    pub square_root: bool,
     /// Newton-Raphson solve of implicit dynamics in the rollouts.
     pub implicit: ImplicitSolve,
     /// Wall-time budget (default none).
@@ -170,6 +175,7 @@ impl Default for DdpOptions {
             filter_size: 1,
             filter_linesearch: false,
             box_qp: BoxQpOptions::default(),
+            square_root: false,
             implicit: ImplicitSolve::default(),
             max_time: None,
             num_threads: 1,
@@ -245,6 +251,12 @@ impl DdpOptions {
             return Err(Error::option(
                 "filter_linesearch",
                 "is an option of fddp and box-fddp (sqp always filters; ddp's trials have no gaps)",
+            ));
+        }
+        if self.square_root && self.variant.control_bounds() {
+            return Err(Error::option(
+                "square_root",
+                "is not available for the box variants (their control law is the box QP)",
             ));
         }
         if self.num_threads == 0 {

@@ -26,6 +26,8 @@ pub(crate) struct Expected {
 
 pub(crate) struct Workspace {
     variant: DdpVariant,
+    /// Whether the backward pass is the square-root one.
+    square_root: bool,
     /// Current iterate.
     pub xs: Vec<Vec<f64>>,
     pub us: Vec<Vec<f64>>,
@@ -142,6 +144,25 @@ fn check_unconstrained(problem: &Problem, queue: &[StageModel], name: &str) -> R
     Ok(())
 }
 
+/// The square-root pass needs `E = -I`: explicit dynamics on vector spaces, in the
+/// horizon and the queue.
+fn check_square_root(problem: &Problem, queue: &[StageModel], name: &str) -> Result<()> {
+    let stages = problem.stages().iter().chain(queue);
+    for (t, s) in stages.enumerate() {
+        let explicit = matches!(s.dynamics, crate::dynamics::Dynamics::Explicit(_));
+        if !explicit || !s.space_next().is_vector_space() {
+            return Err(Error::option(
+                "square_root",
+                format!(
+                    "{name} with the square-root pass needs explicit dynamics on vector spaces \
+                     (stage {t} has implicit dynamics or a manifold state)"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 impl Workspace {
     /// The workspace of `problem`; with `queue`, also for a receding horizon through
     /// the stages queued to enter it ([`Workspace::shift`]); with `al`, for BCL-DDP (whose
@@ -174,6 +195,12 @@ impl Workspace {
         let exact = opts.hessian == HessianApprox::Exact;
         if exact {
             check_exact_hessian(problem, queue, variant)?;
+            if opts.square_root {
+                return Err(Error::option(
+                    "square_root",
+                    format!("{name}: the square-root pass takes the Gauss-Newton Hessian only"),
+                ));
+            }
         }
         let n = problem.horizon();
         let s = crate::solvers::Solution::new(problem, 0);
@@ -181,10 +208,16 @@ impl Workspace {
         let vecs = |sizes: &[usize]| sizes.iter().map(|&k| vec![0.0; k]).collect::<Vec<_>>();
         let nus: Vec<usize> = (0..n).map(|t| problem.nu(t)).collect();
         let lq = lq_for(problem, al.is_some(), None);
-        let riccati = RiccatiSolver::new(&lq)?;
+        let riccati = if opts.square_root {
+            check_square_root(problem, queue, name)?;
+            RiccatiSolver::with_square_root(&lq)?
+        } else {
+            RiccatiSolver::new(&lq)?
+        };
         let lq_sol = LqSolution::new(&lq);
         Ok(Self {
             variant,
+            square_root: opts.square_root,
             xs_try: s.xs.clone(),
             us_try: s.us.clone(),
             xs: s.xs,
@@ -373,6 +406,10 @@ impl Workspace {
         reg: f64,
         qp_opts: &BoxQpOptions,
     ) -> std::result::Result<(), LqError> {
+        if self.square_root {
+            self.qp_used.fill(false);
+            return self.riccati.backward_square_root(&self.lq, reg);
+        }
         let use_qp = self.feasible && self.iterated && self.bounds.is_some();
         let exact = self.exact && self.feasible;
         if !use_qp {
