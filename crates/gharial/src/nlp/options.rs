@@ -6,7 +6,7 @@ use crate::error::Result;
 use crate::solvers::HessianApprox;
 use crate::solvers::linesearch::LinesearchOptions;
 use crate::solvers::log::LogSink;
-use crate::solvers::proxddp::ProxDdpOptions;
+use crate::solvers::proxddp::{ProxDdpOptions, StepAcceptance};
 
 /// Options of [`super::ProxNlp`]; each field has the name, meaning and default of the
 /// [`ProxDdpOptions`] field of the same name.
@@ -34,6 +34,11 @@ pub struct ProxNlpOptions {
     pub max_iters: usize,
     /// Maximum number of augmented-Lagrangian (outer) iterations (default 100).
     pub max_al_iters: usize,
+    /// Step acceptance (default: the filter, whose first step of each subproblem is taken
+    /// whole so that semi-smooth Newton steps cross the kinks of the merit function).
+    pub step_acceptance: StepAcceptance,
+    /// Averaging weight of the nonmonotone line search (default 0.85).
+    pub nonmonotone_eta: f64,
     /// Hessian approximation (default Gauss-Newton: the cost Hessian alone).
     pub hessian: HessianApprox,
     /// Armijo line-search options.
@@ -81,6 +86,8 @@ impl From<&ProxDdpOptions> for ProxNlpOptions {
             bcl_beta_eta: o.bcl_beta_eta,
             max_iters: o.max_iters,
             max_al_iters: o.max_al_iters,
+            step_acceptance: o.step_acceptance,
+            nonmonotone_eta: o.nonmonotone_eta,
             hessian: o.hessian,
             linesearch: o.linesearch,
             preg_min: o.preg_min,
@@ -120,6 +127,7 @@ impl ProxNlpOptions {
                 o.max_iters = self.max_iters;
                 o.max_al_iters = self.max_al_iters;
                 o.linesearch = self.linesearch;
+                o.nonmonotone_eta = self.nonmonotone_eta;
                 o.preg_min = self.preg_min;
                 o.preg_max = self.preg_max;
                 o.preg_increase = self.preg_increase;

@@ -8,13 +8,18 @@ use super::options::ProxNlpOptions;
 use super::problem::Nlp;
 use super::workspace::{NonFiniteStep, Residuals, Workspace};
 use crate::error::{Error, Result, check_dim, check_finite};
-use crate::solvers::linesearch::{LinesearchResult, armijo};
-use crate::solvers::proxddp::TABLE;
+use crate::solvers::filter::Filter;
+use crate::solvers::linesearch::{LinesearchResult, Nonmonotone, armijo};
+use crate::solvers::proxddp::{StepAcceptance, TABLE};
 use crate::solvers::{Callback, HISTORY_LIMIT, IterationRecord, Status};
 
 /// Smallest factor of the primal tolerance `eta` after a successful outer step (as
 /// ProxDDP).
 const MIN_ETA_FACTOR: f64 = 1e-2;
+
+/// Trials of the filter may be at most this factor more infeasible than the initial
+/// point (or than 1), as in IPOPT and ProxDDP.
+const THETA_MAX_FACTOR: f64 = 1e4;
 
 /// Failed outer steps at the smallest penalty after which the problem is declared
 /// (locally) infeasible.
@@ -63,6 +68,7 @@ pub struct ProxNlp {
     /// `(nx, ndx, block sizes)` of the problem given to `setup`.
     signature: (usize, usize, Vec<usize>),
     solution: NlpSolution,
+    filter: Filter,
 }
 
 impl std::fmt::Debug for ProxNlp {
@@ -81,6 +87,7 @@ impl ProxNlp {
             ws: None,
             signature: (0, 0, Vec::new()),
             solution: NlpSolution::default(),
+            filter: Filter::new(1, 1e-5, 1e-5),
         }
     }
 
@@ -119,6 +126,7 @@ impl ProxNlp {
             ..Default::default()
         };
         self.ws = Some(Box::new(ws));
+        self.filter = Filter::new(self.options.max_iters.saturating_add(1), 1e-5, 1e-5);
         Ok(())
     }
 
@@ -156,6 +164,7 @@ impl ProxNlp {
             nlp,
             opts: &self.options,
             ws,
+            filter: &mut self.filter,
         };
         run(&mut cx, &mut self.solution, callback);
         Ok(&self.solution)
@@ -196,6 +205,7 @@ struct Context<'a> {
     nlp: &'a dyn Nlp,
     opts: &'a ProxNlpOptions,
     ws: &'a mut Workspace,
+    filter: &'a mut Filter,
 }
 
 /// The state of the loop of one solve.
@@ -218,6 +228,15 @@ struct State {
     stall_err: f64,
     /// Consecutive failed outer steps at the smallest penalty.
     failed_at_min: usize,
+    nonmonotone: Nonmonotone,
+}
+
+/// The reference of the nonmonotone line search (plain Armijo for the other modes).
+fn nonmonotone(opts: &ProxNlpOptions) -> Nonmonotone {
+    Nonmonotone::new(match opts.step_acceptance {
+        StepAcceptance::NonmonotoneLinesearch => opts.nonmonotone_eta,
+        _ => 0.0,
+    })
 }
 
 /// The factor of the BCL tolerance updates, `min(mu, 0.1)` (as ProxDDP).
@@ -278,6 +297,9 @@ impl State {
             Some(c) => (Status::MaxIterations, c),
             None => (Status::NonFinite, f64::NAN),
         };
+        cx.filter.clear();
+        let (_, theta0) = cx.ws.current_merit(cx.nlp, mu);
+        cx.filter.set_theta_max(THETA_MAX_FACTOR * theta0.max(1.0));
         Self {
             mu,
             eta: bcl_rate(mu).powf(opts.bcl_beta_eta).max(opts.tol),
@@ -293,6 +315,7 @@ impl State {
             stall_updates: 0,
             stall_err: f64::INFINITY,
             failed_at_min: 0,
+            nonmonotone: nonmonotone(opts),
         }
     }
 
@@ -365,6 +388,9 @@ impl State {
         }
         self.omega = self.omega.max(opts.tol);
         self.eta = self.eta.max(opts.tol);
+        // The merit function changed: past values and filter entries no longer apply.
+        cx.filter.clear();
+        self.nonmonotone = nonmonotone(opts);
         (self.al_iter >= opts.max_al_iters).then_some(Status::MaxIterations)
     }
 
@@ -397,11 +423,12 @@ impl State {
         }
     }
 
-    /// The step acceptance: the full step at round-off level, Armijo backtracking on the
-    /// merit (17) otherwise. `None` when the subproblem stalled at round-off.
+    /// The step acceptance: the full step at round-off level, the filter or Armijo
+    /// backtracking on the merit (17) otherwise. `None` when the subproblem stalled at
+    /// round-off.
     fn search(&mut self, cx: &mut Context<'_>, dphi0: f64) -> Option<(LinesearchResult, f64)> {
         let (opts, mu) = (cx.opts, self.mu);
-        let (phi0, _) = cx.ws.current_merit(cx.nlp, mu);
+        let (phi0, theta0) = cx.ws.current_merit(cx.nlp, mu);
         let roundoff = dphi0.abs() <= opts.dphi_thresh * phi0.abs().max(1.0);
         if roundoff {
             if self.res.inner > 0.5 * self.roundoff_inner {
@@ -421,7 +448,18 @@ impl State {
         }
         self.roundoff_inner = f64::INFINITY;
         let (ws, nlp) = (&mut *cx.ws, cx.nlp);
-        let ls = armijo(|a| ws.trial(nlp, a, mu).0, phi0, dphi0, phi0, None, &opts.linesearch);
+        let ls = match opts.step_acceptance {
+            StepAcceptance::Filter => {
+                // Within the outer loop's feasibility target, the merit alone decides.
+                cx.filter.set_theta_min(self.eta);
+                let mut f = |a: f64| ws.trial(nlp, a, mu);
+                cx.filter.search(&mut f, (phi0, theta0), dphi0, None, &opts.linesearch)
+            }
+            StepAcceptance::Linesearch | StepAcceptance::NonmonotoneLinesearch => {
+                let reference = self.nonmonotone.reference(phi0);
+                armijo(|a| ws.trial(nlp, a, mu).0, phi0, dphi0, reference, None, &opts.linesearch)
+            }
+        };
         Some((ls, phi0))
     }
 
@@ -464,6 +502,7 @@ impl State {
             return (self.preg > opts.preg_max).then_some(Status::LinesearchFailure);
         }
         self.cost = cx.ws.accept_trial(cx.nlp);
+        self.nonmonotone.update(ls.phi);
         self.preg *= opts.preg_decrease;
         if self.preg < opts.preg_min {
             self.preg = 0.0;

@@ -9,7 +9,7 @@ use faer::{Accum, Mat};
 
 use super::options::ProxNlpOptions;
 use super::problem::{Nlp, NlpData};
-use crate::linalg::{BunchKaufman, col_of, col_of_mut, dot, matmul, matvec_t, norm_inf};
+use crate::linalg::{Ldlt, col_of, col_of_mut, dot, matmul, matvec_t, norm_inf};
 use crate::solvers::HessianApprox;
 
 /// Residuals at the current point: ProxDDP (19), (52), (53) for one "stage".
@@ -89,7 +89,7 @@ pub(super) struct Workspace {
     /// The Newton system (42)-(46) without the primal regularisation, and with it.
     kkt_base: Mat<f64>,
     kkt: Mat<f64>,
-    factor: BunchKaufman,
+    factor: Ldlt,
     /// Right-hand side, step `(δx, δν)` and refinement residual.
     rhs: Mat<f64>,
     pub step: Mat<f64>,
@@ -135,7 +135,7 @@ impl Workspace {
             eig: Mat::zeros(mmax, mmax),
             kkt_base: Mat::zeros(n, n),
             kkt: Mat::zeros(n, n),
-            factor: BunchKaufman::with_max_rhs(n, 1),
+            factor: Ldlt::new(n),
             rhs: Mat::zeros(n, 1),
             step: Mat::zeros(n, 1),
             resid: Mat::zeros(n, 1),
@@ -243,31 +243,31 @@ impl Workspace {
     /// elimination gives the exact `H + Jᵀ J_N J / mu`; the multiplier step of such a
     /// block is recovered after the solve ([`Workspace::solve_system`]).
     pub fn build_system(&mut self, nlp: &dyn Nlp, opts: &ProxNlpOptions, mu: f64) {
-        let ndx = self.ndx;
+        let (ndx, nc) = (self.ndx, self.nc);
         self.kkt_base.fill(0.0);
         crate::linalg::copy(
-            self.kkt_base.as_mut().submatrix_mut(0, 0, ndx, ndx),
+            self.kkt_base.as_mut().submatrix_mut(nc, nc, ndx, ndx),
             self.cur.data.hess.as_ref(),
         );
         for b in 0..self.rows.len() {
             self.constraint_rows(nlp, b, mu);
         }
         let mut k = self.kkt_base.as_mut();
-        // Cᵀ in the upper-right block (the factorization reads the lower triangle; the
+        // Cᵀ in the lower-left block (the factorization reads the lower triangle; the
         // refinement multiplies by the whole matrix).
-        for i in 0..self.nc {
+        for i in 0..nc {
             for j in 0..ndx {
-                k[(j, ndx + i)] = k[(ndx + i, j)];
+                k[(nc + j, i)] = k[(i, nc + j)];
             }
         }
         if opts.hessian == HessianApprox::Exact {
             nlp.second_order(&self.cur.x, &self.nu_p, &mut self.cur.data);
-            let mut h = k.rb_mut().submatrix_mut(0, 0, ndx, ndx);
+            let mut h = k.rb_mut().submatrix_mut(nc, nc, ndx, ndx);
             h += self.cur.data.vhp.as_ref();
         }
         lagrangian_gradient(&self.cur.data, &self.nu_g, &mut self.gbuf);
         let rhs = col_of_mut(&mut self.rhs, 0);
-        for (r, g) in rhs[..ndx].iter_mut().zip(&self.gbuf) {
+        for (r, g) in rhs[nc..].iter_mut().zip(&self.gbuf) {
             *r = -g;
         }
     }
@@ -275,7 +275,7 @@ impl Workspace {
     /// The rows of block `b` in the system of [`build_system`](Self::build_system), its
     /// effective multipliers `ν_g` and its part of the right-hand side.
     fn constraint_rows(&mut self, nlp: &dyn Nlp, b: usize, mu: f64) {
-        let (ndx, r) = (self.ndx, self.rows[b].clone());
+        let (ndx, nc, r) = (self.ndx, self.nc, self.rows[b].clone());
         let (m, set) = (r.len(), nlp.block(b).set);
         let mu_k = self.scales[b] * mu;
         let d = &self.cur.data;
@@ -300,15 +300,15 @@ impl Workspace {
         let rhs = col_of_mut(&mut self.rhs, 0);
         let mut k = self.kkt_base.as_mut();
         for i in r.clone() {
-            k[(ndx + i, ndx + i)] = -mu_k;
+            k[(i, i)] = -mu_k;
         }
-        let mut c = k.submatrix_mut(ndx + r.start, 0, m, ndx);
+        let mut c = k.submatrix_mut(r.start, nc, m, ndx);
         let jac = d.jac.as_ref().subrows(r.start, m);
         if projector {
             let w = &mut self.wbuf[r.clone()];
             for i in r.clone() {
                 w[i - r.start] = self.nu_p[i] - self.cur.nu[i];
-                rhs[ndx + i] = -mu_k * w[i - r.start];
+                rhs[i] = -mu_k * w[i - r.start];
             }
             set.apply_normal_cone_jacobian_vec(z, mu_k, w);
             for i in r.clone() {
@@ -319,7 +319,7 @@ impl Workspace {
         } else {
             for i in r.clone() {
                 self.nu_g[i] = self.nu_p[i];
-                rhs[ndx + i] = 0.0;
+                rhs[i] = 0.0;
             }
             let mut v = self.eig.as_mut().submatrix_mut(0, 0, m, m);
             crate::linalg::psd_sqrt(jn.rb_mut(), v.rb_mut());
@@ -330,9 +330,8 @@ impl Workspace {
     /// The multiplier steps of the blocks whose rows are `√J_N J`: from the linearised
     /// `N(z + J δx) = mu (ν + δν)`, `δν = ν̂ - ν + J_N J δx / mu`.
     fn recover_multiplier_steps(&mut self, nlp: &dyn Nlp, mu: f64) {
-        let ndx = self.ndx;
         let st = col_of_mut(&mut self.step, 0);
-        let (dx, dnu) = st.split_at_mut(ndx);
+        let (dnu, dx) = st.split_at_mut(self.nc);
         for (b, r) in self.rows.iter().enumerate() {
             if !self.sqrt_block[b] {
                 continue;
@@ -353,7 +352,8 @@ impl Workspace {
         }
     }
 
-    /// Solves the system of [`build_system`](Self::build_system) with the primal
+    /// Solves the system of [`build_system`](Self::build_system) (ordered multipliers
+    /// first, then the primal step) with the primal
     /// regularisation `preg`, checking its inertia (`ndx` positive, `nc` negative
     /// eigenvalues: the reduced Hessian is positive definite), with one step of
     /// iterative refinement, then the multiplier steps of the cone-boundary blocks.
@@ -361,13 +361,18 @@ impl Workspace {
     pub fn solve_system(&mut self, nlp: &dyn Nlp, mu: f64, preg: f64) -> Result<bool, NonFiniteStep> {
         let n = self.ndx + self.nc;
         crate::linalg::copy(self.kkt.as_mut(), self.kkt_base.as_ref());
-        for i in 0..self.ndx {
+        for i in self.nc..n {
             self.kkt[(i, i)] += preg;
         }
-        let inertia = match self.factor.factor(self.kkt.as_ref(), f64::EPSILON) {
-            Ok(i) => i,
-            Err(crate::linalg::FactorError::NonFinite) => return Err(NonFiniteStep),
-            Err(crate::linalg::FactorError::Singular { .. }) => return Ok(false),
+        if !crate::linalg::all_finite(self.kkt.as_ref()) {
+            return Err(NonFiniteStep);
+        }
+        // LDLᵀ without pivoting, the multiplier rows first: their pivots are the
+        // negative `-mu`, then those of the reduced Hessian `H + δI + Cᵀ C / mu`, positive
+        // exactly when the inertia is right (a breakdown is the wrong inertia).
+        crate::linalg::copy(self.factor.matrix_mut(), self.kkt.as_ref());
+        let Ok(inertia) = self.factor.factor_filled() else {
+            return Ok(false);
         };
         if inertia.positive != self.ndx || inertia.negative != self.nc || inertia.zero != 0 {
             return Ok(false);
@@ -401,9 +406,8 @@ impl Workspace {
     /// `(δx, δν)`: with `z = c + mu (ν_e - ν/2)`,
     /// `∇f·δx + Σ (2/mu) N(z)·J δx + (mu/2 ν - N(z))·δν`.
     pub fn merit_slope(&mut self, nlp: &dyn Nlp, mu: f64) -> f64 {
-        let ndx = self.ndx;
         let st = col_of(&self.step, 0);
-        let (dx, dnu) = st.split_at(ndx);
+        let (dnu, dx) = st.split_at(self.nc);
         let d = &self.cur.data;
         crate::linalg::matvec(&mut self.jdx, Accum::Replace, d.jac.as_ref(), dx, 1.0);
         let mut slope = dot(&d.grad, dx);
@@ -428,7 +432,7 @@ impl Workspace {
     /// merit and infeasibility `(φ, θ)`, `NaN` if a value is not finite.
     pub fn trial(&mut self, nlp: &dyn Nlp, alpha: f64, mu: f64) -> (f64, f64) {
         let st = col_of(&self.step, 0);
-        let (dx, dnu) = st.split_at(self.ndx);
+        let (dnu, dx) = st.split_at(self.nc);
         for (g, d) in self.gbuf.iter_mut().zip(dx) {
             *g = alpha * d;
         }
