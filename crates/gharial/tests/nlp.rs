@@ -263,7 +263,8 @@ fn tilt_limited_alignment_on_so3_reaches_the_analytical_optimum() {
     // The exact Hessian: the constraint's curvature makes the Lagrangian's Hessian
     // positive on the tangent of the constraint (the Gauss-Newton one is indefinite there
     // and needs a large primal regularisation, which leaves a linear rate).
-    for hessian in [HessianApprox::Exact] {
+    {
+        let hessian = HessianApprox::Exact;
         let mut solver = ProxNlp::new(ProxNlpOptions::default().with(|o| {
             o.tol = 1e-10;
             o.hessian = hessian;

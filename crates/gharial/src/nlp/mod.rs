@@ -25,10 +25,15 @@
 //! [ J_N J      -mu I    ] [δν] = - [ mu (ν⁺ - ν)                 ]
 //! ```
 //!
-//! densely, by a Bunch-Kaufman factorization whose inertia must be `(ndx, nc, 0)`: the
-//! primal regularisation `δ` grows until it is (inertia correction) and until the step
-//! is a descent direction of the primal-dual merit function (17), on which an Armijo
-//! line search runs (ProxDDP (18)); the step updates `x ⊕ α δx` and `ν + α δν` (15)-(16).
+//! densely, by an LDLᵀ factorization with the multiplier rows first, whose pivots give the
+//! inertia: it must be `(ndx, nc, 0)` (the reduced Hessian `H + δI + Cᵀ C / mu` positive
+//! definite), and the primal regularisation `δ` grows until it is (inertia correction)
+//! and until the step is a descent direction of the primal-dual merit function (17).
+//! One step of iterative refinement follows. Where `J_N` is not a projector (a cone's
+//! boundary) the block's rows are `√J_N J` with the multiplier step recovered from the
+//! linearised estimate, which keeps the step the exact semi-smooth Newton step there.
+//! The step `x ⊕ α δx`, `ν + α δν` (15)-(16) is accepted by ProxDDP's filter on
+//! (merit, infeasibility) or by Armijo backtracking (18), monotone or nonmonotone.
 //! `H` is the cost Hessian (Gauss-Newton) or the Lagrangian Hessian at `ν⁺`
 //! ([`HessianApprox::Exact`](crate::solvers::HessianApprox::Exact)).
 //!

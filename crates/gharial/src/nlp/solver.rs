@@ -457,7 +457,14 @@ impl State {
             }
             StepAcceptance::Linesearch | StepAcceptance::NonmonotoneLinesearch => {
                 let reference = self.nonmonotone.reference(phi0);
-                armijo(|a| ws.trial(nlp, a, mu).0, phi0, dphi0, reference, None, &opts.linesearch)
+                armijo(
+                    |a| ws.trial(nlp, a, mu).0,
+                    phi0,
+                    dphi0,
+                    reference,
+                    None,
+                    &opts.linesearch,
+                )
             }
         };
         Some((ls, phi0))
