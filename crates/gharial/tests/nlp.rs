@@ -538,3 +538,58 @@ impl AutoCostFn for SqrtCost {
         x[0].sqrt() + x[1] * x[1]
     }
 }
+
+/// Stops after `n` iterations.
+struct StopAfter(usize);
+
+impl gharial::solvers::Callback for StopAfter {
+    fn on_iteration(&mut self, record: &gharial::solvers::IterationRecord) -> bool {
+        record.iter + 1 < self.0
+    }
+}
+
+/// A callback stops the solve with the last accepted iterate; the solution warm-starts a
+/// new solve, which converges at once; the iteration table goes to the chosen sink.
+#[test]
+fn callbacks_warm_starts_and_the_log() {
+    let lq = random_lq(3, 2, 8, 7);
+    let p = ocp(&lq, Some(0.3), None);
+    let (xs, us) = zero_guess(&p);
+    let lines = Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
+    let sink = lines.clone();
+    let log = gharial::solvers::log::LogSink::Function(Arc::new(move |l| sink.lock().unwrap().push(l.to_string())));
+    let mut solver = ProxNlpOcp::new(tight().with(|o| o.log = log));
+    Solver::setup(&mut solver, &p).unwrap();
+    let full = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().clone();
+    assert!(
+        full.status.converged() && full.iterations > 2,
+        "{} {}",
+        full.status,
+        full.iterations
+    );
+    assert_eq!(full.history.len(), full.iterations);
+    let logged = lines.lock().unwrap().clone();
+    assert!(
+        logged[0].contains("inner_crit") && logged.len() > full.iterations,
+        "{logged:?}"
+    );
+    let stopped = solver
+        .solve_with_callback(&p, InitialGuess::primal(&xs, &us), &mut StopAfter(2))
+        .unwrap()
+        .clone();
+    assert_eq!((stopped.status, stopped.iterations), (Status::Interrupted, 2));
+    let warm = solver.solve(&p, InitialGuess::from_solution(&full)).unwrap();
+    assert!(
+        warm.status.converged() && warm.iterations <= 1,
+        "{} {}",
+        warm.status,
+        warm.iterations
+    );
+    let dx = full
+        .xs
+        .iter()
+        .zip(&warm.xs)
+        .map(|(a, b)| max_abs_diff(a, b))
+        .fold(0.0, f64::max);
+    assert!(dx < 1e-10, "{dx:e}");
+}
