@@ -522,6 +522,10 @@ fn bad_input_gets_clear_errors_and_statuses() {
     let (xs5, us5) = zero_guess(&other);
     assert!(o.solve(&other, InitialGuess::primal(&xs5, &us5)).is_err());
     assert!(o.setup_receding(&p, &[]).unwrap_err().to_string().contains("receding"));
+    // A problem too large for the dense system is refused before anything is allocated.
+    let long = ocp(&random_lq(2, 1, 1000, 3), None, None);
+    let e = Solver::setup(&mut o, &long).unwrap_err().to_string();
+    assert!(e.contains("5004 rows") && e.contains("proxddp"), "{e}");
 }
 
 /// `√x_0 + x_1²`: not finite for `x_0 < 0`.

@@ -60,4 +60,4 @@ mod workspace;
 pub use ocp::{OcpLayout, OcpNlp, ProxNlpOcp};
 pub use options::ProxNlpOptions;
 pub use problem::{ConstraintBlock, Nlp, NlpConstraint, NlpData, NlpProblem, num_rows};
-pub use solver::{NlpSolution, ProxNlp};
+pub use solver::{MAX_KKT_DIM, NlpSolution, ProxNlp};

@@ -21,6 +21,10 @@ const MIN_ETA_FACTOR: f64 = 1e-2;
 /// point (or than 1), as in IPOPT and ProxDDP.
 const THETA_MAX_FACTOR: f64 = 1e4;
 
+/// The largest dense Newton system (`ndx + nc` rows) ProxNLP allocates: three matrices of
+/// this dimension (the system, its regularised copy, the factorization) take 216 MB.
+pub const MAX_KKT_DIM: usize = 3000;
+
 /// Failed outer steps at the smallest penalty after which the problem is declared
 /// (locally) infeasible.
 const INFEASIBLE_AFTER: usize = 3;
@@ -95,10 +99,18 @@ impl ProxNlp {
     ///
     /// # Errors
     /// If an option is out of range, or a block's set requires another dimension than
-    /// the block has (named), or a block's scale is not positive and finite.
+    /// the block has (named), or a block's scale is not positive and finite, or the dense
+    /// system would have more than [`MAX_KKT_DIM`] rows.
     pub fn setup(&mut self, nlp: &dyn Nlp) -> Result<()> {
         self.options.validate()?;
         self.ws = None;
+        let dim = nlp.space().ndx() + super::num_rows(nlp);
+        if dim > MAX_KKT_DIM {
+            return Err(Error::InvalidModel(format!(
+                "ProxNlp: the dense Newton system would have {dim} rows (at most {MAX_KKT_DIM}); \
+                 solve large optimal control problems with proxddp"
+            )));
+        }
         for k in 0..nlp.num_blocks() {
             let b = nlp.block(k);
             if let Some(d) = b.set.dim() {
