@@ -28,6 +28,7 @@ pub mod functions;
 pub mod linalg;
 pub mod lq;
 pub mod mpc;
+pub mod nlp;
 pub mod param;
 pub mod problem;
 pub mod solvers;

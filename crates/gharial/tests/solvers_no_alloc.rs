@@ -18,6 +18,7 @@ use gharial::costs::{QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, ExplicitRungeKutta, ImplicitEuler, Ode};
 use gharial::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary};
 use gharial::mpc::{Mpc, MpcOptions};
+use gharial::nlp::{ProxNlpOcp, ProxNlpOptions};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::InitialGuess;
 use gharial::solvers::Solver;
@@ -284,6 +285,30 @@ fn altro_solve_does_not_allocate_after_setup() {
             count, 0,
             "altro implicit {implicit} square root {square_root} infeasible {infeasible}"
         );
+    }
+}
+
+#[test]
+fn proxnlp_solve_does_not_allocate_after_setup() {
+    for implicit in [false, true] {
+        let p = problem(implicit, 2);
+        let (xs, us) = guess(&p);
+        for hessian in [HessianApprox::GaussNewton, HessianApprox::Exact] {
+            let opts = ProxNlpOptions::default().with(|o| {
+                o.hessian = hessian;
+                o.max_iters = 20;
+            });
+            let mut solver = ProxNlpOcp::new(opts);
+            solver.setup(&p).unwrap();
+            let mut iterations = 0;
+            let mut status = gharial::solvers::Status::NotStarted;
+            let count = counting_alloc::allocations(|| {
+                let sol = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap();
+                (iterations, status) = (sol.iterations, sol.status);
+            });
+            assert!(iterations > 3, "the solves must do real work: {iterations} {status:?}");
+            assert_eq!(count, 0, "proxnlp implicit {implicit} {hessian:?}");
+        }
     }
 }
 

@@ -191,6 +191,134 @@ fn record(seed: u64, (nx, nu, n): (usize, usize, usize), umax: f64, with_target:
     })
 }
 
+/// A constraint block of a small QP: rows `a x` against `b` in a set.
+struct Block {
+    /// `"eq"`: `a x = b`; `"le"`: `a x <= b`; `"box"`: `b[..m] <= a x <= b[m..]`;
+    /// `"soc"`: `b - a x` in the second-order cone (scalar part first).
+    kind: &'static str,
+    a: Vec<Vec<f64>>,
+    b: Vec<f64>,
+}
+
+/// `min ½ xᵀPx + qᵀx` subject to the blocks: Clarabel's primal `x`, the multipliers of
+/// each block in the convention of gharial's NLPs (Lagrangian `f + νᵀ c` with
+/// `c = a x - b` for "eq" and "le", `c = a x` in the box, `c = b - a x` in the cone), and
+/// the optimal value.
+fn solve_qp(p: &[Vec<f64>], q: &[f64], blocks: &[Block]) -> (Vec<f64>, Vec<Vec<f64>>, f64) {
+    let n = q.len();
+    let mut pt = Triplets::default();
+    for i in 0..n {
+        for j in i..n {
+            pt.push(i, j, p[i][j]);
+        }
+    }
+    let pm = CscMatrix::new_from_triplets(n, n, pt.i, pt.j, pt.v);
+    let (mut a, mut b, mut cones, mut row) = (Triplets::default(), vec![], vec![], 0);
+    let mut rows = |a: &mut Triplets, b: &mut Vec<f64>, m: &[Vec<f64>], rhs: &[f64], sign: f64| {
+        for (r, v) in m.iter().zip(rhs) {
+            for (j, x) in r.iter().enumerate() {
+                a.push(row, j, sign * x);
+            }
+            b.push(sign * v);
+            row += 1;
+        }
+    };
+    for blk in blocks {
+        let m = blk.a.len();
+        match blk.kind {
+            "eq" => {
+                rows(&mut a, &mut b, &blk.a, &blk.b, 1.0);
+                cones.push(SupportedConeT::ZeroConeT(m));
+            }
+            "le" => {
+                rows(&mut a, &mut b, &blk.a, &blk.b, 1.0);
+                cones.push(SupportedConeT::NonnegativeConeT(m));
+            }
+            "box" => {
+                rows(&mut a, &mut b, &blk.a, &blk.b[m..], 1.0);
+                rows(&mut a, &mut b, &blk.a, &blk.b[..m], -1.0);
+                cones.push(SupportedConeT::NonnegativeConeT(2 * m));
+            }
+            "soc" => {
+                rows(&mut a, &mut b, &blk.a, &blk.b, 1.0);
+                cones.push(SupportedConeT::SecondOrderConeT(m));
+            }
+            k => panic!("unknown block kind {k}"),
+        }
+    }
+    let am = CscMatrix::new_from_triplets(row, n, a.i, a.j, a.v);
+    let settings = DefaultSettings {
+        verbose: false,
+        tol_gap_abs: 1e-11,
+        tol_gap_rel: 1e-11,
+        tol_feas: 1e-11,
+        ..Default::default()
+    };
+    let mut solver = DefaultSolver::new(&pm, q, &am, &b, &cones, settings).expect("a valid QP");
+    solver.solve();
+    let status = solver.solution.status;
+    assert!(matches!(status, SolverStatus::Solved), "{status:?}");
+    let z = &solver.solution.z;
+    let mut off = 0;
+    let mut nus = Vec::new();
+    for blk in blocks {
+        let m = blk.a.len();
+        nus.push(match blk.kind {
+            "box" => (0..m).map(|i| z[off + i] - z[off + m + i]).collect(),
+            "soc" => z[off..off + m].iter().map(|v| -v).collect(),
+            _ => z[off..off + m].to_vec(),
+        });
+        off += if blk.kind == "box" { 2 * m } else { m };
+    }
+    (solver.solution.x.clone(), nus, solver.solution.obj_val)
+}
+
+/// Small QPs with equality, inequality, box and second-order-cone constraints.
+fn qp_cases() -> Vec<Value> {
+    let mut rng = SplitMix64::new(77);
+    let mut cases = Vec::new();
+    let rand_mat = |rng: &mut SplitMix64, r: usize, c: usize| mat(r, c, |_, _| rng.uniform(-1.0, 1.0));
+    let eye = |n: usize| mat(n, n, |i, j| if i == j { 1.0 } else { 0.0 });
+    // Equality and inequality rows, some active at the optimum.
+    let n = 5;
+    let p = spd(&mut rng, n, 0.5);
+    let q: Vec<f64> = (0..n).map(|_| rng.uniform(-2.0, 2.0)).collect();
+    let blocks = vec![
+        Block { kind: "eq", a: rand_mat(&mut rng, 2, n), b: vec![0.3, -0.2] },
+        Block { kind: "le", a: rand_mat(&mut rng, 4, n), b: vec![0.1, -0.1, 0.2, 0.0] },
+    ];
+    cases.push(("eq-ineq", p, q, blocks));
+    // A box on every variable with the unconstrained optimum outside it.
+    let n = 6;
+    let p = spd(&mut rng, n, 0.2);
+    let q: Vec<f64> = (0..n).map(|_| rng.uniform(-3.0, 3.0)).collect();
+    let b = [vec![-0.5; n], vec![0.4; n]].concat();
+    cases.push(("box", p, q, vec![Block { kind: "box", a: eye(n), b }]));
+    // A second-order cone on three of the variables, whose unconstrained optimum
+    // `x_u` lies outside it, plus one equality.
+    let n = 4;
+    let p = spd(&mut rng, n, 1.0);
+    let x_u = [0.2, 1.0, -0.6, 0.3];
+    let q: Vec<f64> = (0..n).map(|i| -(0..n).map(|j| p[i][j] * x_u[j]).sum::<f64>()).collect();
+    let blocks = vec![
+        Block { kind: "soc", a: mat(3, n, |i, j| if i == j { -1.0 } else { 0.0 }), b: vec![0.0; 3] },
+        Block { kind: "eq", a: mat(1, n, |_, _| 1.0), b: vec![0.8] },
+    ];
+    cases.push(("soc", p, q, blocks));
+    cases
+        .into_iter()
+        .map(|(name, p, q, blocks)| {
+            let (x, nus, obj) = solve_qp(&p, &q, &blocks);
+            let blocks: Vec<Value> = blocks
+                .iter()
+                .zip(&nus)
+                .map(|(b, nu)| json!({"kind": b.kind, "A": b.a, "b": b.b, "clarabel_nu": nu}))
+                .collect();
+            json!({"name": name, "P": p, "q": q, "blocks": blocks, "clarabel_x": x, "clarabel_obj": obj})
+        })
+        .collect()
+}
+
 fn main() {
     let mut cases = Vec::new();
     for (seed, dims, umax) in [(21, (3, 2, 20), 0.2), (22, (4, 2, 40), 0.3), (23, (6, 3, 30), 0.1)] {
@@ -202,8 +330,9 @@ fn main() {
         cases.push(record(seed, dims, umax, false));
     }
     let doc = json!({
-        "about": "random box-constrained LQ problems and their optimal costs by Clarabel 0.11 (tools/qp-reference)",
+        "about": "random box-constrained LQ problems and their optimal costs, and small QPs (equality, inequality, box, second-order cone) with their optima and multipliers, by Clarabel 0.11 (tools/qp-reference)",
         "cases": cases,
+        "qps": qp_cases(),
     });
     println!("{}", serde_json::to_string_pretty(&doc).expect("JSON of plain numbers"));
 }

@@ -6,7 +6,8 @@
 //! scratch memory in `new` and never allocate afterwards.
 //!
 //! One operation family per file: products (`matmul`), matrix-vector products (`matvec`),
-//! reductions (`reduce`), copies (`copy`), symmetrization (`symmetric`), views of owned
+//! reductions (`reduce`), copies (`copy`), symmetrization (`symmetric`), the square root
+//! of a small positive semidefinite matrix (`psd_sqrt`), views of owned
 //! storage (`views`), and the factorizations LLᵀ (`llt`), LDLᵀ (`ldlt`), Bunch-Kaufman
 //! (`bunch_kaufman`) and LU (`lu`), the square-root kernels (`qr`: Householder QR's
 //! triangular factor, semidefinite Cholesky, triangular solves), the first two with fixed-size kernels up to 12 x 12
@@ -69,6 +70,7 @@ mod llt;
 mod lu;
 mod matmul;
 mod matvec;
+mod psd_sqrt;
 mod qr;
 mod reduce;
 mod small;
@@ -89,6 +91,7 @@ pub(crate) use ldlt::Ldlt;
 pub(crate) use llt::Llt;
 pub(crate) use matmul::{matmul_lower, matmul_tn_lower};
 pub(crate) use matvec::matvec_t;
+pub(crate) use psd_sqrt::psd_sqrt;
 pub(crate) use qr::{householder_r, semidefinite_cholesky_upper, upper_solve, upper_t_solve};
 pub(crate) use reduce::{all_finite, dot, norm_inf, norm_l1, norm_max, sum_is_finite};
 pub(crate) use symmetric::{identity_plus_scaled_lower, symmetrize, symmetrize_from_lower};

@@ -69,6 +69,9 @@ pub enum Status {
     Stalled,
     /// A callback asked the solver to stop; the last accepted iterate is returned.
     Interrupted,
+    /// The constraints look infeasible: the subproblem at the smallest penalty was solved
+    /// repeatedly with a primal residual above its target (ProxNLP).
+    Infeasible,
 }
 
 impl Status {
@@ -90,6 +93,7 @@ impl fmt::Display for Status {
             Status::TimeBudget => "time budget exhausted",
             Status::Stalled => "stalled",
             Status::Interrupted => "stopped by a callback",
+            Status::Infeasible => "locally infeasible",
         };
         f.write_str(s)
     }
