@@ -13,7 +13,7 @@
 //!
 //! - *Augmented Lagrangian* (5)-(6): every path and terminal constraint `c(x, u) ∈ K`
 //!   with a projection onto `K` (equalities, inequalities, boxes, cones) enters the stage
-//!   cost as the PHR term of [`al_cost`] (for `{0}` and `R_-` exactly the paper's
+//!   cost as the PHR term of the module `al_cost` (for `{0}` and `R_-` exactly the paper's
 //!   `λᵀc + ½cᵀI_μc` with the active set (6)); one penalty per constraint.
 //! - *Inner solve*: the DDP of [`crate::solvers::ddp`] (variant `ddp`: single shooting,
 //!   Levenberg-Marquardt regularisation, backtracking line search, its backward pass (7)-(16)
