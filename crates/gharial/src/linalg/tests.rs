@@ -149,3 +149,57 @@ fn singular_and_non_finite_are_reported() {
     let z = Mat::<f64>::zeros(2, 2);
     assert!(matches!(lu.factor(z.as_ref()), Err(FactorError::Singular { .. })));
 }
+
+/// Inertia of sparse saddle-point matrices shaped like an OCP's KKT system (banded
+/// Hessian, sparse constraint rows with many exact zeros, a small negative diagonal on
+/// the multiplier rows) against the signs of faer's eigenvalues.
+#[test]
+fn bunch_kaufman_inertia_of_sparse_kkt_matrices() {
+    let mut rng = crate::lq::random::SplitMix64::new(5);
+    for (n, m) in [(12, 8), (40, 30), (120, 96), (130, 86), (200, 150)] {
+        for trial in 0..40 {
+            let dim = n + m;
+            let mut k = Mat::<f64>::zeros(dim, dim);
+            for i in 0..n {
+                k[(i, i)] = if rng.uniform(0.0, 1.0) < 0.3 {
+                    0.0
+                } else {
+                    rng.uniform(-1.0, 2.0)
+                };
+                if i + 1 < n && rng.uniform(0.0, 1.0) < 0.5 {
+                    let v = rng.uniform(-1.0, 1.0);
+                    k[(i, i + 1)] = v;
+                    k[(i + 1, i)] = v;
+                }
+            }
+            for r in 0..m {
+                let row = n + r;
+                for _ in 0..3 {
+                    let c = rng.int(0, n);
+                    let v = if rng.uniform(0.0, 1.0) < 0.3 {
+                        1.0
+                    } else {
+                        rng.uniform(-1.0, 1.0)
+                    };
+                    k[(row, c)] = v;
+                    k[(c, row)] = v;
+                }
+                k[(row, row)] = if trial % 2 == 0 { -1e-8 } else { 0.0 };
+            }
+            let eig = k.as_ref().self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
+            let scale = eig.iter().fold(0.0_f64, |a, &b| a.max(b.abs()));
+            let tol = 1e-10 * scale;
+            if eig.iter().any(|e| e.abs() <= tol) {
+                continue; // numerically singular: the inertia is not well defined
+            }
+            let pos = eig.iter().filter(|&&e| e > 0.0).count();
+            let mut f = BunchKaufman::new(dim);
+            let inertia = f.factor(k.as_ref(), 1e-13).unwrap();
+            assert_eq!(
+                (inertia.positive, inertia.negative),
+                (pos, dim - pos),
+                "n {n} m {m} trial {trial}"
+            );
+        }
+    }
+}
