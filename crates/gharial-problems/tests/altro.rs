@@ -101,3 +101,18 @@ fn cartpole_tip_needs_the_infeasible_start() {
     assert!(infeasible.prim_err <= 1e-6);
     assert!(infeasible.us.iter().all(|u| u[0].abs() <= 6.0 + 1e-7));
 }
+
+/// After the projection, the returned multipliers are those of the projected point: the
+/// KKT residuals, recomputed from the problem alone, certify it (they were the AL
+/// multipliers of the point before the projection, stationarity 0.036 on `lqr-bounds`).
+#[test]
+fn multipliers_after_the_projection_certify_stationarity() {
+    for name in ["lqr-bounds", "lqr-bounds-term", "block-move"] {
+        let ex = gharial_problems::build(name).unwrap();
+        let sol = solve(&ex, AltroOptions::default().with(|o| o.cost_tolerance = 1e-10));
+        let kkt = gharial::problem::kkt_residuals(&ex.problem, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+        eprintln!("{name}: {:?} {kkt:?}", sol.status);
+        assert_eq!(sol.status, Status::Converged, "{name}");
+        assert!(kkt.max() < 1e-6, "{name}: {kkt:?}");
+    }
+}

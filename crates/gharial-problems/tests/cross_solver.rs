@@ -46,6 +46,10 @@ fn converged(name: &str) -> Vec<(&'static str, Solution)> {
             // ALTRO stops its inner iLQR on an absolute expected decrease (1e-6 by
             // default, 4e-5 of the se2-car's cost): compare it at the others' accuracy.
             o.cost_tolerance = 1e-10;
+            // The projection (Algorithm 2) makes the AL-iLQR point feasible without moving
+            // it towards the optimum: its stationarity is that of the AL-iLQR point,
+            // about the coarse tolerance (1e-3 by default; 3e-4 on ur5-circle-joint-bound).
+            o.projected_newton_tolerance = 1e-6;
         }
         let mut solver = options.build();
         if solver.setup(&ex.problem).is_err() {
@@ -71,15 +75,7 @@ fn every_solver_that_converges_reaches_the_same_optimum() {
         assert!(sols.len() >= 2, "{name}: converged only {names:?}");
         for (solver, s) in &sols {
             let kkt = kkt_residuals(&ex.problem, &s.xs, &s.us, &s.lambdas, &s.nus).unwrap();
-            // ALTRO returns the augmented-Lagrangian multipliers of its last outer
-            // iteration, from before the Newton projection that moves the primal point
-            // onto the constraints: they do not certify stationarity there.
-            let worst = if *solver == "altro" {
-                kkt.dynamics.max(kkt.constraints).max(kkt.initial)
-            } else {
-                kkt.max()
-            };
-            assert!(worst < 1e-4, "{name} / {solver}: {kkt:?}");
+            assert!(kkt.max() < 1e-4, "{name} / {solver}: {kkt:?}");
         }
         let (first, reference) = &sols[0];
         let mut worst: f64 = 0.0;

@@ -32,8 +32,11 @@
 //! line 6), or with the infeasible start the guess's states (line 4).
 //!
 //! The solve has converged when `c_max ≤ constraint_tolerance` after an inner solve that
-//! converged to `cost_tolerance`. The returned `nus` are the multipliers `λ`, `lambdas` the
-//! co-states of the inner solve's last backward pass.
+//! converged to `cost_tolerance`. Without the projection the returned `nus` are the
+//! multipliers `λ`, `lambdas` the co-states of the inner solve's last backward pass; after
+//! a converged projection both are the multipliers of the projected point, from the
+//! projection's KKT system with the cost gradient (module `projection`), which certify
+//! its stationarity.
 //!
 //! - *Infeasible start* (III-B, [`AltroOptions::infeasible_start`]): slack controls `s`
 //!   with `x_{k+1} = f(x_k, u_k) + s_k` (30) start from the guess's states with the slacks
@@ -421,10 +424,23 @@ impl Altro {
                 break;
             }
         }
-        if status == Status::Converged && opts.projected_newton {
+        let projected = status == Status::Converged && opts.projected_newton;
+        if projected {
             (status, viol) = project(ws, problem, opts, sol, inner_iters);
         }
         write_solution(sol, ws, status, inner_iters, viol);
+        if projected && status == Status::Converged {
+            // The AL multipliers are those of the point before the projection.
+            ws.projection.multipliers(
+                problem,
+                &mut ws.data,
+                &ws.costs,
+                &ws.xs,
+                &ws.us_orig,
+                &mut sol.lambdas,
+                &mut sol.nus,
+            );
+        }
         sol.solve_time = start.elapsed();
         Ok(&self.solution)
     }

@@ -19,6 +19,7 @@
 use std::sync::Arc;
 
 use super::al_cost::AlCost;
+use crate::constraints::ConstraintSet;
 use crate::linalg::{self, slice, slice_mut};
 use crate::lq::{LqProblem, LqSolution, RiccatiSolver};
 use crate::problem::{Problem, ProblemData};
@@ -41,6 +42,7 @@ pub(super) struct Projection {
     p: Vec<f64>,
     pc: Vec<f64>,
     unit: Vec<f64>,
+    probe: Vec<f64>,
 }
 
 impl Projection {
@@ -63,6 +65,7 @@ impl Projection {
             p: vec![0.0; nr],
             pc: vec![0.0; nr],
             unit: vec![0.0; nr],
+            probe: vec![0.0; 2 * nr],
         })
     }
 
@@ -86,16 +89,8 @@ impl Projection {
                 break;
             }
             data.compute_derivatives(problem, xs, us);
-            self.fill(problem, data, costs);
-            let solved = if self.square_root {
-                self.riccati.backward_square_root(&self.lq, 0.0)
-            } else {
-                self.riccati.backward(&self.lq, 0.0)
-            };
-            if solved
-                .and_then(|()| self.riccati.forward(&self.lq, &mut self.step))
-                .is_err()
-            {
+            self.fill(problem, data, costs, false);
+            if self.solve_lq().is_err() {
                 break;
             }
             // Algorithm 3: halve the step until the violation decreases.
@@ -127,8 +122,53 @@ impl Projection {
         v
     }
 
-    /// The knots of one projection step at the point of `data`'s last derivatives.
-    fn fill(&mut self, problem: &Problem, data: &ProblemData, costs: &[Arc<AlCost>]) {
+    /// The multipliers of the projected point `(xs, us)`: the projection's KKT system with
+    /// the cost gradient `g` added, `min ½δYᵀHδY + gᵀδY s.t. DδY = -d`, whose multipliers
+    /// `(λ, ν)` (the dynamics co-states and the active rows'; 0 on the inactive rows)
+    /// satisfy `g + Dᵀ(λ, ν) = -HδY`: at a feasible point that the AL-iLQR solution put
+    /// next to the optimum, `δY` is the small step left to it, so that `(λ, ν)` certify
+    /// stationarity to `|HδY|` (the multipliers of the SQP step on the active set). The
+    /// step itself is discarded. Returns false, leaving `lambdas` and `nus`, if the
+    /// LQ solve fails.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn multipliers(
+        &mut self,
+        problem: &Problem,
+        data: &mut ProblemData,
+        costs: &[Arc<AlCost>],
+        xs: &[Vec<f64>],
+        us: &[Vec<f64>],
+        lambdas: &mut [Vec<f64>],
+        nus: &mut [Vec<f64>],
+    ) -> bool {
+        data.evaluate(problem, xs, us);
+        data.compute_derivatives(problem, xs, us);
+        self.fill(problem, data, costs, true);
+        if self.solve_lq().is_err() {
+            return false;
+        }
+        for (l, s) in lambdas.iter_mut().zip(&self.step.lambdas) {
+            l.copy_from_slice(slice(s));
+        }
+        for (n, s) in nus.iter_mut().zip(&self.step.nus) {
+            n.copy_from_slice(slice(s));
+        }
+        true
+    }
+
+    /// The backward and forward passes of the projection's LQ problem into `step`.
+    fn solve_lq(&mut self) -> Result<(), crate::lq::LqError> {
+        if self.square_root {
+            self.riccati.backward_square_root(&self.lq, 0.0)?;
+        } else {
+            self.riccati.backward(&self.lq, 0.0)?;
+        }
+        self.riccati.forward(&self.lq, &mut self.step)
+    }
+
+    /// The knots of one projection step at the point of `data`'s last derivatives; with
+    /// `gradient`, the cost gradient as the linear terms (otherwise none: Algorithm 3).
+    fn fill(&mut self, problem: &Problem, data: &ProblemData, costs: &[Arc<AlCost>], gradient: bool) {
         let n = problem.horizon();
         linalg::copy(self.lq.G0.as_mut(), data.init.jx.as_ref());
         slice_mut(&mut self.lq.g0).copy_from_slice(slice(&data.init.value));
@@ -141,8 +181,19 @@ impl Projection {
             } else {
                 linalg::copy(knot.Q.as_mut(), data.terminal_cost.lxx.as_ref());
             }
-            slice_mut(&mut knot.q).fill(0.0);
-            slice_mut(&mut knot.r).fill(0.0);
+            let (q, r) = match (gradient, data.stages.get(t)) {
+                (false, _) => (None, None),
+                (true, Some(sd)) => (Some(sd.cost.lx()), Some(sd.cost.lu())),
+                (true, None) => (Some(data.terminal_cost.lx()), None),
+            };
+            match q {
+                Some(g) => slice_mut(&mut knot.q).copy_from_slice(g),
+                None => slice_mut(&mut knot.q).fill(0.0),
+            }
+            match r {
+                Some(g) => slice_mut(&mut knot.r).copy_from_slice(g),
+                None => slice_mut(&mut knot.r).fill(0.0),
+            }
             let mut row = 0;
             for (k, (c, cd)) in problem.constraints(t).iter().zip(data.constraint_data(t)).enumerate() {
                 let m = c.nr();
@@ -161,7 +212,10 @@ impl Projection {
                     c.set.apply_normal_cone_jacobian_vec(y, 1.0 / mu, unit);
                     // Active: pushed by its multiplier (target proj_K(y)), or violated at
                     // the current point (target proj_K(c)).
-                    if unit[i] <= 0.5 && cv[i] != pc[i] {
+                    // With the gradient, also the rows on the boundary: the AL multipliers
+                    // of a coarse solve may not know yet that they are active.
+                    let boundary = gradient && on_boundary(c.set.as_ref(), cv, i, &mut self.probe[..2 * m]);
+                    if unit[i] <= 0.5 && (cv[i] != pc[i] || boundary) {
                         p[i] = pc[i];
                         unit[i] = 1.0;
                     }
@@ -179,6 +233,27 @@ impl Projection {
             }
         }
     }
+}
+
+/// Distance at which a row counts as on the boundary of its set (see `on_boundary`).
+const BOUNDARY_PROBE: f64 = 1e-5;
+
+/// Whether row `i` of `c` is on the boundary of `set`: moving it by `±BOUNDARY_PROBE`
+/// puts it where the normal-cone Jacobian of the projection is the identity in that row
+/// (outside the set). `scratch` holds twice the rows.
+fn on_boundary(set: &dyn ConstraintSet, c: &[f64], i: usize, scratch: &mut [f64]) -> bool {
+    let (probe, v) = scratch.split_at_mut(c.len());
+    for side in [1.0, -1.0] {
+        probe.copy_from_slice(c);
+        probe[i] += side * BOUNDARY_PROBE;
+        v.fill(0.0);
+        v[i] = 1.0;
+        set.apply_normal_cone_jacobian_vec(probe, 1.0, v);
+        if v[i] > 0.5 {
+            return true;
+        }
+    }
+    false
 }
 
 /// `max(|gaps|_∞, c_max)` at the point of `data`'s last evaluation.
