@@ -14,8 +14,8 @@ fn gharial(args: &[&str]) -> Output {
 }
 
 /// The solvers' command-line names.
-const SOLVERS: [&str; 9] = [
-    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp", "altro",
+const SOLVERS: [&str; 10] = [
+    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp", "altro", "proxnlp",
 ];
 
 fn stdout(o: &Output) -> String {
@@ -395,7 +395,7 @@ fn bench_solve_all_solvers_prints_the_matrix_of_problems_by_solvers() {
             .filter(|w| w.first() == Some(&problem) && w.get(3) == Some(&"converged"))
             .map(|w| w[w.len() - 4].parse().expect("the cost column"))
             .collect();
-        let takers = if problem == "lqr" { SOLVERS.len() } else { 5 };
+        let takers = if problem == "lqr" { SOLVERS.len() } else { 6 };
         assert_eq!(costs.len(), takers, "{problem}: {text}");
         for c in &costs {
             assert!((c - costs[0]).abs() < 1e-6 * costs[0].abs(), "{problem}: {costs:?}");
@@ -418,13 +418,13 @@ fn bench_solve_all_solvers_prints_the_matrix_of_problems_by_solvers() {
     assert_eq!(header, SOLVERS, "{matrix}");
     assert!(row("lqr").iter().all(|c| c.starts_with("1 / ")), "{matrix}");
     let taken: Vec<bool> = row("lqr-bounds").iter().map(|c| c != "-").collect();
-    let takes_bounds = ["proxddp", "box-ddp", "box-fddp", "csqp", "altro"];
+    let takes_bounds = ["proxddp", "box-ddp", "box-fddp", "csqp", "altro", "proxnlp"];
     let expected: Vec<bool> = SOLVERS.iter().map(|s| takes_bounds.contains(s)).collect();
     assert_eq!(taken, expected, "{matrix}");
 }
 
 #[test]
-fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
+fn bench_peers_reports_every_solver_on_the_problems_it_takes() {
     let dir = std::env::temp_dir().join(format!("gharial-cli-peers-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let o = gharial(&[
@@ -461,6 +461,7 @@ fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
         "CSQP",
         "BCL-DDP",
         "ALTRO",
+        "ProxNLP",
     ];
     assert_eq!(solvers("lqr"), all);
     assert_eq!(
@@ -472,7 +473,8 @@ fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
             "BoxDDP",
             "BoxFDDP",
             "CSQP",
-            "ALTRO"
+            "ALTRO",
+            "ProxNLP"
         ]
     );
     // All solvers of one problem together.

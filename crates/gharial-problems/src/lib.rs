@@ -98,14 +98,15 @@ pub struct Example {
 
 impl Example {
     /// The options of the solver `name` (one of [`SolverOptions::names`]) for this
-    /// problem: ProxDDP's are the recommended [`Example::proxddp`], the other solvers'
-    /// their defaults.
+    /// problem: ProxDDP's are the recommended [`Example::proxddp`], ProxNLP's the ones of
+    /// those it shares (`ProxNlpOptions::from`), the other solvers' their defaults.
     ///
     /// # Errors
     /// If `name` is not a solver's name (the message lists the valid names).
     pub fn options(&self, name: &str) -> Result<SolverOptions> {
         match SolverOptions::from_name(name)? {
             SolverOptions::ProxDdp(_) => Ok(SolverOptions::ProxDdp(self.proxddp.clone())),
+            SolverOptions::ProxNlp(_) => Ok(SolverOptions::ProxNlp((&self.proxddp).into())),
             defaults => Ok(defaults),
         }
     }
@@ -359,7 +360,8 @@ pub fn total_cost(problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Result
 mod tests {
     use super::*;
 
-    /// ProxDDP gets the problem's recommended settings, the other solvers their defaults.
+    /// ProxDDP (and ProxNLP) get the problem's recommended settings, the other solvers their
+    /// defaults.
     #[test]
     fn options_by_solver_name() {
         let ex = build("cartpole").unwrap();
@@ -369,6 +371,7 @@ mod tests {
             assert_eq!(options.name(), name);
             let expected = match name {
                 "proxddp" => SolverOptions::ProxDdp(ex.proxddp.clone()),
+                "proxnlp" => SolverOptions::ProxNlp((&ex.proxddp).into()),
                 _ => SolverOptions::from_name(name).unwrap(),
             };
             assert_eq!(format!("{options:?}"), format!("{expected:?}"));
