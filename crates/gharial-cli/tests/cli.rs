@@ -380,6 +380,25 @@ fn bench_solve_lists_the_problems_a_solver_does_not_take_as_skipped() {
     );
 }
 
+/// ProxNLP skips a problem too large for its dense KKT system, with the refusal's reason
+/// (the UR5 reaching: 101 states of 12, 100 controls of 6, 1212 equality rows).
+#[test]
+fn bench_solve_skips_problems_too_large_for_proxnlp_with_the_reason() {
+    let o = gharial(&["bench", "solve", "ur5", "lqr", "--solver", "proxnlp", "--repeats", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let text = stdout(&o);
+    let line = |name: &str| {
+        text.lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap()
+    };
+    assert!(
+        line("ur5").contains("skipped") && line("ur5").contains("3024 rows"),
+        "{text}"
+    );
+    assert!(line("lqr").contains("converged"), "{text}");
+}
+
 /// `--all-solvers`: a row per problem and solver, the same optimum from every solver that
 /// takes a problem (costs to 1e-6 relative: the solvers' tolerances differ), and the
 /// matrix with `-` where a solver does not take the problem.
