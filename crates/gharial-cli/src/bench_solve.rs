@@ -428,10 +428,10 @@ fn peers_solvers(args: &PeersArgs) -> Vec<(&'static str, SolverArgs)> {
 /// `gharial bench peers`: one JSON line per (problem, solver), trajectories written for
 /// the harness's independent check, all solvers of a problem together. ProxDDP starts
 /// from each problem's catalogue settings (the harness's: `mu_init` and rollout per
-/// family). A DDP-family solver whose setup refuses a problem (DDP and FDDP take no
-/// constraints, the box variants control bounds only) gets no line, as the harness runs
-/// crocoddyl's solvers only on the problems they take; the skips are noted on standard
-/// error. A problem gharial cannot build, or any other failure, gets a line with an
+/// family). A solver other than ProxDDP whose setup refuses a problem (DDP and FDDP take
+/// no constraints, the box variants control bounds only, ProxNLP no problem too large for
+/// its dense KKT system) gets no line, as the harness runs crocoddyl's solvers only on
+/// the problems they take; the skips and their reasons are noted on standard error. A problem gharial cannot build, or any other failure, gets a line with an
 /// `error`.
 pub fn peers(args: &PeersArgs) -> i32 {
     // Measured: ProxDDP holds about 40 doubles per entry of (nx + nu)² per stage.
@@ -459,41 +459,34 @@ pub fn peers(args: &PeersArgs) -> i32 {
                 continue;
             }
         };
-        let mut skipped = Vec::new();
         for (solver, solver_args) in &solvers {
             let config = solver_args.config(&ex);
-            if !peers_line(args, name, solver, &ex, &config) {
-                skipped.push(*solver);
+            if let Err(reason) = peers_line(args, name, solver, &ex, &config) {
+                eprintln!("gharial bench peers: {name}: not run by {solver}: {reason}");
             }
-        }
-        if !skipped.is_empty() {
-            eprintln!(
-                "gharial bench peers: {name}: not run by {} (the problem has constraints they do not take)",
-                skipped.join(", ")
-            );
         }
     }
     0
 }
 
-/// Times one solver on one harness problem and prints its JSON line; `false` if a
-/// DDP-family solver refused the problem (no line).
+/// Times one solver on one harness problem and prints its JSON line; an error if a
+/// solver other than ProxDDP refused the problem (no line; the error is the reason).
 fn peers_line(
     args: &PeersArgs,
     name: &str,
     solver: &str,
     ex: &gharial_problems::Example,
     config: &SolverConfig,
-) -> bool {
+) -> Result<(), String> {
     let t = match time_solves(&ex.problem, &ex.xs0, &ex.us0, config, args.repeats) {
         Ok(t) => t,
-        Err(TimingError::Refused(_)) if config.kind != SolverKind::ProxDdp => return false,
+        Err(TimingError::Refused(e)) if config.kind != SolverKind::ProxDdp => return Err(e.to_string()),
         Err(e) => {
             out!(
                 "{}",
                 json!({"problem": name, "lib": "gharial", "solver": solver, "side": "rust", "error": e.to_string()})
             );
-            return true;
+            return Ok(());
         }
     };
     let s = &t.solution;
@@ -519,7 +512,7 @@ fn peers_line(
             "model_eval_ms": t.eval_ms, "model_deriv_ms": t.deriv_ms,
         })
     );
-    true
+    Ok(())
 }
 
 /// The harness's free-form `settings` string of a solver.

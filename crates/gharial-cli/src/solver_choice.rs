@@ -11,6 +11,7 @@
 use clap::ValueEnum;
 use clap::builder::PossibleValue;
 use gharial::error::Num;
+use gharial::nlp::ProxNlpOptions;
 use gharial::solvers::altro::AltroOptions;
 use gharial::solvers::bcl_ddp::BclDdpOptions;
 use gharial::solvers::csqp::CsqpOptions;
@@ -36,11 +37,13 @@ pub enum SolverKind {
     BclDdp,
     /// ALTRO.
     Altro,
+    /// ProxNLP on the whole problem (dense KKT).
+    ProxNlp,
 }
 
 impl SolverKind {
     /// Every solver, in the order `gharial list` shows them.
-    pub const ALL: [SolverKind; 9] = [
+    pub const ALL: [SolverKind; 10] = [
         SolverKind::ProxDdp,
         SolverKind::Ddp(DdpVariant::Ddp),
         SolverKind::Ddp(DdpVariant::Fddp),
@@ -50,16 +53,18 @@ impl SolverKind {
         SolverKind::Csqp,
         SolverKind::BclDdp,
         SolverKind::Altro,
+        SolverKind::ProxNlp,
     ];
 
     /// The command-line name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`,
-    /// `csqp`, `bcl-ddp`, `altro`).
+    /// `csqp`, `bcl-ddp`, `altro`, `proxnlp`).
     pub fn name(self) -> &'static str {
         match self {
             SolverKind::ProxDdp => "proxddp",
             SolverKind::Csqp => "csqp",
             SolverKind::BclDdp => "bcl-ddp",
             SolverKind::Altro => "altro",
+            SolverKind::ProxNlp => "proxnlp",
             SolverKind::Ddp(v) => v.name(),
         }
     }
@@ -77,6 +82,7 @@ impl SolverKind {
             SolverKind::Csqp => "CSQP",
             SolverKind::BclDdp => "BCL-DDP",
             SolverKind::Altro => "ALTRO",
+            SolverKind::ProxNlp => "ProxNLP",
         }
     }
 
@@ -104,6 +110,9 @@ impl SolverKind {
                 "augmented-Lagrangian DDP with the BCL globalisation (El Kazdadi et al. 2021); equality constraints"
             }
             SolverKind::Altro => "AL-iLQR with a Newton projection (Howell et al. 2019); constraints with a projection",
+            SolverKind::ProxNlp => {
+                "ProxDDP's primal-dual augmented Lagrangian on the whole problem with a dense KKT (Jallet et al. 2023); any constraints, small problems"
+            }
         }
     }
 
@@ -130,6 +139,7 @@ impl SolverKind {
             SolverKind::Csqp => Fields::Csqp(CSQP_FIELDS),
             SolverKind::BclDdp => Fields::BclDdp(BCL_DDP_FIELDS),
             SolverKind::Altro => Fields::Altro(ALTRO_FIELDS),
+            SolverKind::ProxNlp => Fields::ProxNlp(PROXNLP_FIELDS),
         }
     }
 }
@@ -379,6 +389,12 @@ impl SolverArgs {
                 &mut o.iterations_outer,
                 &mut o.inner.num_threads,
             ),
+            SolverOptions::ProxNlp(o) => {
+                // Dense and single-threaded: --threads is refused by `check`.
+                let mut threads = 1;
+                self.common.apply(&mut o.tol, &mut o.max_iters, &mut threads);
+                o.hessian = self.common.hessian.map_or(o.hessian, Into::into);
+            }
             SolverOptions::Csqp(o) => {
                 // Single-threaded: --threads is refused by `check`.
                 let mut threads = 1;
@@ -485,6 +501,7 @@ enum Fields {
     Csqp(&'static [Field<CsqpOptions>]),
     BclDdp(&'static [Field<BclDdpOptions>]),
     Altro(&'static [Field<AltroOptions>]),
+    ProxNlp(&'static [Field<ProxNlpOptions>]),
 }
 
 impl Fields {
@@ -496,6 +513,7 @@ impl Fields {
             Fields::Csqp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
             Fields::BclDdp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
             Fields::Altro(f) => Box::new(f.iter().filter_map(|f| f.flag)),
+            Fields::ProxNlp(f) => Box::new(f.iter().filter_map(|f| f.flag)),
         }
     }
 }
@@ -700,6 +718,39 @@ const CSQP_FIELDS: &[Field<CsqpOptions>] = &[
     },
 ];
 
+const PROXNLP_FIELDS: &[Field<ProxNlpOptions>] = &[
+    Field {
+        name: "tol",
+        value: |o| Setting::Real(o.tol),
+        flag: Some(TOL),
+    },
+    Field {
+        name: "max_iters",
+        value: |o| Setting::Count(o.max_iters),
+        flag: Some(MAX_ITERS),
+    },
+    Field {
+        name: "hessian",
+        value: |o| Setting::Name(format!("{:?}", o.hessian)),
+        flag: Some(HESSIAN),
+    },
+    Field {
+        name: "mu_init",
+        value: |o| Setting::Real(o.mu_init),
+        flag: None,
+    },
+    Field {
+        name: "dyn_al_scale",
+        value: |o| Setting::Real(o.dyn_al_scale),
+        flag: None,
+    },
+    Field {
+        name: "step_acceptance",
+        value: |o| Setting::Name(format!("{:?}", o.step_acceptance)),
+        flag: None,
+    },
+];
+
 /// The reported settings of `options`: each field's name, value and command-line option
 /// (none for a solver without a field table).
 fn settings(options: &SolverOptions) -> Vec<(&'static str, Setting, Option<Flag>)> {
@@ -712,6 +763,7 @@ fn settings(options: &SolverOptions) -> Vec<(&'static str, Setting, Option<Flag>
         SolverOptions::Csqp(o) => values(CSQP_FIELDS, o),
         SolverOptions::BclDdp(o) => values(BCL_DDP_FIELDS, o),
         SolverOptions::Altro(o) => values(ALTRO_FIELDS, o),
+        SolverOptions::ProxNlp(o) => values(PROXNLP_FIELDS, o),
         _ => Vec::new(),
     }
 }

@@ -14,8 +14,8 @@ fn gharial(args: &[&str]) -> Output {
 }
 
 /// The solvers' command-line names.
-const SOLVERS: [&str; 9] = [
-    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp", "altro",
+const SOLVERS: [&str; 10] = [
+    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp", "altro", "proxnlp",
 ];
 
 fn stdout(o: &Output) -> String {
@@ -380,6 +380,25 @@ fn bench_solve_lists_the_problems_a_solver_does_not_take_as_skipped() {
     );
 }
 
+/// ProxNLP skips a problem too large for its dense KKT system, with the refusal's reason
+/// (the UR5 reaching: 101 states of 12, 100 controls of 6, 1212 equality rows).
+#[test]
+fn bench_solve_skips_problems_too_large_for_proxnlp_with_the_reason() {
+    let o = gharial(&["bench", "solve", "ur5", "lqr", "--solver", "proxnlp", "--repeats", "1"]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let text = stdout(&o);
+    let line = |name: &str| {
+        text.lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap()
+    };
+    assert!(
+        line("ur5").contains("skipped") && line("ur5").contains("3024 rows"),
+        "{text}"
+    );
+    assert!(line("lqr").contains("converged"), "{text}");
+}
+
 /// `--all-solvers`: a row per problem and solver, the same optimum from every solver that
 /// takes a problem (costs to 1e-6 relative: the solvers' tolerances differ), and the
 /// matrix with `-` where a solver does not take the problem.
@@ -395,7 +414,7 @@ fn bench_solve_all_solvers_prints_the_matrix_of_problems_by_solvers() {
             .filter(|w| w.first() == Some(&problem) && w.get(3) == Some(&"converged"))
             .map(|w| w[w.len() - 4].parse().expect("the cost column"))
             .collect();
-        let takers = if problem == "lqr" { SOLVERS.len() } else { 5 };
+        let takers = if problem == "lqr" { SOLVERS.len() } else { 6 };
         assert_eq!(costs.len(), takers, "{problem}: {text}");
         for c in &costs {
             assert!((c - costs[0]).abs() < 1e-6 * costs[0].abs(), "{problem}: {costs:?}");
@@ -418,13 +437,13 @@ fn bench_solve_all_solvers_prints_the_matrix_of_problems_by_solvers() {
     assert_eq!(header, SOLVERS, "{matrix}");
     assert!(row("lqr").iter().all(|c| c.starts_with("1 / ")), "{matrix}");
     let taken: Vec<bool> = row("lqr-bounds").iter().map(|c| c != "-").collect();
-    let takes_bounds = ["proxddp", "box-ddp", "box-fddp", "csqp", "altro"];
+    let takes_bounds = ["proxddp", "box-ddp", "box-fddp", "csqp", "altro", "proxnlp"];
     let expected: Vec<bool> = SOLVERS.iter().map(|s| takes_bounds.contains(s)).collect();
     assert_eq!(taken, expected, "{matrix}");
 }
 
 #[test]
-fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
+fn bench_peers_reports_every_solver_on_the_problems_it_takes() {
     let dir = std::env::temp_dir().join(format!("gharial-cli-peers-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let o = gharial(&[
@@ -461,6 +480,7 @@ fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
         "CSQP",
         "BCL-DDP",
         "ALTRO",
+        "ProxNLP",
     ];
     assert_eq!(solvers("lqr"), all);
     assert_eq!(
@@ -472,7 +492,8 @@ fn bench_peers_reports_proxddp_and_the_ddp_family_on_the_problems_they_take() {
             "BoxDDP",
             "BoxFDDP",
             "CSQP",
-            "ALTRO"
+            "ALTRO",
+            "ProxNLP"
         ]
     );
     // All solvers of one problem together.

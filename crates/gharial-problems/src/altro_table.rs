@@ -1,6 +1,7 @@
 //! Problems of ALTRO's Table I (Howell et al. 2019, §IV-A) with the data of the authors'
 //! problem definitions: the 1D block move and the Dubins car's parallel park, three
-//! obstacles and escape.
+//! obstacles and escape; and the robot arm with obstacles, on the UR5 of
+//! [`crate::peer_robots`] (the paper uses a 7-DoF Kuka).
 //!
 //! # Models
 //! - *Block move*: the double integrator `ṗ = v`, `v̇ = u` on `R²`.
@@ -18,6 +19,18 @@
 //! | `car-3-obstacles` | 101, 5 s | I, 0.1 I, 100 I | outside three discs of radius 0.1 at (0.25, 0.25), (0.5, 0.5), (0.75, 0.75) | `u = 0.01`, rollout |
 //! | `car-escape` | 101, 3 s | 1e-3 I, 1e-2 I, 100 I | outside 170 discs of radius 0.5 that draw two rooms and a door, `|u| ≤ 5` | states interpolated through 6 poses, `u = 1` |
 //!
+//! `arm-obstacles` (N = 80, T = 2 s, dt = 25 ms, the peer harness's UR5 dynamics):
+//! from `q_a = (0, −1, 1, −0.5, −0.5, 0)` at rest to `q_b = (1.5, −1.4, 1.6, −0.5, −0.5, 0)`
+//! at rest (terminal equality), cost `½ Σ dt (1e-2 ‖v‖² + 1e-3 ‖u‖²) + ½ ‖x_N − x_b‖²`,
+//! the URDF's effort limits `|u| ≤ (150, 150, 150, 28, 28, 28)` on every stage and the
+//! tool (`tool0`) outside two spheres of radius 0.12 m on the stages `1..N−1`, by
+//! `r² − |p(q) − c|² ≤ 0` on a [`FrameTranslationResidual`]. The centres
+//! ([`ARM_CENTRES`]) are the tool's positions at `t = N/3` and `2N/3` of the optimal
+//! motion without the spheres ([`arm_free`]), raised by 2 cm. Guess: gravity
+//! compensation `g(q_a)` at every node, rolled out (the arm holds still). ProxDDP
+//! converges to 1e-6 in 161 iterations (0.8 s in the test profile), the tool touching
+//! both spheres, the torques at least 21 N m inside their limits.
+//!
 //! Discs and state bounds are kept on the stages `1..N−1`, control bounds on every stage;
 //! discs by `r² − |p − c|² ≤ 0`. The escape's guess
 //! violates the dynamics (the paper's infeasible start, §III-B); a rollout of its
@@ -30,12 +43,17 @@ use gharial::autodiff::{AutoDiff, AutoOdeFn, AutoStageFn, ManifoldScalar};
 use gharial::constraints::{BoxConstraint, NegativeOrthant};
 use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, ExplicitRungeKutta};
-use gharial::functions::{ControlError, Slice, StageFunction, StateError, Unary};
+use gharial::functions::{ControlError, Slice, StageFunction, StageFunctionData, StateError, Unary, Workspace};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::proxddp::ProxDdpOptions;
 use gharial::spaces::{Manifold, VectorSpace};
 
+use gharial_robotics::residuals::{FrameTranslationResidual, effort_limits};
+use gharial_robotics::{Actuation, gravity_compensation};
+
 use crate::lqr::terminal_state;
+use crate::peer_robots::{Robot, Weights};
+use crate::robots::UR5_URDF;
 use crate::{Example, rollout};
 
 /// The double integrator `ṗ = v`, `v̇ = u`.
@@ -333,4 +351,152 @@ pub fn escape() -> Result<Example> {
     let bounds = control_bounds(3, &[-5.0; 2], &[5.0; 2])?;
     let problem = spec.problem(car_ode()?, &[bounds], &[discs(escape_walls())?])?;
     spec.example(problem, Some(escape_guess(spec.horizon)))
+}
+
+/// `r² − |f(x, u)|² ≤ 0` for a function `f` of three rows (a frame's position minus a
+/// sphere's centre, [`FrameTranslationResidual`]): the frame stays outside the sphere of
+/// radius `r`. Jacobians `−2 fᵀ ∂f`.
+struct OutsideSphere {
+    f: Arc<dyn StageFunction>,
+    radius: f64,
+}
+
+impl StageFunction for OutsideSphere {
+    fn nx(&self) -> usize {
+        self.f.nx()
+    }
+    fn ndx(&self) -> usize {
+        self.f.ndx()
+    }
+    fn nu(&self) -> usize {
+        self.f.nu()
+    }
+    fn nr(&self) -> usize {
+        1
+    }
+    fn create_workspace(&self) -> Workspace {
+        Box::new(self.f.create_data())
+    }
+    fn evaluate(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
+        let inner = inner_data(&mut data.ws);
+        self.f.evaluate(x, u, inner);
+        let d2: f64 = (0..3).map(|i| inner.value[i] * inner.value[i]).sum();
+        data.value[0] = self.radius * self.radius - d2;
+    }
+    fn jacobians(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
+        let inner = inner_data(&mut data.ws);
+        self.f.evaluate(x, u, inner);
+        self.f.jacobians(x, u, inner);
+        for j in 0..data.jx.ncols() {
+            data.jx[(0, j)] = -2.0 * (0..3).map(|i| inner.value[i] * inner.jx[(i, j)]).sum::<f64>();
+        }
+        for j in 0..data.ju.ncols() {
+            data.ju[(0, j)] = -2.0 * (0..3).map(|i| inner.value[i] * inner.ju[(i, j)]).sum::<f64>();
+        }
+    }
+}
+
+fn inner_data(ws: &mut Workspace) -> &mut StageFunctionData {
+    ws.downcast_mut()
+        .expect("OutsideSphere's workspace is its inner function's data")
+}
+
+/// Start and goal configurations of `arm-obstacles`: the shoulder pans by 1.5 rad while
+/// the arm lifts.
+const ARM_QA: [f64; 6] = [0.0, -1.0, 1.0, -0.5, -0.5, 0.0];
+const ARM_QB: [f64; 6] = [1.5, -1.4, 1.6, -0.5, -0.5, 0.0];
+/// `arm-obstacles`: horizon and step.
+const ARM_HORIZON: usize = 80;
+const ARM_DT: f64 = 0.025;
+/// The radius of `arm-obstacles`' spheres (m).
+pub const ARM_RADIUS: f64 = 0.12;
+
+/// The centres of `arm-obstacles`' spheres: the tool's positions at `t = N/3` and
+/// `t = 2N/3` on the optimal motion without spheres ([`arm_free`], ProxDDP to 1e-8), raised
+/// by 2 cm so that that motion passes through them off-centre.
+pub const ARM_CENTRES: [[f64; 3]; 2] = [
+    [
+        -0.221_943_250_194_536_56,
+        0.193_634_599_703_607_8,
+        0.304_243_987_353_880_8,
+    ],
+    [
+        -0.243_523_758_242_498_28,
+        0.034_337_858_126_948_24,
+        0.206_955_017_244_865,
+    ],
+];
+
+/// `arm-obstacles` (module documentation): the UR5 moved from `ARM_QA` to `ARM_QB` at
+/// rest in 2 s with two spheres kept away from its tool, within the URDF's torque
+/// limits; the controls start at gravity compensation at `ARM_QA`.
+///
+/// # Errors
+/// Never for these fixed numbers.
+pub fn arm_obstacles() -> Result<Example> {
+    arm_problem(true)
+}
+
+/// `arm-obstacles` without its spheres (the motion the spheres are placed on).
+///
+/// # Errors
+/// Never for these fixed numbers.
+pub fn arm_free() -> Result<Example> {
+    arm_problem(false)
+}
+
+fn arm_problem(spheres: bool) -> Result<Example> {
+    let robot = Robot::load_with_dt(UR5_URDF, ARM_DT)?;
+    let nu = robot.nu();
+    let xa: Vec<f64> = ARM_QA.iter().copied().chain([0.0; 6]).collect();
+    let xb: Vec<f64> = ARM_QB.iter().copied().chain([0.0; 6]).collect();
+    let running = Weights {
+        q: 0.0,
+        v: 1e-2,
+        u: 1e-3,
+        ee: 0.0,
+    };
+    let terminal = Weights {
+        q: 1.0,
+        v: 1.0,
+        u: 0.0,
+        ee: 0.0,
+    };
+    let cost = robot.cost(&xb, &running, None, nu, ARM_DT)?;
+    let mut stage = StageModel::new(Arc::new(cost), robot.dynamics.clone())?;
+    let dofs: Vec<usize> = (0..nu).collect();
+    stage.add_constraint(effort_limits(&robot.space, &dofs)?)?;
+    let mut stages = vec![stage.clone(); ARM_HORIZON];
+    for (k, c) in ARM_CENTRES.iter().enumerate().filter(|_| spheres) {
+        let r = FrameTranslationResidual::new(&robot.space, "tool0", c)?;
+        let f = Arc::new(OutsideSphere {
+            f: Arc::new(Unary::new(Arc::new(r), nu)),
+            radius: ARM_RADIUS,
+        });
+        let obstacle = StageConstraint::new(format!("sphere {k}"), f, Arc::new(NegativeOrthant));
+        for s in &mut stages[1..] {
+            s.add_constraint(obstacle.clone())?;
+        }
+    }
+    let terminal = robot.cost(&xb, &terminal, None, 0, 1.0)?;
+    let space: Arc<dyn Manifold> = robot.space.clone();
+    let problem =
+        Problem::new(&xa, stages, Arc::new(terminal))?.with_terminal_constraint(terminal_state(space, &xb)?)?;
+    let g = gravity_compensation(robot.space.model(), &Actuation::full(robot.space.model()), &ARM_QA)?;
+    let us0 = vec![g; ARM_HORIZON];
+    let xs0 = rollout(&problem, &us0)?;
+    Ok(Example {
+        name: "arm-obstacles",
+        problem,
+        xs0,
+        us0,
+        dt: Some(ARM_DT),
+        proxddp: ProxDdpOptions::default().with(|o| {
+            o.tol = 1e-6;
+            o.max_iters = 500;
+        }),
+        description: "ALTRO Table I robot arm with obstacles, on the UR5: from one configuration to another at rest in \
+                      2 s, the tool outside two spheres of radius 0.12, URDF torque limits, goal constraint; \
+                      controls start at gravity compensation",
+    })
 }

@@ -38,6 +38,7 @@
 //! | `block-move` | [`altro_table`] | R² | 20 | 100 ms |
 //! | `car-parallel-park`, `car-escape` | [`altro_table`] | R³ | 100 | 30 ms |
 //! | `car-3-obstacles` | [`altro_table`] | R³ | 100 | 50 ms |
+//! | `arm-obstacles` | [`altro_table`] | UR5 phase space (R¹²) | 80 | 25 ms |
 //!
 //! Every module documents its model, its numbers and the results measured with
 //! ProxDDP.
@@ -98,14 +99,15 @@ pub struct Example {
 
 impl Example {
     /// The options of the solver `name` (one of [`SolverOptions::names`]) for this
-    /// problem: ProxDDP's are the recommended [`Example::proxddp`], the other solvers'
-    /// their defaults.
+    /// problem: ProxDDP's are the recommended [`Example::proxddp`], ProxNLP's the ones of
+    /// those it shares (`ProxNlpOptions::from`), the other solvers' their defaults.
     ///
     /// # Errors
     /// If `name` is not a solver's name (the message lists the valid names).
     pub fn options(&self, name: &str) -> Result<SolverOptions> {
         match SolverOptions::from_name(name)? {
             SolverOptions::ProxDdp(_) => Ok(SolverOptions::ProxDdp(self.proxddp.clone())),
+            SolverOptions::ProxNlp(_) => Ok(SolverOptions::ProxNlp((&self.proxddp).into())),
             defaults => Ok(defaults),
         }
     }
@@ -244,6 +246,10 @@ static CATALOGUE: &[ProblemInfo] = &[
         summary: "ALTRO Table I: Dubins car out of a room through a door (170 wall discs), |u| <= 5, interpolated infeasible guess, N = 100, T = 3 s",
     },
     ProblemInfo {
+        name: "arm-obstacles",
+        summary: "ALTRO Table I robot arm with obstacles, on the UR5: configuration to configuration at rest, tool outside two spheres, URDF torque limits, N = 80, T = 2 s",
+    },
+    ProblemInfo {
         name: "ecddp-cartpole",
         summary: "ECDDP cart-pole swing-up (El Kazdadi et al. 2021, Figs. 1-4): force norm, terminal configuration upright, N = 200, dt = 10 ms",
     },
@@ -299,6 +305,7 @@ pub fn build(name: &str) -> Result<Example> {
         "car-parallel-park" => altro_table::parallel_park(),
         "car-3-obstacles" => altro_table::three_obstacles(),
         "car-escape" => altro_table::escape(),
+        "arm-obstacles" => altro_table::arm_obstacles(),
         "ecddp-cartpole" => ecddp::cartpole(false),
         "ecddp-cartpole-advanced" => ecddp::cartpole(true),
         "ecddp-ur5" => ecddp::ur5(),
@@ -359,7 +366,8 @@ pub fn total_cost(problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Result
 mod tests {
     use super::*;
 
-    /// ProxDDP gets the problem's recommended settings, the other solvers their defaults.
+    /// ProxDDP (and ProxNLP) get the problem's recommended settings, the other solvers their
+    /// defaults.
     #[test]
     fn options_by_solver_name() {
         let ex = build("cartpole").unwrap();
@@ -369,6 +377,7 @@ mod tests {
             assert_eq!(options.name(), name);
             let expected = match name {
                 "proxddp" => SolverOptions::ProxDdp(ex.proxddp.clone()),
+                "proxnlp" => SolverOptions::ProxNlp((&ex.proxddp).into()),
                 _ => SolverOptions::from_name(name).unwrap(),
             };
             assert_eq!(format!("{options:?}"), format!("{expected:?}"));

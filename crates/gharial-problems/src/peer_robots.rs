@@ -83,12 +83,17 @@ pub(crate) struct Robot {
 
 impl Robot {
     pub(crate) fn load(urdf: &str) -> Result<Self> {
+        Self::load_with_dt(urdf, DT)
+    }
+
+    /// The robot with the semi-implicit Euler step `dt`.
+    pub(crate) fn load_with_dt(urdf: &str, dt: f64) -> Result<Self> {
         let model = Model::from_urdf_str(urdf, RootJoint::Fixed)
             .map_err(|e| Error::InvalidModel(format!("robot model: {e}")))?;
         let model = Arc::new(model);
         let space = Arc::new(MultibodyPhaseSpace::new(model.clone()));
         let ode = Arc::new(MultibodyFreeFwdDynamics::new(space.clone(), Actuation::full(&model))?);
-        let step = SemiImplicitEuler::new(ode, space.configuration().clone(), DT)?;
+        let step = SemiImplicitEuler::new(ode, space.configuration().clone(), dt)?;
         Ok(Self {
             space,
             dynamics: Dynamics::Explicit(Arc::new(step)),

@@ -57,6 +57,13 @@ pub fn robot_scene(name: &str) -> Option<RobotScene> {
             &["tool0"],
             crate::ecddp::UR5_TARGETS.to_vec(),
         ),
+        // The spheres' centres as markers (the viewer draws no spheres).
+        "arm-obstacles" => scene(
+            UR5_URDF,
+            RootJoint::Fixed,
+            &["tool0"],
+            crate::altro_table::ARM_CENTRES.to_vec(),
+        ),
         "ur5-circle" | "ur5-circle-joint-bound" | "ur5-circle-half-space" => {
             scene(UR5_URDF, RootJoint::Fixed, &["tool0"], vec![])
         }
@@ -170,7 +177,7 @@ mod tests {
             }
             seen += 1;
         }
-        assert_eq!(seen, 13);
+        assert_eq!(seen, 14);
     }
 }
 

@@ -54,6 +54,7 @@ fn horizons_and_steps_are_as_documented() {
         ("car-parallel-park", 100, Some(0.03)),
         ("car-3-obstacles", 100, Some(0.05)),
         ("car-escape", 100, Some(0.03)),
+        ("arm-obstacles", 80, Some(0.025)),
         ("ecddp-cartpole", 200, Some(0.01)),
         ("ecddp-ur5", 200, Some(0.01)),
     ] {

@@ -2,6 +2,7 @@
 
 use std::time::Duration;
 
+use gharial::nlp::ProxNlpOptions;
 use gharial::solvers::altro::AltroOptions;
 use gharial::solvers::bcl_ddp::{BclDdpOptions, Multipliers, PenaltyUpdate, Schedule};
 use gharial::solvers::csqp::CsqpOptions;
@@ -31,6 +32,7 @@ pub fn field<'a>(options: &'a mut SolverOptions, name: &str) -> Option<Field<'a>
         SolverOptions::Csqp(o) => csqp_field(o, name),
         SolverOptions::BclDdp(o) => bcl_ddp_field(o, name),
         SolverOptions::Altro(o) => altro_field(o, name),
+        SolverOptions::ProxNlp(o) => proxnlp_field(o, name),
         _ => None,
     }
 }
@@ -43,6 +45,7 @@ pub fn option_names(options: &SolverOptions) -> &'static [&'static str] {
         SolverOptions::Csqp(_) => CSQP,
         SolverOptions::BclDdp(_) => BCL_DDP,
         SolverOptions::Altro(_) => ALTRO,
+        SolverOptions::ProxNlp(_) => PROXNLP,
         _ => &[],
     }
 }
@@ -301,6 +304,61 @@ fn altro_field<'a>(o: &'a mut AltroOptions, name: &str) -> Option<Field<'a>> {
         "slack_weight" => Field::F64(&mut o.slack_weight),
         "max_time" => Field::Time(&mut o.max_time),
         "num_threads" => Field::Usize(&mut o.inner.num_threads),
+        _ => return None,
+    })
+}
+
+const PROXNLP: &[&str] = &[
+    "tol",
+    "mu_init",
+    "mu_update_factor",
+    "mu_lower_bound",
+    "dyn_al_scale",
+    "bcl_alpha_omega",
+    "bcl_alpha_eta",
+    "bcl_beta_omega",
+    "bcl_beta_eta",
+    "max_iters",
+    "max_al_iters",
+    "step_acceptance",
+    "nonmonotone_eta",
+    "hessian",
+    "ls_c1",
+    "ls_alpha_min",
+    "ls_max_trials",
+    "preg_min",
+    "preg_max",
+    "preg_increase",
+    "preg_decrease",
+    "dphi_thresh",
+    "max_time",
+];
+
+fn proxnlp_field<'a>(o: &'a mut ProxNlpOptions, name: &str) -> Option<Field<'a>> {
+    Some(match name {
+        "tol" => Field::F64(&mut o.tol),
+        "mu_init" => Field::F64(&mut o.mu_init),
+        "mu_update_factor" => Field::F64(&mut o.mu_update_factor),
+        "mu_lower_bound" => Field::F64(&mut o.mu_lower_bound),
+        "dyn_al_scale" => Field::F64(&mut o.dyn_al_scale),
+        "bcl_alpha_omega" => Field::F64(&mut o.bcl_alpha_omega),
+        "bcl_alpha_eta" => Field::F64(&mut o.bcl_alpha_eta),
+        "bcl_beta_omega" => Field::F64(&mut o.bcl_beta_omega),
+        "bcl_beta_eta" => Field::F64(&mut o.bcl_beta_eta),
+        "max_iters" => Field::Usize(&mut o.max_iters),
+        "max_al_iters" => Field::Usize(&mut o.max_al_iters),
+        "step_acceptance" => Field::Acceptance(&mut o.step_acceptance),
+        "nonmonotone_eta" => Field::F64(&mut o.nonmonotone_eta),
+        "hessian" => Field::Hessian(&mut o.hessian),
+        "ls_c1" => Field::F64(&mut o.linesearch.c1),
+        "ls_alpha_min" => Field::F64(&mut o.linesearch.alpha_min),
+        "ls_max_trials" => Field::Usize(&mut o.linesearch.max_trials),
+        "preg_min" => Field::F64(&mut o.preg_min),
+        "preg_max" => Field::F64(&mut o.preg_max),
+        "preg_increase" => Field::F64(&mut o.preg_increase),
+        "preg_decrease" => Field::F64(&mut o.preg_decrease),
+        "dphi_thresh" => Field::F64(&mut o.dphi_thresh),
+        "max_time" => Field::Time(&mut o.max_time),
         _ => return None,
     })
 }

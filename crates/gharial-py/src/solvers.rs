@@ -426,9 +426,15 @@ named_solver!(
     "altro",
     "AL-iLQR with the Newton projection (ALTRO, Howell et al. 2019)."
 );
+named_solver!(
+    PyProxNlp,
+    "SolverProxNLP",
+    "proxnlp",
+    "ProxNLP on the whole problem with a dense KKT system (small problems; proxnlp's solver)."
+);
 
 /// A solver by name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`,
-/// `bcl-ddp`, `altro`) with options.
+/// `bcl-ddp`, `altro`, `proxnlp`) with options.
 #[pyfunction]
 #[pyo3(signature = (name, **options))]
 fn solver(name: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<PySolver> {
@@ -617,6 +623,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyCsqp>()?;
     m.add_class::<PyBclDdp>()?;
     m.add_class::<PyAltro>()?;
+    m.add_class::<PyProxNlp>()?;
     m.add_class::<PyResults>()?;
     m.add_function(wrap_pyfunction!(solver, m)?)?;
     m.add_function(wrap_pyfunction!(solver_names, m)?)?;

@@ -38,6 +38,7 @@ def test_named_classes_match_the_names():
         (gharial.SolverCSQP, "csqp"),
         (gharial.SolverBCLDDP, "bcl-ddp"),
         (gharial.SolverALTRO, "altro"),
+        (gharial.SolverProxNLP, "proxnlp"),
     ]:
         s = cls(tol=1e-7, max_iters=50)
         assert s.name == name and s.tol == 1e-7 and s.max_iters == 50

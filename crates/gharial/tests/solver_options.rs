@@ -10,7 +10,7 @@ use lq_ocp::*;
 
 #[test]
 fn every_name_builds_the_solver_of_that_name() {
-    assert_eq!(SolverOptions::names().len(), 9);
+    assert_eq!(SolverOptions::names().len(), 10);
     for &name in SolverOptions::names() {
         let options = SolverOptions::from_name(name).unwrap();
         assert_eq!(options.name(), name);

@@ -28,6 +28,7 @@ from ._gharial import (  # noqa: F401
     SolverDDP,
     SolverFDDP,
     SolverProxDDP,
+    SolverProxNLP,
     SolverSQP,
     StageFunction,
     StageModel,

@@ -8,6 +8,7 @@ use super::ddp::{Ddp, DdpOptions, DdpVariant};
 use super::log::LogSink;
 use super::proxddp::{ProxDdp, ProxDdpOptions};
 use crate::error::{Error, Result};
+use crate::nlp::{ProxNlpOcp, ProxNlpOptions};
 
 /// The options of one solver, so that the command-line tool, the benchmarks, the
 /// catalogue and the Python package pick a solver by name and build it the same way.
@@ -25,16 +26,19 @@ pub enum SolverOptions {
     BclDdp(BclDdpOptions),
     /// ALTRO's AL-iLQR (Howell et al. 2019).
     Altro(AltroOptions),
+    /// ProxNLP on the whole problem with a dense KKT system ([`crate::nlp`]): small
+    /// problems only (at most [`crate::nlp::MAX_KKT_DIM`] rows, refused at `setup`).
+    ProxNlp(ProxNlpOptions),
 }
 
 /// The solver names, in the order of [`SolverOptions::names`].
-const NAMES: [&str; 9] = [
-    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp", "altro",
+const NAMES: [&str; 10] = [
+    "proxddp", "ddp", "fddp", "box-ddp", "box-fddp", "sqp", "csqp", "bcl-ddp", "altro", "proxnlp",
 ];
 
 impl SolverOptions {
     /// Every solver name: `proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`,
-    /// `bcl-ddp`, `altro`.
+    /// `bcl-ddp`, `altro`, `proxnlp`.
     pub fn names() -> &'static [&'static str] {
         &NAMES
     }
@@ -49,6 +53,7 @@ impl SolverOptions {
             "csqp" => Ok(SolverOptions::Csqp(CsqpOptions::default())),
             "bcl-ddp" => Ok(SolverOptions::BclDdp(BclDdpOptions::default())),
             "altro" => Ok(SolverOptions::Altro(AltroOptions::default())),
+            "proxnlp" => Ok(SolverOptions::ProxNlp(ProxNlpOptions::default())),
             _ => DdpVariant::from_name(name)
                 .map(|v| SolverOptions::Ddp(DdpOptions::new(v)))
                 .ok_or_else(|| {
@@ -68,6 +73,7 @@ impl SolverOptions {
             SolverOptions::Csqp(_) => "csqp",
             SolverOptions::BclDdp(_) => "bcl-ddp",
             SolverOptions::Altro(_) => "altro",
+            SolverOptions::ProxNlp(_) => "proxnlp",
         }
     }
 
@@ -79,6 +85,7 @@ impl SolverOptions {
             SolverOptions::Csqp(o) => o.log = log,
             SolverOptions::BclDdp(o) => o.log = log,
             SolverOptions::Altro(o) => o.log = log,
+            SolverOptions::ProxNlp(o) => o.log = log,
         }
     }
 
@@ -93,6 +100,7 @@ impl SolverOptions {
             SolverOptions::Csqp(o) => o.validate(),
             SolverOptions::BclDdp(o) => o.validate(),
             SolverOptions::Altro(o) => o.validate(),
+            SolverOptions::ProxNlp(o) => o.validate(),
         }
     }
 
@@ -104,6 +112,7 @@ impl SolverOptions {
             SolverOptions::Csqp(o) => Box::new(Csqp::new(o.clone())),
             SolverOptions::BclDdp(o) => Box::new(BclDdp::new(o.clone())),
             SolverOptions::Altro(o) => Box::new(Altro::new(o.clone())),
+            SolverOptions::ProxNlp(o) => Box::new(ProxNlpOcp::new(o.clone())),
         }
     }
 }
