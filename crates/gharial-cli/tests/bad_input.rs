@@ -22,6 +22,8 @@ fn value() -> impl Strategy<Value = String> {
         Just("1e300".to_string()),
         Just("abc".to_string()),
         Just(String::new()),
+        Just("exact".to_string()),
+        Just("gauss-newton".to_string()),
         Just(usize::MAX.to_string()),
         Just("18446744073709551616".to_string()),
         (1usize..20).prop_map(|v| v.to_string()),
@@ -36,6 +38,7 @@ fn solve_args() -> impl Strategy<Value = Vec<String>> {
         Just("clqr"),
         Just("se2-car"),
         Just("peers-lqr-box"),
+        Just("block-move"),
         Just("no-such-problem"),
     ];
     let option = prop_oneof![
@@ -48,6 +51,7 @@ fn solve_args() -> impl Strategy<Value = Vec<String>> {
         Just("--rollout"),
         Just("--step-acceptance"),
         Just("--merit"),
+        Just("--hessian"),
     ];
     // Every solver, and names that are none.
     let solver = proptest::option::of(prop_oneof![
@@ -56,6 +60,11 @@ fn solve_args() -> impl Strategy<Value = Vec<String>> {
         Just("fddp"),
         Just("box-ddp"),
         Just("box-fddp"),
+        Just("sqp"),
+        Just("csqp"),
+        Just("bcl-ddp"),
+        Just("altro"),
+        Just("proxnlp"),
         Just("FDDP"),
         Just("box"),
         Just(""),
