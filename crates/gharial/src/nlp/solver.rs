@@ -11,6 +11,7 @@ use crate::error::{Error, Result, check_dim, check_finite};
 use crate::solvers::filter::Filter;
 use crate::solvers::linesearch::{LinesearchResult, Nonmonotone, armijo};
 use crate::solvers::proxddp::{StepAcceptance, TABLE};
+use crate::solvers::skeleton::StallCount;
 use crate::solvers::{Callback, HISTORY_LIMIT, IterationRecord, Status};
 
 /// Smallest factor of the primal tolerance `eta` after a successful outer step (as
@@ -236,8 +237,8 @@ struct State {
     /// loop takes over.
     stalled: bool,
     roundoff_inner: f64,
-    stall_updates: usize,
-    stall_err: f64,
+    /// Consecutive outer updates forced by stalls.
+    stalls: StallCount,
     /// Consecutive failed outer steps at the smallest penalty.
     failed_at_min: usize,
     nonmonotone: Nonmonotone,
@@ -324,8 +325,7 @@ impl State {
             cost,
             stalled: false,
             roundoff_inner: f64::INFINITY,
-            stall_updates: 0,
-            stall_err: f64::INFINITY,
+            stalls: StallCount::default(),
             failed_at_min: 0,
             nonmonotone: nonmonotone(opts),
         }
@@ -352,19 +352,8 @@ impl State {
     /// decreased, tolerances updated. Returns a status when the solve stops.
     fn outer_update(&mut self, cx: &mut Context<'_>) -> Option<Status> {
         let opts = cx.opts;
-        if self.stalled {
-            let err = self.res.prim.max(self.res.dual);
-            if err < 0.5 * self.stall_err {
-                self.stall_err = err;
-                self.stall_updates = 0;
-            }
-            self.stall_updates += 1;
-            if self.stall_updates > 3 {
-                return Some(Status::Stalled);
-            }
-        } else {
-            self.stall_updates = 0;
-            self.stall_err = f64::INFINITY;
+        if self.stalls.update(self.stalled, self.res.prim.max(self.res.dual)) {
+            return Some(Status::Stalled);
         }
         self.stalled = false;
         self.al_iter += 1;

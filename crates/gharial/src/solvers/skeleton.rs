@@ -350,3 +350,38 @@ impl SqpFilter {
         })
     }
 }
+
+/// Outer updates forced by stalled subproblems (the primal-dual augmented-Lagrangian
+/// loops of ProxDDP and ProxNLP): the solve stops as stalled after more than three
+/// consecutive forced updates that did not halve the residual they started from.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct StallCount {
+    updates: usize,
+    err: f64,
+}
+
+impl Default for StallCount {
+    fn default() -> Self {
+        Self {
+            updates: 0,
+            err: f64::INFINITY,
+        }
+    }
+}
+
+impl StallCount {
+    /// Counts an outer update with residual `err` (forced by a stall if `stalled`, which
+    /// resets the count otherwise); `true` when the solve should stop as stalled.
+    pub(crate) fn update(&mut self, stalled: bool, err: f64) -> bool {
+        if !stalled {
+            *self = Self::default();
+            return false;
+        }
+        if err < 0.5 * self.err {
+            self.err = err;
+            self.updates = 0;
+        }
+        self.updates += 1;
+        self.updates > 3
+    }
+}

@@ -12,7 +12,7 @@ use crate::lq::LqError;
 use crate::problem::Problem;
 use crate::solvers::filter::Filter;
 use crate::solvers::linesearch::{LinesearchResult, Nonmonotone, armijo};
-use crate::solvers::skeleton::{copy_trajectory, push_record, write_gains};
+use crate::solvers::skeleton::{StallCount, copy_trajectory, push_record, write_gains};
 use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 
 /// Trials of the filter may be at most this factor more infeasible than the initial
@@ -53,9 +53,8 @@ struct State {
     // solved as accurately as the arithmetic allows and the outer loop takes over.
     stalled: bool,
     roundoff_inner: f64,
-    // Consecutive outer updates forced by stalls, and the residual before them.
-    stall_updates: usize,
-    stall_err: f64,
+    /// Consecutive outer updates forced by stalls.
+    stalls: StallCount,
     watchdog: Watchdog,
     nonmonotone: Nonmonotone,
 }
@@ -157,8 +156,7 @@ impl State {
             theta_max,
             stalled: false,
             roundoff_inner: f64::INFINITY,
-            stall_updates: 0,
-            stall_err: f64::INFINITY,
+            stalls: StallCount::default(),
             watchdog: Watchdog::new(opts.watchdog_trigger),
             nonmonotone: nonmonotone(opts),
         }
@@ -187,19 +185,8 @@ impl State {
     /// status when the solve stops.
     fn outer_update(&mut self, cx: &mut Context<'_>) -> Option<Status> {
         let opts = cx.opts;
-        if self.stalled {
-            let err = self.res.prim.max(self.res.dual);
-            if err < 0.5 * self.stall_err {
-                self.stall_err = err;
-                self.stall_updates = 0;
-            }
-            self.stall_updates += 1;
-            if self.stall_updates > 3 {
-                return Some(Status::Stalled);
-            }
-        } else {
-            self.stall_updates = 0;
-            self.stall_err = f64::INFINITY;
+        if self.stalls.update(self.stalled, self.res.prim.max(self.res.dual)) {
+            return Some(Status::Stalled);
         }
         self.stalled = false;
         self.al_iter += 1;
