@@ -136,6 +136,7 @@ fn random_case(rng: &mut SplitMix64, i: usize) -> Case {
         nc,
         vary_dims: rng.uniform(0.0, 1.0) < 0.4,
         general_e: rng.uniform(0.0, 1.0) < 0.3,
+        e_block: if rng.uniform(0.0, 1.0) < 0.5 { 0 } else { rng.int(1, 6) },
         rank_deficient: rng.uniform(0.0, 1.0) < 0.25,
         consistent: rng.uniform(0.0, 1.0) < 0.5,
         mu_dyn: if rng.uniform(0.0, 1.0) < 0.5 {
@@ -173,11 +174,12 @@ fn random_case(rng: &mut SplitMix64, i: usize) -> Case {
         .filter(|&m| m > 0.0)
         .fold(1.0, f64::min);
     let label = format!(
-        "case {i}: N={} dims={:?}..{:?} E={} mu_dyn={:.0e} mu_c=[{:.0e},{:.0e}] rankdef={} hard={} init={:?} mu0={:.0e} consistent={}",
+        "case {i}: N={} dims={:?}..{:?} E={} (block {}) mu_dyn={:.0e} mu_c=[{:.0e},{:.0e}] rankdef={} hard={} init={:?} mu0={:.0e} consistent={}",
         opts.horizon,
         (opts.nx, opts.nu, opts.nc),
         opts.vary_dims,
         opts.general_e,
+        opts.e_block,
         opts.mu_dyn,
         mu_lo,
         mu_hi,
@@ -362,7 +364,9 @@ fn long_horizon_large_knots() {
 
 /// A small problem with every feature: general `E`, `mu_dyn`, hard rows, varying
 /// dimensions, a partial initial constraint.
-fn feature_problem(seed: u64, general_e: bool, mu_dyn: f64) -> LqProblem {
+/// A varied problem with `E = -I` (`e = None`), a random `E` (`Some(0)`) or a random
+/// leading `k × k` block of `E` (`Some(k)`).
+fn feature_problem(seed: u64, e: Option<usize>, mu_dyn: f64) -> LqProblem {
     let mut rng = SplitMix64::new(seed);
     random::varied_problem(
         &mut rng,
@@ -372,7 +376,8 @@ fn feature_problem(seed: u64, general_e: bool, mu_dyn: f64) -> LqProblem {
             nu: (2, 4),
             nc: (0, 3),
             vary_dims: true,
-            general_e,
+            general_e: e.is_some(),
+            e_block: e.unwrap_or(0),
             mu_dyn,
             mu_c: (1e-4, 1e-2),
             hard_rows: true,
@@ -395,8 +400,15 @@ fn mat_vec(m: faer::MatRef<'_, f64>, x: &Col<f64>) -> Vec<f64> {
 /// `x_{t+1}` and `λ_{t+1}`.
 #[test]
 fn exposed_gains_and_value_functions_match_the_dense_solution() {
-    for (seed, general_e, mu_dyn) in [(1, false, 0.0), (2, true, 0.0), (3, false, 1e-2), (4, true, 1e-3)] {
-        let p = feature_problem(seed, general_e, mu_dyn);
+    let cases = [
+        (1, None, 0.0),
+        (2, Some(0), 0.0),
+        (3, None, 1e-2),
+        (4, Some(0), 1e-3),
+        (5, Some(2), 1e-2),
+    ];
+    for (seed, e, mu_dyn) in cases {
+        let p = feature_problem(seed, e, mu_dyn);
         let w = dense::solve(&p).unwrap();
         let opts = RiccatiOptions {
             rollout_gains: true,
@@ -465,7 +477,7 @@ fn exposed_gains_and_value_functions_match_the_dense_solution() {
 /// problem (serial and parallel).
 #[test]
 fn backward_vectors_resolves_new_vectors() {
-    let p = feature_problem(5, true, 1e-3);
+    let p = feature_problem(5, Some(4), 1e-3);
     let mut changed = p.clone();
     let mut rng = SplitMix64::new(6);
     for k in &mut changed.knots {
@@ -505,8 +517,8 @@ fn backward_vectors_resolves_new_vectors() {
 /// with the dense KKT solve.
 #[test]
 fn control_only_constraints_match_the_dense_solution() {
-    for (seed, general_e) in [(11, false), (12, true)] {
-        let mut p = feature_problem(seed, general_e, 1e-3);
+    for (seed, e) in [(11, None), (12, Some(0)), (13, Some(3))] {
+        let mut p = feature_problem(seed, e, 1e-3);
         for k in p.knots.iter_mut().step_by(2) {
             k.C = faer::Mat::zeros(k.nc, k.nx);
         }
@@ -587,7 +599,7 @@ fn custom_gains_through_backward_with() {
     let e = rel_err(&sol, &reference);
     assert!(e.primal <= 1e-9 && e.dual <= 1e-9, "{e:?}");
 
-    let p = feature_problem(9, true, 1e-2);
+    let p = feature_problem(9, Some(0), 1e-2);
     let reference = dense::solve(&p).unwrap();
     let mut other = RiccatiSolver::new(&p).unwrap();
     other
@@ -645,7 +657,7 @@ fn solve_error(p: &LqProblem, primal_reg: f64) -> LqError {
 #[test]
 fn wrong_dimensions_are_reported_with_knot_and_field() {
     use faer::Mat;
-    let p = feature_problem(10, false, 0.0);
+    let p = feature_problem(10, None, 0.0);
     let mut bad = p.clone();
     bad.knots[3].B = Mat::zeros(1, 1);
     let e = RiccatiSolver::new(&bad).unwrap_err();
@@ -727,7 +739,7 @@ fn wrong_dimensions_are_reported_with_knot_and_field() {
         ),
         "{e:?}"
     );
-    let other = feature_problem(11, false, 0.0);
+    let other = feature_problem(11, None, 0.0);
     if other.knots.len() == p.knots.len() {
         assert!(matches!(solver.backward(&other, 0.0), Err(LqError::Dimension { .. })));
     }
@@ -754,7 +766,7 @@ fn wrong_dimensions_are_reported_with_knot_and_field() {
 
 #[test]
 fn non_finite_inputs_are_reported_with_knot_and_field() {
-    let p = feature_problem(12, true, 1e-3);
+    let p = feature_problem(12, Some(0), 1e-3);
     type Poison = fn(&mut gharial::lq::LqKnot);
     let set: [(usize, &str, Poison); 8] = [
         (3, "q", |k| k.q[0] = f64::NAN),
@@ -819,7 +831,7 @@ fn non_finite_inputs_are_reported_with_knot_and_field() {
 #[test]
 fn singular_and_indefinite_systems_are_reported() {
     use faer::Mat;
-    let p = feature_problem(13, false, 0.0);
+    let p = feature_problem(13, None, 0.0);
     // A singular E.
     let mut bad = p.clone();
     bad.knots[2].E = Mat::zeros(bad.knots[2].nx_next, bad.knots[2].nx_next);
@@ -888,7 +900,7 @@ fn singular_and_indefinite_systems_are_reported() {
 
 #[test]
 fn invalid_calls_are_errors() {
-    let p = feature_problem(14, false, 0.0);
+    let p = feature_problem(14, None, 0.0);
     let mut solver = RiccatiSolver::new(&p).unwrap();
     let mut sol = LqSolution::new(&p);
     assert_eq!(solver.forward(&p, &mut sol).unwrap_err(), LqError::NotFactored);
@@ -919,7 +931,7 @@ fn invalid_calls_are_errors() {
 
 #[test]
 fn stage_methods_check_their_arguments() {
-    let p = feature_problem(15, false, 0.0);
+    let p = feature_problem(15, None, 0.0);
     let mut solver = RiccatiSolver::new(&p).unwrap();
     // A law that forgets the next value function, or passes another knot.
     let e = solver

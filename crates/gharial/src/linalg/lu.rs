@@ -3,13 +3,17 @@
 use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::linalg::lu::partial_pivoting as lu;
 use faer::perm::PermRef;
+use faer::prelude::ReborrowMut;
 use faer::{Mat, MatMut, MatRef, Par};
 
 use super::reduce::all_finite;
 use super::{FactorError, stack_buffer};
 
-/// `P A = L U` with partial pivoting, for general square matrices.
+/// `P A = L U` with partial pivoting, for general square matrices of any dimension up to
+/// the capacity given to [`Lu::new`].
 pub struct Lu {
+    /// Dimension of the last matrix factored.
+    n: usize,
     factors: Mat<f64>,
     perm: Vec<usize>,
     perm_inv: Vec<usize>,
@@ -24,7 +28,8 @@ impl std::fmt::Debug for Lu {
 }
 
 impl Lu {
-    /// Allocates a factorization of dimension `n` whose solves take up to `max_rhs` columns.
+    /// Allocates a factorization of matrices up to dimension `n` (`n` until another is
+    /// factored), whose solves take up to `max_rhs` columns.
     pub fn new(n: usize, max_rhs: usize) -> Self {
         let req = lu::factor::lu_in_place_scratch::<usize, f64>(n, n, Par::Seq, Default::default())
             .or(lu::solve::solve_in_place_scratch::<usize, f64>(
@@ -38,6 +43,7 @@ impl Lu {
                 Par::Seq,
             ));
         Self {
+            n,
             factors: Mat::zeros(n, n),
             perm: vec![0; n],
             perm_inv: vec![0; n],
@@ -48,22 +54,25 @@ impl Lu {
 
     /// Dimension of the factorization.
     pub fn dim(&self) -> usize {
-        self.factors.nrows()
+        self.n
     }
 
-    /// Factors `a`; fails if a pivot is exactly zero or not finite.
+    /// Factors the square matrix `a` (of at most the capacity's dimension); fails if a
+    /// pivot is exactly zero or not finite.
     pub fn factor(&mut self, a: MatRef<'_, f64>) -> Result<(), FactorError> {
-        let n = self.dim();
-        debug_assert_eq!((a.nrows(), a.ncols()), (n, n));
+        let n = a.nrows();
+        debug_assert!(n == a.ncols() && n <= self.factors.nrows());
         if !all_finite(a) {
             return Err(FactorError::NonFinite);
         }
-        self.factors.copy_from(a);
+        self.n = n;
+        let mut factors = self.factors.as_mut().submatrix_mut(0, 0, n, n);
+        factors.copy_from(a);
         let stack = MemStack::new(&mut self.buf);
         lu::factor::lu_in_place(
-            self.factors.as_mut(),
-            &mut self.perm,
-            &mut self.perm_inv,
+            factors.rb_mut(),
+            &mut self.perm[..n],
+            &mut self.perm_inv[..n],
             Par::Seq,
             stack,
             Default::default(),
@@ -82,8 +91,8 @@ impl Lu {
         debug_assert!(rhs.ncols() <= self.max_rhs);
         let n = self.dim();
         let stack = MemStack::new(&mut self.buf);
-        let perm = PermRef::new_checked(&self.perm, &self.perm_inv, n);
-        let f = self.factors.as_ref();
+        let perm = PermRef::new_checked(&self.perm[..n], &self.perm_inv[..n], n);
+        let f = self.factors.as_ref().submatrix(0, 0, n, n);
         lu::solve::solve_in_place(f, f, perm, rhs, Par::Seq, stack);
     }
 
@@ -92,8 +101,8 @@ impl Lu {
         debug_assert!(rhs.ncols() <= self.max_rhs);
         let n = self.dim();
         let stack = MemStack::new(&mut self.buf);
-        let perm = PermRef::new_checked(&self.perm, &self.perm_inv, n);
-        let f = self.factors.as_ref();
+        let perm = PermRef::new_checked(&self.perm[..n], &self.perm_inv[..n], n);
+        let f = self.factors.as_ref().submatrix(0, 0, n, n);
         lu::solve::solve_transpose_in_place(f, f, perm, rhs, Par::Seq, stack);
     }
 }

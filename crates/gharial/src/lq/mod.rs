@@ -106,6 +106,7 @@ use faer::{Col, Mat, MatRef};
 use crate::linalg::{self, Inertia};
 
 pub mod dense;
+mod e_factor;
 mod parallel;
 pub mod random;
 mod riccati;

@@ -180,6 +180,9 @@ pub struct VariedOptions {
     pub vary_dims: bool,
     /// A random well-conditioned `E` instead of `-I`.
     pub general_e: bool,
+    /// With `general_e`, the size of the random leading block of `E`, the rest `-I` (the
+    /// structure of explicit dynamics on a Lie group times vector spaces); `0`: all of `E`.
+    pub e_block: usize,
     /// Rank-deficient constraint blocks `[C D]` (low-rank rows, repeated rows, zero rows).
     pub rank_deficient: bool,
     /// `d`, `f` and `g0` such that a random reference trajectory satisfies every
@@ -207,6 +210,7 @@ impl Default for VariedOptions {
             nc: (1, 1),
             vary_dims: false,
             general_e: false,
+            e_block: 0,
             rank_deficient: false,
             consistent: true,
             mu_dyn: 0.0,
@@ -266,8 +270,10 @@ pub fn varied_problem(rng: &mut SplitMix64, opts: &VariedOptions) -> LqProblem {
             }
             k.B = rand_mat(rng, ny, nu, 1.0 / (nu.max(1) as f64).sqrt());
             if opts.general_e {
-                k.E = rand_mat(rng, ny, ny, 0.3 / (ny as f64).sqrt());
-                for i in 0..ny {
+                let kb = if opts.e_block == 0 { ny } else { opts.e_block.min(ny) };
+                let block = rand_mat(rng, kb, kb, 0.3 / (kb as f64).sqrt());
+                k.E.as_mut().submatrix_mut(0, 0, kb, kb).copy_from(&block);
+                for i in 0..kb {
                     k.E[(i, i)] -= 1.0;
                 }
             }

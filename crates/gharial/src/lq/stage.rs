@@ -9,7 +9,8 @@
 use faer::prelude::ReborrowMut;
 use faer::{Accum, Col, Mat, MatMut, MatRef};
 
-use super::{KnotDims, KnotVectors, LqError, LqKnot, blame, is_minus_identity};
+use super::e_factor::EFactor;
+use super::{KnotDims, KnotVectors, LqError, LqKnot, blame};
 use crate::linalg::{
     self, BunchKaufman, FactorError, Inertia, Ldlt, Llt, Lu, col_of, col_of_mut, matmul, matmul_lower, matvec,
     matvec_t, slice, slice_mut, sum_is_finite,
@@ -70,7 +71,7 @@ pub struct RiccatiStage {
     extra: ExtraGains,
     // Step 1: [Ã B̃] and the factorization of E (general E only), f̃.
     e_minus_identity: bool,
-    lu_e: Lu,
+    e_fac: EFactor,
     ab_tilde: Mat<f64>,
     f_tilde: Col<f64>,
     // Step 2: proximal value, with M = I + P'G.
@@ -143,7 +144,7 @@ impl RiccatiStage {
             ny,
             extra,
             e_minus_identity: true,
-            lu_e: Lu::new(ny, (nx + nu).max(ny).max(1)),
+            e_fac: EFactor::new(ny, (nx + nu).max(max_rhs)),
             ab_tilde: Mat::zeros(ny, nx + nu),
             f_tilde: Col::zeros(ny),
             mu_dyn: 0.0,
@@ -152,6 +153,8 @@ impl RiccatiStage {
                 llt: Llt::new(ny),
                 lu: Lu::new(ny, max_rhs),
                 is_llt: true,
+                congruent: false,
+                w: Mat::zeros(ny, max_rhs),
             },
             ptilde: Mat::zeros(ny, ny),
             ptilde_vec: Col::zeros(ny),
@@ -221,26 +224,26 @@ impl RiccatiStage {
         if ny > 0 {
             let P_next = P_next.expect("a knot with dynamics has a next value function");
             // Step 1: [Ã B̃] = -E⁻¹[A B] unless E = -I.
-            self.e_minus_identity = is_minus_identity(knot.E.as_ref());
+            self.e_fac.factor(knot.E.as_ref()).map_err(|e| match e {
+                FactorError::NonFinite => LqError::NonFinite {
+                    knot: self.index,
+                    field: "E",
+                },
+                FactorError::Singular { .. } => self.singular("dynamics matrix E"),
+            })?;
+            self.e_minus_identity = self.e_fac.is_minus_identity();
             if !self.e_minus_identity {
-                self.lu_e.factor(knot.E.as_ref()).map_err(|e| match e {
-                    FactorError::NonFinite => LqError::NonFinite {
-                        knot: self.index,
-                        field: "E",
-                    },
-                    FactorError::Singular { .. } => self.singular("dynamics matrix E"),
-                })?;
                 let mut ab = self.ab_tilde.as_mut();
                 linalg::copy(ab.rb_mut().submatrix_mut(0, 0, ny, nx), knot.A.as_ref());
                 linalg::copy(ab.rb_mut().submatrix_mut(0, nx, ny, nu), knot.B.as_ref());
-                self.lu_e.solve_in_place(ab.rb_mut());
+                self.e_fac.solve_in_place(ab.rb_mut());
                 linalg::negate(ab);
             }
             // Step 2: P̃ = (I + P'G)⁻¹ P'.
             if self.mu_dyn > 0.0 {
                 self.factor_prox(P_next, scratch.m.as_mut().submatrix_mut(0, 0, ny, ny))?;
                 linalg::copy(self.ptilde.as_mut(), P_next);
-                self.prox.solve_in_place(self.ptilde.as_mut());
+                self.prox.solve_in_place(&mut self.e_fac, self.ptilde.as_mut());
                 linalg::symmetrize(self.ptilde.as_mut());
             }
             // Step 3: Q += [Ã B̃]ᵀ P̃ [Ã B̃] (lower triangle): two products on a contiguous
@@ -300,14 +303,19 @@ impl RiccatiStage {
         Ok(())
     }
 
-    /// Factors `M = I + P'G` (Cholesky when `E = -I` and `M` is positive definite, LU
-    /// otherwise), computing `G` first for a general `E`; `m` is scratch.
+    /// Factors `M = I + P'G`, computing `G` first for a general `E`; `m` is scratch.
+    ///
+    /// When `E = -I`, `M = I + mu P'` is symmetric: Cholesky if it is positive definite.
+    /// For a general `E`, with `C = E⁻¹` (so `G = mu C Cᵀ`), `M = C⁻ᵀ (I + mu CᵀP'C) Cᵀ`:
+    /// Cholesky of the congruent `I + mu E⁻ᵀP'E⁻¹` if positive definite. LU of `M`
+    /// otherwise.
     fn factor_prox(&mut self, P_next: MatRef<'_, f64>, mut m: MatMut<'_, f64>) -> Result<(), LqError> {
         let ny = self.ny;
         let mu = self.mu_dyn;
+        self.prox.congruent = false;
         if self.e_minus_identity {
-            // M = I + mu P' is symmetric: its lower triangle straight into the Cholesky
-            // factor's storage, the whole of it for LU if that fails.
+            // Its lower triangle straight into the Cholesky factor's storage, the whole
+            // of it for LU if that fails.
             linalg::identity_plus_scaled_lower(self.prox.llt.matrix_mut(), P_next, mu);
             self.prox.is_llt = self.prox.llt.factor_filled().is_ok();
             if self.prox.is_llt {
@@ -319,14 +327,24 @@ impl RiccatiStage {
                 }
             }
         } else {
-            // G = mu E⁻¹E⁻ᵀ, from E⁻¹ computed in `m`.
-            m.fill(0.0);
-            for i in 0..ny {
-                m[(i, i)] = 1.0;
-            }
-            self.lu_e.solve_in_place(m.rb_mut());
-            matmul(self.g.as_mut(), Accum::Replace, m.as_ref(), m.as_ref().transpose(), mu);
+            self.e_fac.inverse_gram(mu, self.g.as_mut());
             linalg::symmetrize(self.g.as_mut());
+            // E⁻ᵀP'E⁻¹ = E⁻ᵀ(E⁻ᵀP')ᵀ, P' symmetric.
+            linalg::copy(m.rb_mut(), P_next);
+            self.e_fac.solve_transpose_in_place(m.rb_mut());
+            let mut h = self.prox.llt.matrix_mut();
+            linalg::copy_transposed(h.rb_mut(), m.as_ref());
+            self.e_fac.solve_transpose_in_place(h.rb_mut());
+            for j in 0..ny {
+                for i in j..ny {
+                    h[(i, j)] = mu * h[(i, j)] + if i == j { 1.0 } else { 0.0 };
+                }
+            }
+            self.prox.is_llt = self.prox.llt.factor_filled().is_ok();
+            if self.prox.is_llt {
+                self.prox.congruent = true;
+                return Ok(());
+            }
             for j in 0..ny {
                 for i in 0..ny {
                     m[(i, j)] = if i == j { 1.0 } else { 0.0 };
@@ -347,7 +365,7 @@ impl RiccatiStage {
     /// Solves `(I + P'G) X = B` in place with the factorization of the last Q-function
     /// (only when `mu_dyn > 0`).
     pub(crate) fn prox_solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
-        self.prox.solve_in_place(rhs);
+        self.prox.solve_in_place(&mut self.e_fac, rhs);
     }
 
     /// Vector part of the Q-function: `Q_x, Q_u` from the vectors `q, r, f` and the next
@@ -370,13 +388,14 @@ impl RiccatiStage {
         slice_mut(&mut self.f_tilde).copy_from_slice(v.f);
         if !self.e_minus_identity {
             let mut ft = self.f_tilde.as_mut().as_mat_mut();
-            self.lu_e.solve_in_place(ft.rb_mut());
+            self.e_fac.solve_in_place(ft.rb_mut());
             linalg::negate(ft);
         }
         // p̃ = (I + P'G)⁻¹ p', v = P̃ f̃ + p̃.
         let pt_vec: &[f64] = if self.mu_dyn > 0.0 {
             slice_mut(&mut self.ptilde_vec).copy_from_slice(p_next);
-            self.prox.solve_in_place(self.ptilde_vec.as_mut().as_mat_mut());
+            self.prox
+                .solve_in_place(&mut self.e_fac, self.ptilde_vec.as_mut().as_mat_mut());
             slice(&self.ptilde_vec)
         } else {
             p_next
@@ -620,7 +639,7 @@ impl RiccatiStage {
         let mut xi = self.lamg.as_mut().submatrix_mut(0, 1, ny, nx);
         linalg::copy(xi.rb_mut(), y);
         if !self.e_minus_identity {
-            self.lu_e.solve_transpose_in_place(xi.rb_mut());
+            self.e_fac.solve_transpose_in_place(xi.rb_mut());
             linalg::negate(xi);
         }
     }
@@ -737,7 +756,7 @@ impl RiccatiStage {
         col_of_mut(&mut self.lamg, 0).copy_from_slice(col_of(&self.lg, 0));
         if !self.e_minus_identity {
             let mut xi = self.lamg.as_mut().subcols_mut(0, 1);
-            self.lu_e.solve_transpose_in_place(xi.rb_mut());
+            self.e_fac.solve_transpose_in_place(xi.rb_mut());
             linalg::negate(xi);
         }
     }
@@ -850,7 +869,7 @@ impl RiccatiStage {
         // λ_{t+1} = -E⁻ᵀ λ̃.
         if !self.e_minus_identity {
             slice_mut(&mut self.w_y).copy_from_slice(lambda_next);
-            self.lu_e.solve_transpose_in_place(self.w_y.as_mut().as_mat_mut());
+            self.e_fac.solve_transpose_in_place(self.w_y.as_mut().as_mat_mut());
             for i in 0..ny {
                 lambda_next[i] = -self.w_y[i];
             }
@@ -1097,17 +1116,26 @@ pub(super) struct SquareRootParts<'a> {
     pub f_tilde: &'a mut Col<f64>,
 }
 
-/// The factorization of `M = I + P'G`: Cholesky when possible, LU otherwise.
+/// The factorization of `M = I + P'G`: Cholesky of `M` (`E = -I`) or of its congruent
+/// `I + mu E⁻ᵀP'E⁻¹` (`congruent`, general `E`) when possible, LU of `M` otherwise.
 #[derive(Debug)]
 struct ProxFactor {
     llt: Llt,
     lu: Lu,
     is_llt: bool,
+    congruent: bool,
+    /// Scratch for the products with `Eᵀ`.
+    w: Mat<f64>,
 }
 
 impl ProxFactor {
-    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
-        if self.is_llt {
+    /// `X ← M⁻¹X`; with the congruent factor `M⁻¹ = Eᵀ (I + mu E⁻ᵀP'E⁻¹)⁻¹ E⁻ᵀ`.
+    fn solve_in_place(&mut self, e: &mut EFactor, mut rhs: MatMut<'_, f64>) {
+        if self.congruent {
+            e.solve_transpose_in_place(rhs.rb_mut());
+            self.llt.solve_in_place(rhs.rb_mut());
+            e.mul_transpose_in_place(rhs, self.w.as_mut());
+        } else if self.is_llt {
             self.llt.solve_in_place(rhs);
         } else {
             self.lu.solve_in_place(rhs);

@@ -1,0 +1,125 @@
+//! The factorization of a knot's dynamics matrix `E` (step 1 of the recursion), which
+//! uses that `E` is `-I` outside a leading principal block in the common cases.
+//!
+//! For explicit dynamics `f = φ(x, u) ⊖ y` on a product of a Lie group and vector spaces
+//! (a free-flyer robot's phase space), `E = ∂(φ ⊖ y)/∂y` is the Jacobian of the group part
+//! in its leading block and exactly `-I` on the vector-space coordinates. With the
+//! smallest `k` such that `E = diag(E_b, -I)`, `E_b` of size `k × k`, only `E_b` is
+//! factored and every product or solve with `E` costs `O(k²)` per column instead of
+//! `O(ny²)`; `k = 0` is `E = -I`, `k = ny` a general `E`.
+
+use faer::prelude::ReborrowMut;
+use faer::{Accum, Mat, MatMut, MatRef};
+
+use crate::linalg::{self, FactorError, Lu, matmul};
+
+/// `E = diag(E_b, -I)` factored through `E_b` (module documentation).
+#[derive(Debug)]
+pub(crate) struct EFactor {
+    /// Size of the leading block `E_b`.
+    k: usize,
+    /// `E_b` (in the leading `k × k` corner), for products with `Eᵀ`.
+    block: Mat<f64>,
+    /// `E_b⁻¹E_b⁻ᵀ` scratch (leading `k × k` corner).
+    inv: Mat<f64>,
+    lu: Lu,
+}
+
+/// The smallest `k` such that `m = diag(m_b, -I)` with `m_b` of size `k × k`.
+pub(crate) fn minus_identity_block(m: MatRef<'_, f64>) -> usize {
+    let mut k = 0;
+    for j in 0..m.ncols() {
+        for i in 0..m.nrows() {
+            if m[(i, j)] != if i == j { -1.0 } else { 0.0 } {
+                k = k.max(i.max(j) + 1);
+            }
+        }
+    }
+    k
+}
+
+impl EFactor {
+    /// Storage for matrices `E` up to `ny × ny`, solved with up to `max_rhs` columns.
+    pub(crate) fn new(ny: usize, max_rhs: usize) -> Self {
+        Self {
+            k: 0,
+            block: Mat::zeros(ny, ny),
+            inv: Mat::zeros(ny, ny),
+            lu: Lu::new(ny, max_rhs.max(ny).max(1)),
+        }
+    }
+
+    /// Whether the last `E` factored was exactly `-I`.
+    pub(crate) fn is_minus_identity(&self) -> bool {
+        self.k == 0
+    }
+
+    /// Factors `e` (nothing to factor when `e = -I`).
+    pub(crate) fn factor(&mut self, e: MatRef<'_, f64>) -> Result<(), FactorError> {
+        self.k = if super::is_minus_identity(e) {
+            0
+        } else {
+            minus_identity_block(e)
+        };
+        let k = self.k;
+        if k == 0 {
+            return Ok(());
+        }
+        let e_b = e.submatrix(0, 0, k, k);
+        linalg::copy(self.block.as_mut().submatrix_mut(0, 0, k, k), e_b);
+        self.lu.factor(e_b)
+    }
+
+    /// `X ← E⁻¹X`.
+    pub(crate) fn solve_in_place(&mut self, mut x: MatMut<'_, f64>) {
+        let k = self.k;
+        let rest = x.nrows() - k;
+        linalg::negate(x.rb_mut().subrows_mut(k, rest));
+        if k > 0 {
+            self.lu.solve_in_place(x.subrows_mut(0, k));
+        }
+    }
+
+    /// `X ← E⁻ᵀX`.
+    pub(crate) fn solve_transpose_in_place(&mut self, mut x: MatMut<'_, f64>) {
+        let k = self.k;
+        let rest = x.nrows() - k;
+        linalg::negate(x.rb_mut().subrows_mut(k, rest));
+        if k > 0 {
+            self.lu.solve_transpose_in_place(x.subrows_mut(0, k));
+        }
+    }
+
+    /// `X ← EᵀX`; `w` is scratch of at least `k` rows and `X`'s columns.
+    pub(crate) fn mul_transpose_in_place(&self, mut x: MatMut<'_, f64>, mut w: MatMut<'_, f64>) {
+        let (k, n) = (self.k, x.ncols());
+        let rest = x.nrows() - k;
+        linalg::negate(x.rb_mut().subrows_mut(k, rest));
+        if k > 0 {
+            let mut w = w.rb_mut().submatrix_mut(0, 0, k, n);
+            linalg::copy(w.rb_mut(), x.as_ref().subrows(0, k));
+            let e_b = self.block.as_ref().submatrix(0, 0, k, k);
+            matmul(x.subrows_mut(0, k), Accum::Replace, e_b.transpose(), w.as_ref(), 1.0);
+        }
+    }
+
+    /// `G = mu E⁻¹E⁻ᵀ = mu diag(E_b⁻¹E_b⁻ᵀ, I)` into `g` (`ny × ny`).
+    pub(crate) fn inverse_gram(&mut self, mu: f64, mut g: MatMut<'_, f64>) {
+        let k = self.k;
+        g.fill(0.0);
+        for i in 0..g.nrows() {
+            g[(i, i)] = mu;
+        }
+        if k == 0 {
+            return;
+        }
+        let mut inv = self.inv.as_mut().submatrix_mut(0, 0, k, k);
+        inv.fill(0.0);
+        for i in 0..k {
+            inv[(i, i)] = 1.0;
+        }
+        self.lu.solve_in_place(inv.rb_mut());
+        let inv = self.inv.as_ref().submatrix(0, 0, k, k);
+        matmul(g.submatrix_mut(0, 0, k, k), Accum::Replace, inv, inv.transpose(), mu);
+    }
+}
