@@ -22,7 +22,7 @@ use super::{Cost, CostData};
 use crate::error::{check_dim, check_finite};
 use crate::functions::util::{add_scaled, checked_sym, downcast};
 use crate::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary, Workspace};
-use crate::linalg::{matmul, matmul_tn_lower, matvec_t, norm_max, slice_mut, symmetrize_from_lower};
+use crate::linalg::{GramScratch, gram_lower, matmul, matvec_t, norm_max, slice_mut, symmetrize_from_lower};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
@@ -84,6 +84,8 @@ struct ResidualWs {
     hjx: Mat<f64>,
     /// `H r_u` (`nr x nu`).
     hju: Mat<f64>,
+    /// Scratch of the Gram products.
+    gram: GramScratch,
 }
 
 impl ResidualWs {
@@ -95,6 +97,7 @@ impl ResidualWs {
             h: vec![0.0; nr],
             hjx: Mat::zeros(nr, ndx),
             hju: Mat::zeros(nr, nu),
+            gram: GramScratch::new(nr, ndx.max(nu)),
         }
     }
 }
@@ -131,13 +134,13 @@ fn assemble(f: &dyn StageFunction, x: &[f64], u: &[f64], exact: bool, ws: &mut R
     let (x_zero, u_zero) = (norm_max(jx) == 0.0, norm_max(ju) == 0.0);
     matvec_t(slice_mut(out.lx), Accum::Replace, jx, &ws.g, 1.0);
     matvec_t(slice_mut(out.lu), Accum::Replace, ju, &ws.g, 1.0);
-    symmetric_product(out.lxx.as_mut(), jx, ws.hjx.as_ref(), x_zero);
+    symmetric_product(out.lxx.as_mut(), jx, ws.hjx.as_ref(), x_zero, &mut ws.gram);
     if x_zero || u_zero {
         out.lxu.fill(0.0);
     } else {
         matmul(out.lxu.as_mut(), Accum::Replace, jx.transpose(), ws.hju.as_ref(), 1.0);
     }
-    symmetric_product(out.luu.as_mut(), ju, ws.hju.as_ref(), u_zero);
+    symmetric_product(out.luu.as_mut(), ju, ws.hju.as_ref(), u_zero, &mut ws.gram);
     if exact && f.has_vhp() {
         f.vhp(x, u, &ws.g, &mut ws.fd);
         add_scaled(out.lxx.as_mut(), 1.0, ws.fd.vhp_xx.as_ref());
@@ -148,11 +151,17 @@ fn assemble(f: &dyn StageFunction, x: &[f64], u: &[f64], exact: bool, ws: &mut R
 
 /// `dst = jᵀ (h j)` for a symmetric `h` (its lower triangle, mirrored), or zero when
 /// `j` is.
-fn symmetric_product(mut dst: MatMut<'_, f64>, j: MatRef<'_, f64>, hj: MatRef<'_, f64>, j_zero: bool) {
+fn symmetric_product(
+    mut dst: MatMut<'_, f64>,
+    j: MatRef<'_, f64>,
+    hj: MatRef<'_, f64>,
+    j_zero: bool,
+    scratch: &mut GramScratch,
+) {
     if j_zero {
         dst.fill(0.0);
     } else {
-        matmul_tn_lower(dst.rb_mut(), j, hj);
+        gram_lower(dst.rb_mut(), j, hj, scratch);
         symmetrize_from_lower(dst);
     }
 }

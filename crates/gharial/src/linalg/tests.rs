@@ -203,3 +203,49 @@ fn bunch_kaufman_inertia_of_sparse_kkt_matrices() {
         }
     }
 }
+
+/// The Gram kernel equals the entry-by-entry `aᵀb` on its lower triangle, for dense
+/// matrices, matrices with zero rows, zero columns and identity-like sparsity, and one
+/// row: the skipped zeros change nothing.
+#[test]
+fn gram_lower_matches_the_naive_product() {
+    use super::{GramScratch, gram_lower};
+    let mut scratch = GramScratch::new(12, 40);
+    for (case, (nr, n)) in [(1, 1), (1, 7), (3, 12), (12, 36), (36, 36), (12, 40), (5, 3)]
+        .into_iter()
+        .enumerate()
+    {
+        for pattern in 0..4 {
+            let mut a = filled(nr, n, case + pattern);
+            match pattern {
+                1 => a.as_mut().row_mut(nr / 2).fill(0.0),
+                2 => {
+                    for c in (0..n).step_by(3) {
+                        a.as_mut().col_mut(c).fill(0.0);
+                    }
+                }
+                3 => a = Mat::from_fn(nr, n, |r, c| if r == c || (r < 3 && c < 3) { a[(r, c)] } else { 0.0 }),
+                _ => {}
+            }
+            // b = diag(w) a, as for a diagonal weight, and a full-weight b.
+            let diag = Mat::from_fn(nr, n, |r, c| (1.0 + r as f64) * a[(r, c)]);
+            for b in [diag, filled(nr, n, 5 + case)] {
+                if nr > 12 {
+                    scratch = GramScratch::new(nr, n);
+                }
+                let mut dst = Mat::from_fn(n, n, |_, _| f64::NAN);
+                gram_lower(dst.as_mut(), a.as_ref(), b.as_ref(), &mut scratch);
+                let reference = naive(a.transpose(), b.as_ref());
+                for c in 0..n {
+                    for r in c..n {
+                        let err = (dst[(r, c)] - reference[(r, c)]).abs();
+                        assert!(
+                            err <= 1e-12 * (1.0 + reference[(r, c)].abs()),
+                            "{nr}x{n} pattern {pattern}: ({r}, {c})"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
