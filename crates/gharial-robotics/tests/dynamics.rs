@@ -407,8 +407,8 @@ fn contact_force_jacobians_match_finite_differences() {
         // The ODE's evaluation exposes the same λ.
         let mut od = ode.create_data();
         ode.evaluate(&x, &u, &mut od);
-        let lambda = MultibodyConstraintFwdDynamics::contact_data(&od).unwrap().lambda();
-        assert_eq!(lambda, d.lambda());
+        let shared = MultibodyConstraintFwdDynamics::contact_data(&od).unwrap();
+        assert_eq!(shared.lambda(), d.lambda());
         let m = ode.contacts()[0].size();
         assert_eq!(ode.contact_rows(1), m..2 * m);
         assert_eq!(ode.nc(), m * ode.contacts().len());

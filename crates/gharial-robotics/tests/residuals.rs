@@ -1006,3 +1006,65 @@ fn residuals_do_not_allocate() {
     let g = GravityCompensationResidual::new(&space, actuation).unwrap();
     assert_eq!(allocations_of(&g, &x, &u), 0, "gravity compensation");
 }
+
+/// Inside a stage-data scope the ODE and the contact residuals of one dynamics model share
+/// one contact solve (one object); calls at interleaved points still give every model's
+/// own, unshared values and Jacobians bit for bit (the shared solve is keyed by the point).
+#[test]
+fn shared_contact_solve_gives_the_unshared_results() {
+    use gharial::dynamics::{Ode, OdeData};
+    use gharial::functions::with_shared_data;
+    let mut rng = SmallRng::seed_from_u64(5);
+    let dynamics = solo_dynamics(ReferenceFrame::LocalWorldAligned);
+    let space = dynamics.phase_space().clone();
+    let nu = dynamics.actuation().nu();
+    let force = ContactForceResidual::new(dynamics.clone(), 1, &[0.0, 0.0, 5.0]).unwrap();
+    let cone = FrictionConeResidual::new(dynamics.clone(), 2, FrictionCone::vertical(0.7).unwrap()).unwrap();
+    let (mut ode_s, mut force_s, mut cone_s) =
+        with_shared_data(|| (dynamics.create_data(), force.create_data(), cone.create_data()));
+    let points: Vec<_> = (0..3)
+        .map(|_| (random_state(&space, &mut rng), random_vec(&mut rng, nu, 2.0)))
+        .collect();
+    // (model, point) pairs in an order that switches points between models.
+    let order = [(0, 0), (1, 0), (2, 1), (0, 1), (1, 2), (2, 0), (0, 2), (2, 2), (1, 1)];
+    for (m, p) in order {
+        let (x, u) = (&points[p].0, &points[p].1);
+        match m {
+            0 => {
+                let mut fresh: OdeData = dynamics.create_data();
+                for d in [&mut ode_s, &mut fresh] {
+                    dynamics.evaluate(x, u, d);
+                    dynamics.jacobians(x, u, d);
+                }
+                assert_eq!(ode_s.xdot, fresh.xdot, "ode value at point {p}");
+                assert_eq!(ode_s.jx, fresh.jx, "ode jx at point {p}");
+                assert_eq!(ode_s.ju, fresh.ju, "ode ju at point {p}");
+            }
+            _ => {
+                let (f, shared): (&dyn StageFunction, &mut StageFunctionData) = if m == 1 {
+                    (&force, &mut force_s)
+                } else {
+                    (&cone, &mut cone_s)
+                };
+                let mut fresh = f.create_data();
+                for d in [&mut *shared, &mut fresh] {
+                    f.evaluate(x, u, d);
+                    f.jacobians(x, u, d);
+                }
+                assert_eq!(shared.value, fresh.value, "model {m} value at point {p}");
+                assert_eq!(shared.jx, fresh.jx, "model {m} jx at point {p}");
+                assert_eq!(shared.ju, fresh.ju, "model {m} ju at point {p}");
+            }
+        }
+    }
+    // One solve: after the force residual's evaluation at a point where the ODE was not
+    // evaluated last, the ODE's data holds that point's λ.
+    let (x, u) = &points[0];
+    force.evaluate(x, u, &mut force_s);
+    let lambda = MultibodyConstraintFwdDynamics::contact_data(&ode_s)
+        .unwrap()
+        .lambda()
+        .to_vec();
+    let mut d = dynamics.create_contact_data();
+    assert_eq!(lambda, dynamics.contact_forces(x, u, &mut d).unwrap());
+}

@@ -3,11 +3,11 @@
 //! `DifferentialActionModelContactFwdDynamics`).
 
 use std::ops::Range;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, MutexGuard};
 
 use faer::Mat;
 use gharial::dynamics::{Ode, OdeData};
-use gharial::functions::Workspace;
+use gharial::functions::{Workspace, lock, shared_data};
 use gharial::linalg::{copy, slice_mut};
 use gharial::spaces::Manifold;
 use gharial::{Error, Result};
@@ -51,9 +51,10 @@ impl std::fmt::Debug for MultibodyConstraintFwdDynamics {
 }
 
 /// Preallocated memory of the constrained dynamics at one point `(x, u)`: the KKT
-/// solution (`a`, `λ`), its derivatives and `∂λ/∂x`, `∂λ/∂u`. It is the workspace of the
-/// ODE's data, and a contact-force residual creates its own with
-/// [`MultibodyConstraintFwdDynamics::create_contact_data`].
+/// solution (`a`, `λ`), its derivatives and `∂λ/∂x`, `∂λ/∂u`. Created with
+/// [`MultibodyConstraintFwdDynamics::create_contact_data`]; the ODE and the contact-force
+/// residuals of one stage share one through
+/// [`MultibodyConstraintFwdDynamics::shared_contact_data`].
 ///
 /// The solution and the derivatives are kept for the last point: asking again at the
 /// same `(x, u)` (bit for bit) does not solve again.
@@ -69,7 +70,16 @@ pub struct ContactDynamicsData {
     differentiated: bool,
     dlambda_dx: Mat<f64>,
     dlambda_du: Mat<f64>,
-    error: Option<Error>,
+}
+
+/// A [`ContactDynamicsData`] shared by the models of a stage (see
+/// [`gharial::functions::shared_data`]).
+pub type SharedContactData = Arc<Mutex<ContactDynamicsData>>;
+
+/// The ODE's workspace: the (shared) contact solution and the error of its last call.
+pub(super) struct ContactOdeWs {
+    contact: SharedContactData,
+    pub(super) error: Option<Error>,
 }
 
 impl ContactDynamicsData {
@@ -98,11 +108,6 @@ impl ContactDynamicsData {
     /// The multibody contact data (constraint Jacobian, all derivatives).
     pub fn contact_data(&self) -> &ContactData {
         &self.cdata
-    }
-
-    /// The error of the last failed ODE `evaluate` or `jacobians` on this data.
-    pub fn last_error(&self) -> Option<&Error> {
-        self.error.as_ref()
     }
 }
 
@@ -201,8 +206,14 @@ impl MultibodyConstraintFwdDynamics {
             differentiated: false,
             dlambda_dx: Mat::zeros(nc, 2 * nv),
             dlambda_du: Mat::zeros(nc, nu),
-            error: None,
         }
+    }
+
+    /// The contact data of the stage being created: one object for this model's ODE and
+    /// contact residuals within a stage's data
+    /// ([`gharial::problem::StageData::new`]), a new one elsewhere.
+    pub fn shared_contact_data(&self) -> SharedContactData {
+        shared_data(self as *const Self as usize, || self.create_contact_data())
     }
 
     /// Solves the KKT system at `(x, u)` unless `d` holds its solution already.
@@ -265,8 +276,8 @@ impl MultibodyConstraintFwdDynamics {
 
     /// The contact data of an ODE data created by this type (`λ` of the last
     /// `evaluate`), or `None` for data of another model.
-    pub fn contact_data(data: &OdeData) -> Option<&ContactDynamicsData> {
-        data.ws.downcast_ref()
+    pub fn contact_data(data: &OdeData) -> Option<MutexGuard<'_, ContactDynamicsData>> {
+        data.ws.downcast_ref::<ContactOdeWs>().map(|w| lock(&w.contact))
     }
 
     /// The quasi-static controls and forces at `q` with these contacts; see
@@ -306,34 +317,41 @@ impl Ode for MultibodyConstraintFwdDynamics {
     }
 
     fn create_workspace(&self) -> Workspace {
-        Box::new(self.create_contact_data())
+        Box::new(ContactOdeWs {
+            contact: self.shared_contact_data(),
+            error: None,
+        })
     }
 
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
-        let d: &mut ContactDynamicsData = workspace(&mut data.ws);
-        match self.solve(x, u, d) {
+        let w: &mut ContactOdeWs = workspace(&mut data.ws);
+        let mut d = lock(&w.contact);
+        match self.solve(x, u, &mut d) {
             Ok(()) => {
                 self.core.write_xdot(x, d.cdata.ddq(), slice_mut(&mut data.xdot));
-                d.error = None;
+                w.error = None;
             }
             Err(e) => {
-                d.error = Some(e);
+                drop(d);
+                w.error = Some(e);
                 nan_xdot(data);
             }
         }
     }
 
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
-        let d: &mut ContactDynamicsData = workspace(&mut data.ws);
-        match self.differentiate(x, u, d) {
+        let w: &mut ContactOdeWs = workspace(&mut data.ws);
+        let mut d = lock(&w.contact);
+        match self.differentiate(x, u, &mut d) {
             Ok(()) => {
                 let c = &d.cdata;
                 let (jx, ju) = (data.jx.as_mut(), data.ju.as_mut());
                 self.core.write_jacobians(c.ddq_dq(), c.ddq_dv(), c.ddq_dtau(), jx, ju);
-                d.error = None;
+                w.error = None;
             }
             Err(e) => {
-                d.error = Some(e);
+                drop(d);
+                w.error = Some(e);
                 nan_jacobians(data);
             }
         }

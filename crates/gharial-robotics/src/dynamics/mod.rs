@@ -46,7 +46,7 @@ mod free;
 mod weld;
 
 pub use actuation::Actuation;
-pub use constrained::{ContactDynamicsData, MultibodyConstraintFwdDynamics};
+pub use constrained::{ContactDynamicsData, MultibodyConstraintFwdDynamics, SharedContactData};
 pub use contacts::{ContactSpec, contacts_at_frames, set_contact_references};
 pub use free::MultibodyFreeFwdDynamics;
 pub use weld::{MultibodyWeldFwdDynamics, WeldData};
@@ -203,6 +203,6 @@ pub fn last_error(data: &OdeData) -> Option<&Error> {
         return ws.error.as_ref();
     }
     data.ws
-        .downcast_ref::<ContactDynamicsData>()
-        .and_then(|ws| ws.last_error())
+        .downcast_ref::<constrained::ContactOdeWs>()
+        .and_then(|ws| ws.error.as_ref())
 }

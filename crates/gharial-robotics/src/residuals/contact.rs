@@ -13,14 +13,14 @@ use std::ops::Range;
 use std::sync::Arc;
 
 use faer::{Accum, Mat, MatMut};
-use gharial::functions::{StageFunction, StageFunctionData, Workspace};
+use gharial::functions::{StageFunction, StageFunctionData, Workspace, lock};
 use gharial::linalg::{matmul, slice_mut};
 use gharial::{Error, Result};
 use gharial_multibody::spatial::{Mat3, Vec3};
 use gharial_multibody::{ContactModel, ContactType, ReferenceFrame};
 
 use super::{VectorTarget, ws};
-use crate::dynamics::{ContactDynamicsData, MultibodyConstraintFwdDynamics};
+use crate::dynamics::{MultibodyConstraintFwdDynamics, SharedContactData};
 
 /// A differentiable map `r = m(f)` of a contact force or wrench `f`.
 pub trait ForceMap: Send + Sync + Debug {
@@ -60,7 +60,7 @@ fn contact_model(dynamics: &MultibodyConstraintFwdDynamics, contact: usize) -> R
 /// Scratch of a [`ContactResidual`]: the constrained dynamics at the last point and
 /// `∂m/∂f`.
 struct ContactWs {
-    dynamics: ContactDynamicsData,
+    dynamics: SharedContactData,
     dm_df: Mat<f64>,
 }
 
@@ -119,7 +119,7 @@ impl<M: ForceMap> StageFunction for ContactResidual<M> {
     }
     fn create_workspace(&self) -> Workspace {
         Box::new(ContactWs {
-            dynamics: self.dynamics.create_contact_data(),
+            dynamics: self.dynamics.shared_contact_data(),
             dm_df: Mat::zeros(self.map.nr(), self.map.nf()),
         })
     }
@@ -127,7 +127,7 @@ impl<M: ForceMap> StageFunction for ContactResidual<M> {
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
         let w: &mut ContactWs = ws(&mut data.ws);
         let out = slice_mut(&mut data.value);
-        match self.dynamics.contact_forces(x, u, &mut w.dynamics) {
+        match self.dynamics.contact_forces(x, u, &mut lock(&w.dynamics)) {
             Ok(lambda) => self.map.value(&lambda[self.rows.clone()], out),
             Err(_) => out.fill(f64::NAN),
         }
@@ -135,12 +135,12 @@ impl<M: ForceMap> StageFunction for ContactResidual<M> {
 
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
         let w: &mut ContactWs = ws(&mut data.ws);
-        if self.dynamics.contact_force_jacobians(x, u, &mut w.dynamics).is_err() {
+        let mut d = lock(&w.dynamics);
+        if self.dynamics.contact_force_jacobians(x, u, &mut d).is_err() {
             data.jx.fill(f64::NAN);
             data.ju.fill(f64::NAN);
             return;
         }
-        let d = &w.dynamics;
         let (r0, nf) = (self.rows.start, self.rows.len());
         self.map.jacobian(&d.lambda()[self.rows.clone()], w.dm_df.as_mut());
         let dm = w.dm_df.as_ref();
@@ -507,7 +507,7 @@ pub struct StackedContactResidual<M: ForceMap> {
 /// Scratch of a [`StackedContactResidual`]: the constrained dynamics at the last point
 /// and `∂m/∂f` of each part.
 struct StackedWs {
-    dynamics: ContactDynamicsData,
+    dynamics: SharedContactData,
     dm_df: Vec<Mat<f64>>,
 }
 
@@ -554,7 +554,7 @@ impl<M: ForceMap> StageFunction for StackedContactResidual<M> {
     }
     fn create_workspace(&self) -> Workspace {
         Box::new(StackedWs {
-            dynamics: self.dynamics().create_contact_data(),
+            dynamics: self.dynamics().shared_contact_data(),
             dm_df: self.parts.iter().map(|p| Mat::zeros(p.map.nr(), p.map.nf())).collect(),
         })
     }
@@ -562,7 +562,8 @@ impl<M: ForceMap> StageFunction for StackedContactResidual<M> {
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
         let w: &mut StackedWs = ws(&mut data.ws);
         let out = slice_mut(&mut data.value);
-        let Ok(lambda) = self.dynamics().contact_forces(x, u, &mut w.dynamics) else {
+        let mut d = lock(&w.dynamics);
+        let Ok(lambda) = self.dynamics().contact_forces(x, u, &mut d) else {
             out.fill(f64::NAN);
             return;
         };
@@ -576,12 +577,12 @@ impl<M: ForceMap> StageFunction for StackedContactResidual<M> {
 
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut StageFunctionData) {
         let w: &mut StackedWs = ws(&mut data.ws);
-        if self.dynamics().contact_force_jacobians(x, u, &mut w.dynamics).is_err() {
+        let mut d = lock(&w.dynamics);
+        if self.dynamics().contact_force_jacobians(x, u, &mut d).is_err() {
             data.jx.fill(f64::NAN);
             data.ju.fill(f64::NAN);
             return;
         }
-        let d = &w.dynamics;
         let mut off = 0;
         for (p, dm) in self.parts.iter().zip(w.dm_df.iter_mut()) {
             let (r0, nf, nr) = (p.rows.start, p.rows.len(), p.map.nr());

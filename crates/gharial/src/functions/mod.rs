@@ -14,6 +14,7 @@ use faer::{Col, Mat};
 
 mod compose;
 mod linear;
+mod shared;
 mod state_error;
 #[cfg(test)]
 pub(crate) mod testing;
@@ -21,6 +22,7 @@ pub(crate) mod util;
 
 pub use compose::{FunctionStack, LinearComposition, Slice};
 pub use linear::{LinearFunction, LinearUnaryFunction};
+pub use shared::{lock, shared_data, with_shared_data};
 pub use state_error::{ControlError, StateError};
 
 /// Scratch memory owned by a data object and private to the model that created it.

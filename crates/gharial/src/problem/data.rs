@@ -95,7 +95,13 @@ impl StageData {
 
     /// The data of `stage`, allocated once (for receding horizons: the data of a stage
     /// that will enter the horizon, see [`ProblemData::shift`]).
+    /// Models of the stage that ask for the same shared data get one object
+    /// ([`crate::functions::shared_data`]).
     pub fn new(stage: &StageModel) -> Self {
+        crate::functions::with_shared_data(|| Self::create(stage))
+    }
+
+    fn create(stage: &StageModel) -> Self {
         let (s, sn) = (stage.space(), stage.space_next());
         let (ndx, ndx2, nu) = (s.ndx(), sn.ndx(), stage.nu());
         let dynamics = match &stage.dynamics {
