@@ -58,6 +58,36 @@ pub(crate) fn matmul_lower(
     );
 }
 
+/// The smallest `k` such that `m = diag(m_b, s I)` with `m_b` of size `k × k` (`0`: `m`
+/// is `s I`): the structure of Jacobians on a Lie group times vector spaces.
+pub(crate) fn identity_block(m: MatRef<'_, f64>, s: f64) -> usize {
+    let mut k = 0;
+    for j in 0..m.ncols() {
+        for i in 0..m.nrows() {
+            if m[(i, j)] != if i == j { s } else { 0.0 } {
+                k = k.max(i.max(j) + 1);
+            }
+        }
+    }
+    k
+}
+
+/// `dst = m src` for a square `m = diag(m_b, I)` (`k` = [`identity_block`]`(m, 1)`): the
+/// rows past `k` are copied, the first `k` multiplied by `m_b`.
+pub(crate) fn matmul_identity_block(mut dst: MatMut<'_, f64>, m: MatRef<'_, f64>, src: MatRef<'_, f64>, k: usize) {
+    let (n, rest) = (src.ncols(), src.nrows() - k);
+    super::copy(dst.rb_mut().subrows_mut(k, rest), src.subrows(k, rest));
+    if k > 0 {
+        matmul(
+            dst.subrows_mut(0, k),
+            Accum::Replace,
+            m.submatrix(0, 0, k, k),
+            src.submatrix(0, 0, k, n),
+            1.0,
+        );
+    }
+}
+
 /// Scratch of [`gram_lower`] for products of `nr × n` matrices.
 #[derive(Debug, Clone)]
 pub(crate) struct GramScratch {

@@ -89,7 +89,7 @@ pub(crate) use bunch_kaufman::BunchKaufman;
 pub(crate) use copy::copy_transposed;
 pub(crate) use ldlt::Ldlt;
 pub(crate) use llt::Llt;
-pub(crate) use matmul::{GramScratch, gram_lower, matmul_lower};
+pub(crate) use matmul::{GramScratch, gram_lower, identity_block, matmul_identity_block, matmul_lower};
 pub(crate) use matvec::matvec_t;
 pub(crate) use psd_sqrt::psd_sqrt;
 pub(crate) use qr::{householder_r, semidefinite_cholesky_upper, upper_solve, upper_t_solve};

@@ -249,3 +249,29 @@ fn gram_lower_matches_the_naive_product() {
         }
     }
 }
+
+/// The block structure `diag(m_b, s I)` is found exactly, and the product with it equals
+/// the naive one.
+#[test]
+fn identity_blocks_are_found_and_multiplied() {
+    use super::{identity_block, matmul_identity_block};
+    let n = 9;
+    for k in [0, 1, 4, 9] {
+        for s in [1.0, -1.0] {
+            let mut m = Mat::from_fn(n, n, |i, j| if i == j { s } else { 0.0 });
+            if k > 0 {
+                // A block whose last row and column differ from s I in one entry each.
+                m[(k - 1, 0)] = 0.5;
+                m[(0, k - 1)] += 0.25;
+            }
+            assert_eq!(identity_block(m.as_ref(), s), k, "k = {k}, s = {s}");
+            if s == 1.0 {
+                let src = filled(n, 5, k);
+                let mut dst = Mat::zeros(n, 5);
+                matmul_identity_block(dst.as_mut(), m.as_ref(), src.as_ref(), k);
+                let reference = naive(m.as_ref(), src.as_ref());
+                assert!((&dst - &reference).norm_max() < 1e-14, "k = {k}");
+            }
+        }
+    }
+}

@@ -11,7 +11,7 @@
 use faer::prelude::ReborrowMut;
 use faer::{Accum, Mat, MatMut, MatRef};
 
-use crate::linalg::{self, FactorError, Lu, matmul};
+use crate::linalg::{self, FactorError, Lu, identity_block, matmul};
 
 /// `E = diag(E_b, -I)` factored through `E_b` (module documentation).
 #[derive(Debug)]
@@ -23,19 +23,6 @@ pub(crate) struct EFactor {
     /// `E_b⁻¹E_b⁻ᵀ` scratch (leading `k × k` corner).
     inv: Mat<f64>,
     lu: Lu,
-}
-
-/// The smallest `k` such that `m = diag(m_b, -I)` with `m_b` of size `k × k`.
-pub(crate) fn minus_identity_block(m: MatRef<'_, f64>) -> usize {
-    let mut k = 0;
-    for j in 0..m.ncols() {
-        for i in 0..m.nrows() {
-            if m[(i, j)] != if i == j { -1.0 } else { 0.0 } {
-                k = k.max(i.max(j) + 1);
-            }
-        }
-    }
-    k
 }
 
 impl EFactor {
@@ -59,7 +46,7 @@ impl EFactor {
         self.k = if super::is_minus_identity(e) {
             0
         } else {
-            minus_identity_block(e)
+            identity_block(e, -1.0)
         };
         let k = self.k;
         if k == 0 {

@@ -9,7 +9,7 @@ use crate::costs::CostData;
 use crate::dynamics::{Dynamics, ExplicitDynamicsData, ImplicitDynamicsData};
 use crate::error::{Error, Result};
 use crate::functions::StageFunctionData;
-use crate::linalg::{matmul, matvec_t, slice, slice_mut};
+use crate::linalg::{identity_block, matmul_identity_block, matvec_t, slice, slice_mut};
 use crate::spaces::Arg;
 
 /// What the dynamics model of a stage writes.
@@ -307,22 +307,12 @@ impl StageData {
                     crate::linalg::copy(self.dyn_jx.as_mut(), d.jx.as_ref());
                     crate::linalg::copy(self.dyn_ju.as_mut(), d.ju.as_ref());
                 } else {
-                    // f = φ ⊖ y: df/dx = J_φ φ_x, df/du = J_φ φ_u, df/dy = d(φ ⊖ y)/dy.
+                    // f = φ ⊖ y: df/dx = J_φ φ_x, df/du = J_φ φ_u, df/dy = d(φ ⊖ y)/dy;
+                    // J_φ is the identity outside its group block.
                     sn.jdifference(y, d.xnext(), Arg::Second, self.jdiff_phi.as_mut());
-                    matmul(
-                        self.dyn_jx.as_mut(),
-                        Accum::Replace,
-                        self.jdiff_phi.as_ref(),
-                        d.jx.as_ref(),
-                        1.0,
-                    );
-                    matmul(
-                        self.dyn_ju.as_mut(),
-                        Accum::Replace,
-                        self.jdiff_phi.as_ref(),
-                        d.ju.as_ref(),
-                        1.0,
-                    );
+                    let (jp, k) = (self.jdiff_phi.as_ref(), identity_block(self.jdiff_phi.as_ref(), 1.0));
+                    matmul_identity_block(self.dyn_jx.as_mut(), jp, d.jx.as_ref(), k);
+                    matmul_identity_block(self.dyn_ju.as_mut(), jp, d.ju.as_ref(), k);
                     sn.jdifference(y, d.xnext(), Arg::First, self.dyn_jy.as_mut());
                 }
             }
