@@ -14,7 +14,7 @@ use gharial::autodiff::{AutoCostFn, AutoDiff, AutoUnaryFn, ManifoldScalar};
 use gharial::constraints::{BoxConstraint, ConstraintSet, EqualityConstraintSet, NegativeOrthant, SecondOrderCone};
 use gharial::costs::QuadraticCost;
 use gharial::functions::{LinearUnaryFunction, UnaryFunction};
-use gharial::nlp::{Nlp, NlpConstraint, NlpProblem, ProxNlp, ProxNlpOcp, ProxNlpOptions};
+use gharial::nlp::{KktSolver, Nlp, NlpConstraint, NlpProblem, ProxNlp, ProxNlpOcp, ProxNlpOptions};
 use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions};
 use gharial::solvers::{HessianApprox, InitialGuess, Solver, Status};
 use gharial::spaces::{Manifold, SO3, VectorSpace};
@@ -522,10 +522,14 @@ fn bad_input_gets_clear_errors_and_statuses() {
     let (xs5, us5) = zero_guess(&other);
     assert!(o.solve(&other, InitialGuess::primal(&xs5, &us5)).is_err());
     assert!(o.setup_receding(&p, &[]).unwrap_err().to_string().contains("receding"));
-    // A problem too large for the dense system is refused before anything is allocated.
+    // A problem too large for the dense system is refused before anything is allocated
+    // when the dense solve is asked for; the default solves it sparsely.
     let long = ocp(&random_lq(2, 1, 1000, 3), None, None);
-    let e = Solver::setup(&mut o, &long).unwrap_err().to_string();
+    let mut dense = ProxNlpOcp::new(ProxNlpOptions::default().with(|o| o.kkt = KktSolver::Dense));
+    let e = Solver::setup(&mut dense, &long).unwrap_err().to_string();
     assert!(e.contains("5004 rows") && e.contains("proxddp"), "{e}");
+    Solver::setup(&mut o, &long).unwrap();
+    assert!(o.kkt_stats().is_some_and(|k| k.sparse && k.dim == 5004));
 }
 
 /// `√x_0 + x_1²`: not finite for `x_0 < 0`.

@@ -51,13 +51,15 @@
 //! [`Solver`](crate::solvers::Solver) [`ProxNlpOcp`] (name `proxnlp`) cross-checks
 //! ProxDDP's optimum on small problems.
 
+mod kkt;
 mod ocp;
 mod options;
 mod problem;
 mod solver;
 mod workspace;
 
+pub use kkt::{AUTO_SPARSE_DIM, KktStats, MAX_KKT_DIM};
 pub use ocp::{OcpLayout, OcpNlp, ProxNlpOcp};
-pub use options::ProxNlpOptions;
-pub use problem::{ConstraintBlock, Nlp, NlpConstraint, NlpData, NlpProblem, num_rows};
-pub use solver::{MAX_KKT_DIM, NlpSolution, ProxNlp};
+pub use options::{KktSolver, ProxNlpOptions};
+pub use problem::{Columns, ConstraintBlock, Nlp, NlpConstraint, NlpData, NlpProblem, NlpSparsity, num_rows};
+pub use solver::{NlpSolution, ProxNlp};
