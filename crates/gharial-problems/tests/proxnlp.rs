@@ -70,3 +70,12 @@ fn se2_car_optimum_agrees() {
 fn pendulum_optimum_agrees() {
     agree("pendulum", 1e-10);
 }
+
+/// The UR5 reaching problems, whose systems are too large for the dense solve: through
+/// the sparse KKT solve (the default above `AUTO_SPARSE_DIM` rows).
+#[test]
+fn ur5_optima_agree_with_the_sparse_kkt() {
+    for name in ["ur5", "ur5-box"] {
+        agree(name, 1e-10);
+    }
+}

@@ -1,4 +1,4 @@
-//! Sparse symmetric matrices: [`SymmetricCsc`] (the lower triangle in compressed columns,
+//! Sparse symmetric matrices: [`SymmetricCsc`] (the upper triangle in compressed columns,
 //! with its product), [`SparseLdlt`] (`A = L D Lᵀ` without pivoting in the given order, by
 //! faer's simplicial or supernodal Cholesky, the inertia read off `D`) and [`amd_order`]
 //! (faer's approximate minimum degree ordering).
@@ -15,8 +15,9 @@ use faer::{Conj, MatMut, Par, Side};
 
 use super::{FactorError, Inertia};
 
-/// A symmetric `n x n` matrix by its lower triangle in compressed sparse columns (row
-/// indices sorted within each column, every diagonal entry stored).
+/// A symmetric `n x n` matrix by its upper triangle in compressed sparse columns (row
+/// indices sorted within each column, every diagonal entry stored): the form faer's
+/// symbolic Cholesky analyses.
 #[derive(Debug, Clone)]
 pub(crate) struct SymmetricCsc {
     n: usize,
@@ -27,17 +28,20 @@ pub(crate) struct SymmetricCsc {
 }
 
 impl SymmetricCsc {
-    /// The matrix with the lower-triangle pattern `rows[j]` (the rows `i >= j` of column
-    /// `j`, in any order, duplicates allowed; the diagonal is added), values zero.
-    pub fn from_lower_pattern(rows: &[Vec<usize>]) -> Self {
-        let n = rows.len();
+    /// The `n x n` matrix with the entries `(i, j)` and `(j, i)` of `entries` (duplicates
+    /// allowed) and the diagonal, values zero.
+    pub fn from_entries(n: usize, entries: impl IntoIterator<Item = (usize, usize)>) -> Self {
+        let mut rows = vec![Vec::new(); n];
+        for (i, j) in entries {
+            rows[i.max(j)].push(i.min(j));
+        }
         let mut col_ptr = Vec::with_capacity(n + 1);
         let mut row_idx = Vec::new();
         col_ptr.push(0);
         for (j, r) in rows.iter().enumerate() {
             let start = row_idx.len();
+            row_idx.extend_from_slice(r);
             row_idx.push(j);
-            row_idx.extend(r.iter().copied().filter(|&i| i > j));
             sort_unique_tail(&mut row_idx, start);
             col_ptr.push(row_idx.len());
         }
@@ -62,7 +66,7 @@ impl SymmetricCsc {
 
     /// The index in [`values`](Self::values) of entry `(i, j)` or `(j, i)`, if stored.
     pub fn position(&self, i: usize, j: usize) -> Option<usize> {
-        let (i, j) = if i >= j { (i, j) } else { (j, i) };
+        let (i, j) = (i.min(j), i.max(j));
         let col = &self.row_idx[self.col_ptr[j]..self.col_ptr[j + 1]];
         col.binary_search(&i).ok().map(|k| self.col_ptr[j] + k)
     }
@@ -112,7 +116,7 @@ impl SparseLdlt {
     pub fn new(a: &SymmetricCsc) -> Option<Self> {
         let symbolic = factorize_symbolic_cholesky(
             a.symbolic(),
-            Side::Lower,
+            Side::Upper,
             SymmetricOrdering::Identity,
             CholeskySymbolicParams::default(),
         )
@@ -144,7 +148,7 @@ impl SparseLdlt {
         match self.symbolic.factorize_numeric_ldlt(
             &mut self.l_values,
             mat,
-            Side::Lower,
+            Side::Upper,
             no_regularization,
             Par::Seq,
             stack,

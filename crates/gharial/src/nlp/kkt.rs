@@ -7,7 +7,7 @@
 //!
 //! (the multiplier rows first) and its solution by LDLᵀ without pivoting, the inertia
 //! read off `D`: densely ([`KktSolver::Dense`], the whole matrix) or sparsely
-//! ([`KktSolver::Sparse`], faer's sparse Cholesky on the lower triangle, the symbolic
+//! ([`KktSolver::Sparse`], faer's sparse Cholesky on the upper triangle, the symbolic
 //! factorization made once). Both eliminate every multiplier before any primal variable,
 //! so that their pivots are `-mu` and then those of the reduced Hessian
 //! `H + δI + Cᵀ C / mu` (the sparse solve orders the primal variables by AMD on the
@@ -66,7 +66,7 @@ pub(super) struct DenseKkt {
     resid: Vec<f64>,
 }
 
-/// The sparse system: the lower triangle in the elimination order (multipliers in their
+/// The sparse system: the upper triangle in the elimination order (multipliers in their
 /// order, then the primal variables in AMD order), with the positions of every block's
 /// entries computed once.
 pub(super) struct SparseKkt {
@@ -81,7 +81,8 @@ pub(super) struct SparseKkt {
     pdiag: Vec<usize>,
     /// Per constraint block, the positions of its `m x s` entries of `C` (row-major).
     cpos: Vec<Vec<usize>>,
-    /// Per Hessian term, the positions of its lower-triangle entries (column by column).
+    /// Per Hessian term, the positions of its entries `(a, b)`, `a >= b` (column by
+    /// column).
     hpos: Vec<Vec<usize>>,
     /// Right-hand side in the elimination order, solution, refinement residual.
     b: Vec<f64>,
@@ -296,19 +297,16 @@ impl SparseKkt {
             pinv[j] = k;
         }
         let row_of = |j: usize| nc + pinv[j];
-        // The lower triangle: multiplier columns hold C, primal columns the Hessian terms.
-        let mut pattern = vec![Vec::new(); n];
-        for (r, cols) in rows.iter().zip(&sp.jacobian) {
-            for i in r.clone() {
-                pattern[i].extend(cols.iter().map(row_of));
-            }
-        }
-        for cols in &sp.hessian {
-            for a in cols.iter() {
-                pattern[row_of(a)].extend(cols.iter().map(row_of).filter(|&p| p > row_of(a)));
-            }
-        }
-        let base = SymmetricCsc::from_lower_pattern(&pattern);
+        // The entries of C and of the Hessian terms.
+        let c_entries = rows
+            .iter()
+            .zip(&sp.jacobian)
+            .flat_map(|(r, cols)| r.clone().flat_map(move |i| cols.iter().map(move |j| (i, row_of(j)))));
+        let h_entries = sp.hessian.iter().flat_map(|cols| {
+            cols.iter()
+                .flat_map(move |a| cols.iter().map(move |b| (row_of(a), row_of(b))))
+        });
+        let base = SymmetricCsc::from_entries(n, c_entries.chain(h_entries));
         let pos = |i: usize, j: usize| base.position(i, j).expect("in the pattern");
         let cpos = rows
             .iter()
