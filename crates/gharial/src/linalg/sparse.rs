@@ -132,6 +132,12 @@ impl SparseLdlt {
         })
     }
 
+    /// Whether faer chose its supernodal factorization (else the simplicial one).
+    #[cfg(test)]
+    pub fn is_supernodal(&self) -> bool {
+        matches!(self.symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_))
+    }
+
     /// Number of stored entries of the factor.
     pub fn factor_nnz(&self) -> usize {
         self.l_values.len()
