@@ -55,7 +55,7 @@ pub(super) struct NonFiniteStep;
 
 /// The Newton system and its factorization, dense or sparse.
 pub(super) enum Kkt {
-    Dense(DenseKkt),
+    Dense(Box<DenseKkt>),
     Sparse(Box<SparseKkt>),
 }
 
@@ -125,13 +125,13 @@ impl Kkt {
                  solve it with the sparse KKT (kkt: Sparse or Auto) or with proxddp"
             )));
         }
-        Ok(Self::Dense(DenseKkt {
+        Ok(Self::Dense(Box::new(DenseKkt {
             nc,
             base: Mat::zeros(n, n),
             kkt: Mat::zeros(n, n),
             factor: Ldlt::new(n),
             resid: vec![0.0; n],
-        }))
+        })))
     }
 
     /// How the system is solved and its size.

@@ -54,7 +54,7 @@ impl Columns {
 
     /// All columns `0..n`.
     pub fn all(n: usize) -> Self {
-        Self::new([0..n])
+        Self::new(std::iter::once(0..n))
     }
 
     /// Number of columns.
