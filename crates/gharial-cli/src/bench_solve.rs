@@ -429,8 +429,7 @@ fn peers_solvers(args: &PeersArgs) -> Vec<(&'static str, SolverArgs)> {
 /// the harness's independent check, all solvers of a problem together. ProxDDP starts
 /// from each problem's catalogue settings (the harness's: `mu_init` and rollout per
 /// family). A solver other than ProxDDP whose setup refuses a problem (DDP and FDDP take
-/// no constraints, the box variants control bounds only, ProxNLP no problem too large for
-/// its dense KKT system) gets no line, as the harness runs crocoddyl's solvers only on
+/// no constraints, the box variants control bounds only) gets no line, as the harness runs crocoddyl's solvers only on
 /// the problems they take; the skips and their reasons are noted on standard error. A problem gharial cannot build, or any other failure, gets a line with an
 /// `error`.
 pub fn peers(args: &PeersArgs) -> i32 {

@@ -37,7 +37,7 @@ pub enum SolverKind {
     BclDdp,
     /// ALTRO.
     Altro,
-    /// ProxNLP on the whole problem (dense KKT).
+    /// ProxNLP on the whole problem (dense or sparse KKT).
     ProxNlp,
 }
 
@@ -111,7 +111,7 @@ impl SolverKind {
             }
             SolverKind::Altro => "AL-iLQR with a Newton projection (Howell et al. 2019); constraints with a projection",
             SolverKind::ProxNlp => {
-                "ProxDDP's primal-dual augmented Lagrangian on the whole problem with a dense KKT (Jallet et al. 2023); any constraints, small problems"
+                "ProxDDP's primal-dual augmented Lagrangian on the whole problem with a dense or sparse KKT (Jallet et al. 2023); any constraints"
             }
         }
     }

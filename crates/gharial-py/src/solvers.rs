@@ -430,7 +430,7 @@ named_solver!(
     PyProxNlp,
     "SolverProxNLP",
     "proxnlp",
-    "ProxNLP on the whole problem with a dense KKT system (small problems; proxnlp's solver)."
+    "ProxNLP on the whole problem, its KKT system solved densely or sparsely (proxnlp's solver)."
 );
 
 /// A solver by name (`proxddp`, `ddp`, `fddp`, `box-ddp`, `box-fddp`, `sqp`, `csqp`,

@@ -5,79 +5,27 @@
 
 #[path = "support/lq_ocp.rs"]
 mod lq_ocp;
+#[path = "support/nlp_problems.rs"]
+mod nlp_problems;
 
 use std::sync::Arc;
 
 use faer::Mat;
 use gharial::Error;
-use gharial::autodiff::{AutoCostFn, AutoDiff, AutoUnaryFn, ManifoldScalar};
-use gharial::constraints::{BoxConstraint, ConstraintSet, EqualityConstraintSet, NegativeOrthant, SecondOrderCone};
+use gharial::autodiff::{AutoCostFn, AutoDiff, ManifoldScalar};
+use gharial::constraints::{NegativeOrthant, SecondOrderCone};
 use gharial::costs::QuadraticCost;
-use gharial::functions::{LinearUnaryFunction, UnaryFunction};
-use gharial::nlp::{Nlp, NlpConstraint, NlpProblem, ProxNlp, ProxNlpOcp, ProxNlpOptions};
+use gharial::functions::LinearUnaryFunction;
+use gharial::nlp::{KktSolver, Nlp, NlpConstraint, NlpProblem, ProxNlp, ProxNlpOcp, ProxNlpOptions};
 use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions};
 use gharial::solvers::{HessianApprox, InitialGuess, Solver, Status};
 use gharial::spaces::{Manifold, SO3, VectorSpace};
 use lq_ocp::*;
+use nlp_problems::*;
 use serde_json::Value;
-
-fn vec_of(v: &Value) -> Vec<f64> {
-    v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect()
-}
-
-fn mat_of(v: &Value) -> Mat<f64> {
-    let rows: Vec<Vec<f64>> = v.as_array().unwrap().iter().map(vec_of).collect();
-    Mat::from_fn(rows.len(), rows.first().map_or(0, Vec::len), |i, j| rows[i][j])
-}
-
-fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
-}
 
 fn tight() -> ProxNlpOptions {
     ProxNlpOptions::default().with(|o| o.tol = 1e-11)
-}
-
-/// The QP `min ½ xᵀPx + qᵀx` of a fixture case as an NLP, blocks mapped to gharial's sets
-/// with the multiplier convention the tool writes.
-fn qp_nlp(case: &Value) -> NlpProblem {
-    let p = mat_of(&case["P"]);
-    let q = vec_of(&case["q"]);
-    let n = q.len();
-    let cost = Arc::new(QuadraticCost::terminal(p.as_ref(), &q).unwrap());
-    let mut nlp = NlpProblem::new(Arc::new(VectorSpace::new(n)), cost).unwrap();
-    for (k, b) in case["blocks"].as_array().unwrap().iter().enumerate() {
-        let a = mat_of(&b["A"]);
-        let rhs = vec_of(&b["b"]);
-        let m = a.nrows();
-        let neg: Vec<f64> = rhs.iter().map(|v| -v).collect();
-        let (func, set): (LinearUnaryFunction, Arc<dyn ConstraintSet>) = match b["kind"].as_str().unwrap() {
-            "eq" => (
-                LinearUnaryFunction::new(a.as_ref(), &neg).unwrap(),
-                Arc::new(EqualityConstraintSet),
-            ),
-            "le" => (
-                LinearUnaryFunction::new(a.as_ref(), &neg).unwrap(),
-                Arc::new(NegativeOrthant),
-            ),
-            "box" => (
-                LinearUnaryFunction::new(a.as_ref(), &vec![0.0; m]).unwrap(),
-                Arc::new(BoxConstraint::new(&rhs[..m], &rhs[m..]).unwrap()),
-            ),
-            "soc" => {
-                let minus_a = Mat::from_fn(m, n, |i, j| -a[(i, j)]);
-                (
-                    LinearUnaryFunction::new(minus_a.as_ref(), &rhs).unwrap(),
-                    Arc::new(SecondOrderCone::new(m).unwrap()),
-                )
-            }
-            other => panic!("unknown block kind {other}"),
-        };
-        nlp.add_constraint(NlpConstraint::new(format!("block {k}"), Arc::new(func), set))
-            .unwrap();
-    }
-    nlp
 }
 
 /// The projection onto the second-order cone `{(t, s): |s| <= t}` (written here from
@@ -143,11 +91,9 @@ fn qp_kkt_residual(case: &Value, x: &[f64], nu: &[f64]) -> f64 {
 /// comparison is to 1e-6 and the KKT residual decides.
 #[test]
 fn small_qps_match_clarabel_optimum_and_multipliers() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/qp_reference.json");
-    let doc: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    let cases = doc["qps"].as_array().unwrap();
+    let cases = qp_cases();
     assert_eq!(cases.len(), 3);
-    for case in cases {
+    for case in &cases {
         let name = case["name"].as_str().unwrap();
         let nlp = qp_nlp(case);
         let mut solver = ProxNlp::new(tight());
@@ -180,51 +126,6 @@ fn small_qps_match_clarabel_optimum_and_multipliers() {
     }
 }
 
-/// `-aᵀ b(q)` with `b(q) = R(q) e_z` the body z axis of the unit quaternion `q = (x, y, z, w)`.
-struct Alignment {
-    a: [f64; 3],
-}
-
-fn body_z<D: ManifoldScalar>(q: &[D]) -> [D; 3] {
-    let (x, y, z, w) = (q[0], q[1], q[2], q[3]);
-    let two = D::from(2.0);
-    [
-        two * (x * z + w * y),
-        two * (y * z - w * x),
-        D::from(1.0) - two * (x * x + y * y),
-    ]
-}
-
-impl AutoCostFn for Alignment {
-    fn nx(&self) -> usize {
-        4
-    }
-    fn nu(&self) -> usize {
-        0
-    }
-    fn eval<D: ManifoldScalar>(&self, x: &[D], _u: &[D]) -> D {
-        let b = body_z(x);
-        -(b[0] * self.a[0] + b[1] * self.a[1] + b[2] * self.a[2])
-    }
-}
-
-/// `cos β - b_z(q) ≤ 0`: the body z axis at most `β` from the vertical.
-struct Tilt {
-    cos_beta: f64,
-}
-
-impl AutoUnaryFn for Tilt {
-    fn nx(&self) -> usize {
-        4
-    }
-    fn nr(&self) -> usize {
-        1
-    }
-    fn eval<D: ManifoldScalar>(&self, x: &[D], out: &mut [D]) {
-        out[0] = D::from(self.cos_beta) - body_z(x)[2];
-    }
-}
-
 /// Central finite differences of `δ ↦ g(x ⊕ δ)` on `space`.
 fn fd_gradient(space: &dyn Manifold, x: &[f64], g: &dyn Fn(&[f64]) -> f64) -> Vec<f64> {
     let h = 1e-6;
@@ -249,17 +150,10 @@ fn fd_gradient(space: &dyn Manifold, x: &[f64], g: &dyn Fn(&[f64]) -> f64) -> Ve
 /// singular and the inertia correction keeps the steps defined.
 #[test]
 fn tilt_limited_alignment_on_so3_reaches_the_analytical_optimum() {
-    let (gamma, beta, phi) = (1.1_f64, 0.5_f64, 0.7_f64);
-    let a = [gamma.sin() * phi.cos(), gamma.sin() * phi.sin(), gamma.cos()];
-    let space: Arc<dyn Manifold> = Arc::new(SO3::new());
-    let cost = Arc::new(AutoDiff::cost(space.clone(), Alignment { a }).unwrap());
-    let tilt = Arc::new(AutoDiff::unary(space.clone(), Tilt { cos_beta: beta.cos() }).unwrap());
-    let nlp = NlpProblem::new(space.clone(), cost.clone())
-        .unwrap()
-        .with_constraint(NlpConstraint::new("tilt", tilt.clone(), Arc::new(NegativeOrthant)))
-        .unwrap();
-    // A start tilted away from `a` (rotation about x by 0.3).
-    let x0 = [(0.15_f64).sin(), 0.0, 0.0, (0.15_f64).cos()];
+    let (gamma, beta, phi) = TILT_ANGLES;
+    let (nlp, cost, tilt) = tilt_problem();
+    let space = nlp.space();
+    let x0 = tilt_start();
     // The exact Hessian: the constraint's curvature makes the Lagrangian's Hessian
     // positive on the tangent of the constraint (the Gauss-Newton one is indefinite there
     // and needs a large primal regularisation, which leaves a linear rate).
@@ -298,26 +192,11 @@ fn tilt_limited_alignment_on_so3_reaches_the_analytical_optimum() {
             tilt.evaluate(q, &mut fd);
             cd.value + nu * fd.value[0]
         };
-        let g = fd_gradient(&*space, &sol.x, &lagrangian);
+        let g = fd_gradient(space, &sol.x, &lagrangian);
         assert!(
             g.iter().all(|v| v.abs() < 1e-7),
             "{hessian:?}: FD Lagrangian gradient {g:?}"
         );
-    }
-}
-
-/// `|x|² - 1` on R³ (a sphere through an equality constraint).
-struct Sphere;
-
-impl AutoUnaryFn for Sphere {
-    fn nx(&self) -> usize {
-        3
-    }
-    fn nr(&self) -> usize {
-        1
-    }
-    fn eval<D: ManifoldScalar>(&self, x: &[D], out: &mut [D]) {
-        out[0] = x[0] * x[0] + x[1] * x[1] + x[2] * x[2] - D::from(1.0);
     }
 }
 
@@ -328,18 +207,7 @@ impl AutoUnaryFn for Sphere {
 fn closest_point_on_a_capped_sphere_matches_the_analytical_kkt_point() {
     let a = [0.6, -0.9, 1.5];
     let h = 0.2;
-    let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(3));
-    let cost = Arc::new(QuadraticCost::terminal(Mat::<f64>::identity(3, 3).as_ref(), &[-a[0], -a[1], -a[2]]).unwrap());
-    let sphere = Arc::new(AutoDiff::unary(space.clone(), Sphere).unwrap());
-    let plane = Arc::new(
-        LinearUnaryFunction::new(Mat::from_fn(1, 3, |_, j| f64::from(u8::from(j == 2))).as_ref(), &[-h]).unwrap(),
-    );
-    let nlp = NlpProblem::new(space, cost)
-        .unwrap()
-        .with_constraint(NlpConstraint::new("sphere", sphere, Arc::new(EqualityConstraintSet)))
-        .unwrap()
-        .with_constraint(NlpConstraint::new("plane", plane, Arc::new(NegativeOrthant)))
-        .unwrap();
+    let nlp = capped_sphere(a, h);
     let r = (1.0 - h * h).sqrt();
     let a12 = (a[0] * a[0] + a[1] * a[1]).sqrt();
     let x_star = [r * a[0] / a12, r * a[1] / a12, h];
@@ -522,10 +390,14 @@ fn bad_input_gets_clear_errors_and_statuses() {
     let (xs5, us5) = zero_guess(&other);
     assert!(o.solve(&other, InitialGuess::primal(&xs5, &us5)).is_err());
     assert!(o.setup_receding(&p, &[]).unwrap_err().to_string().contains("receding"));
-    // A problem too large for the dense system is refused before anything is allocated.
+    // A problem too large for the dense system is refused before anything is allocated
+    // when the dense solve is asked for; the default solves it sparsely.
     let long = ocp(&random_lq(2, 1, 1000, 3), None, None);
-    let e = Solver::setup(&mut o, &long).unwrap_err().to_string();
+    let mut dense = ProxNlpOcp::new(ProxNlpOptions::default().with(|o| o.kkt = KktSolver::Dense));
+    let e = Solver::setup(&mut dense, &long).unwrap_err().to_string();
     assert!(e.contains("5004 rows") && e.contains("proxddp"), "{e}");
+    Solver::setup(&mut o, &long).unwrap();
+    assert!(o.kkt_stats().is_some_and(|k| k.sparse && k.dim == 5004));
 }
 
 /// `√x_0 + x_1²`: not finite for `x_0 < 0`.

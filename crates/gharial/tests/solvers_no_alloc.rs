@@ -18,7 +18,7 @@ use gharial::costs::{QuadraticControlCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, ExplicitRungeKutta, ImplicitEuler, Ode};
 use gharial::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary};
 use gharial::mpc::{Mpc, MpcOptions};
-use gharial::nlp::{ProxNlpOcp, ProxNlpOptions};
+use gharial::nlp::{KktSolver, ProxNlpOcp, ProxNlpOptions};
 use gharial::problem::{Problem, StageConstraint, StageModel};
 use gharial::solvers::InitialGuess;
 use gharial::solvers::Solver;
@@ -293,13 +293,18 @@ fn proxnlp_solve_does_not_allocate_after_setup() {
     for implicit in [false, true] {
         let p = problem(implicit, 2);
         let (xs, us) = guess(&p);
-        for hessian in [HessianApprox::GaussNewton, HessianApprox::Exact] {
+        for (hessian, kkt) in [HessianApprox::GaussNewton, HessianApprox::Exact]
+            .into_iter()
+            .flat_map(|h| [KktSolver::Dense, KktSolver::Sparse].map(|k| (h, k)))
+        {
             let opts = ProxNlpOptions::default().with(|o| {
                 o.hessian = hessian;
                 o.max_iters = 20;
+                o.kkt = kkt;
             });
             let mut solver = ProxNlpOcp::new(opts);
             solver.setup(&p).unwrap();
+            assert_eq!(solver.kkt_stats().unwrap().sparse, kkt == KktSolver::Sparse);
             let mut iterations = 0;
             let mut status = gharial::solvers::Status::NotStarted;
             let count = counting_alloc::allocations(|| {
@@ -307,7 +312,7 @@ fn proxnlp_solve_does_not_allocate_after_setup() {
                 (iterations, status) = (sol.iterations, sol.status);
             });
             assert!(iterations > 3, "the solves must do real work: {iterations} {status:?}");
-            assert_eq!(count, 0, "proxnlp implicit {implicit} {hessian:?}");
+            assert_eq!(count, 0, "proxnlp implicit {implicit} {hessian:?} {kkt:?}");
         }
     }
 }

@@ -11,7 +11,8 @@
 //! storage (`views`), and the factorizations LLᵀ (`llt`), LDLᵀ (`ldlt`), Bunch-Kaufman
 //! (`bunch_kaufman`) and LU (`lu`), the square-root kernels (`qr`: Householder QR's
 //! triangular factor, semidefinite Cholesky, triangular solves), the first two with fixed-size kernels up to 12 x 12
-//! (`small`). Products, matrix-vector products, copies and symmetrizations have
+//! (`small`), and sparse symmetric matrices (`sparse`: the lower triangle in compressed
+//! columns, LDLᵀ without pivoting by faer's sparse Cholesky, the AMD ordering). Products, matrix-vector products, copies and symmetrizations have
 //! fixed-size kernels for 1 to 16 rows, with the additions in the order of the generic
 //! loops (bit-identical results).
 //!
@@ -74,6 +75,7 @@ mod psd_sqrt;
 mod qr;
 mod reduce;
 mod small;
+mod sparse;
 mod symmetric;
 #[cfg(test)]
 mod tests;
@@ -94,10 +96,11 @@ pub(crate) use matvec::matvec_t;
 pub(crate) use psd_sqrt::psd_sqrt;
 pub(crate) use qr::{householder_r, semidefinite_cholesky_upper, upper_solve, upper_t_solve};
 pub(crate) use reduce::{all_finite, dot, norm_inf, norm_l1, norm_max, sum_is_finite};
+pub(crate) use sparse::{SparseLdlt, SymmetricCsc, amd_order};
 pub(crate) use symmetric::{identity_plus_scaled_lower, symmetrize, symmetrize_from_lower};
 #[cfg(test)]
-pub(crate) use views::{as_mat, col};
-pub(crate) use views::{as_mat_mut, col_of, col_of_mut};
+pub(crate) use views::col;
+pub(crate) use views::{as_mat, as_mat_mut, col_of, col_of_mut};
 
 /// Inertia of a symmetric matrix: numbers of positive, negative and zero eigenvalues.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

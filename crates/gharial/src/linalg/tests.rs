@@ -275,3 +275,85 @@ fn identity_blocks_are_found_and_multiplied() {
         }
     }
 }
+
+/// A random primal-dual matrix shaped like an OCP's, multiplier rows first: `m = (T - 1)
+/// b` rows with the diagonal `-mu` coupling stage blocks `t` and `t + 1` of `b` primal
+/// variables each, and a block-diagonal Hessian (indefinite when `shift` is negative).
+fn banded_kkt(t: usize, b: usize, shift: f64, rng: &mut crate::lq::random::SplitMix64) -> Mat<f64> {
+    let (n, m) = (t * b, (t - 1) * b);
+    let mut k = Mat::<f64>::zeros(m + n, m + n);
+    for s in 0..t {
+        for i in 0..b {
+            for j in 0..=i {
+                let v = rng.uniform(-0.5, 0.5) + if i == j { 1.0 + shift } else { 0.0 };
+                let (p, q) = (m + s * b + i, m + s * b + j);
+                k[(p, q)] = v;
+                k[(q, p)] = v;
+            }
+        }
+    }
+    for r in 0..m {
+        k[(r, r)] = -1e-3;
+        let s = r / b;
+        for j in s * b..(s + 2) * b {
+            if rng.uniform(0.0, 1.0) < 0.6 {
+                let v = rng.uniform(-1.0, 1.0);
+                k[(r, m + j)] = v;
+                k[(m + j, r)] = v;
+            }
+        }
+    }
+    k
+}
+
+/// The sparse LDLᵀ of primal-dual matrices, simplicial (small blocks) and supernodal
+/// (large blocks): its solution solves the system, and its inertia, on quasi-definite
+/// and on indefinite matrices, is that of faer's eigenvalues.
+#[test]
+fn sparse_ldlt_solves_and_reads_the_inertia_of_kkt_matrices() {
+    let mut rng = crate::lq::random::SplitMix64::new(11);
+    let mut kinds = [false, false];
+    for (t, b) in [(6, 2), (20, 3), (8, 24), (4, 100)] {
+        for shift in [2.0, -1.5] {
+            let k = banded_kkt(t, b, shift, &mut rng);
+            let dim = k.nrows();
+            let entries = (0..dim).flat_map(|j| (0..dim).map(move |i| (i, j)));
+            let mut a = super::SymmetricCsc::from_entries(dim, entries.filter(|&(i, j)| k[(i, j)] != 0.0));
+            for j in 0..dim {
+                for i in 0..=j {
+                    if let Some(p) = a.position(i, j) {
+                        a.values[p] = k[(i, j)];
+                    }
+                }
+            }
+            let mut f = super::SparseLdlt::new(&a).unwrap();
+            kinds[usize::from(f.is_supernodal())] = true;
+            let inertia = f.factor(&a).unwrap();
+            let eig = k.as_ref().self_adjoint_eigenvalues(faer::Side::Lower).unwrap();
+            let pos = eig.iter().filter(|&&e| e > 0.0).count();
+            assert_eq!((inertia.positive, inertia.negative, inertia.zero), (pos, dim - pos, 0));
+            let rhs: Vec<f64> = (0..dim).map(|_| rng.uniform(-1.0, 1.0)).collect();
+            let mut x = rhs.clone();
+            f.solve_in_place(&mut x);
+            let mut r = rhs.clone();
+            a.mul_add(&mut r, &x, -1.0);
+            let scale = norm_max(k.as_ref()) * x.iter().fold(1.0_f64, |a, v| a.max(v.abs()));
+            let res = r.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+            assert!(res < 1e-9 * scale, "t {t} b {b} shift {shift}: residual {res:e}");
+            // The product agrees with the dense one.
+            let mut y = vec![0.0; dim];
+            a.mul_add(&mut y, &rhs, 1.0);
+            let mut yd = Mat::<f64>::zeros(dim, 1);
+            matmul(yd.as_mut(), Accum::Replace, k.as_ref(), super::as_mat(&rhs), 1.0);
+            assert!((0..dim).all(|i| (y[i] - yd[(i, 0)]).abs() < 1e-12));
+        }
+    }
+    assert_eq!(kinds, [true, true], "both factorizations exercised");
+    // A zero pivot and a non-finite value are reported.
+    let mut a = super::SymmetricCsc::from_entries(2, [(0, 1)]);
+    a.values.copy_from_slice(&[0.0, 1.0, 0.0]);
+    let mut f = super::SparseLdlt::new(&a).unwrap();
+    assert!(matches!(f.factor(&a), Err(FactorError::Singular { .. })));
+    a.values[0] = f64::NAN;
+    assert_eq!(f.factor(&a), Err(FactorError::NonFinite));
+}

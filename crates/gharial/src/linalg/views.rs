@@ -1,9 +1,7 @@
 //! Views: slices and faer views of owned columns and matrices, and fixed-size arrays of
 //! the columns of column-major matrices (for the fixed-size kernels).
 
-#[cfg(test)]
-use faer::ColRef;
-use faer::{Col, ColMut, Mat, MatMut, MatRef};
+use faer::{Col, ColMut, ColRef, Mat, MatMut, MatRef};
 
 /// The contiguous storage of an owned column.
 #[inline]
@@ -49,7 +47,6 @@ pub(crate) fn col(s: &[f64]) -> ColRef<'_, f64> {
 }
 
 /// An `n x 1` matrix view of a slice.
-#[cfg(test)]
 #[inline]
 pub(crate) fn as_mat(s: &[f64]) -> MatRef<'_, f64> {
     ColRef::from_slice(s).as_mat()

@@ -25,10 +25,24 @@
 //! [ J_N J      -mu I    ] [δν] = - [ mu (ν⁺ - ν)                 ]
 //! ```
 //!
-//! densely, by an LDLᵀ factorization with the multiplier rows first, whose pivots give the
-//! inertia: it must be `(ndx, nc, 0)` (the reduced Hessian `H + δI + Cᵀ C / mu` positive
-//! definite), and the primal regularisation `δ` grows until it is (inertia correction)
-//! and until the step is a descent direction of the primal-dual merit function (17).
+//! by an LDLᵀ factorization without pivoting, every multiplier row eliminated before the
+//! primal rows, whose pivots give the inertia: it must be `(ndx, nc, 0)` (the reduced
+//! Hessian `H + δI + Cᵀ C / mu` positive definite), and the primal regularisation `δ`
+//! grows until it is (inertia correction) and until the step is a descent direction of
+//! the primal-dual merit function (17).
+//!
+//! The factorization is dense or sparse ([`ProxNlpOptions::kkt`], [`KktSolver`]). The
+//! sparse one assembles the system's upper triangle in compressed columns from the
+//! derivative blocks of the problem ([`NlpSparsity`]: each constraint block's Jacobian
+//! on a set of columns, the Hessian as a sum of terms on sets of columns), with the
+//! primal variables in the approximate-minimum-degree order of the pattern of
+//! `H + Cᵀ C`, and factors it with faer's sparse LDLᵀ: the ordering, the symbolic
+//! factorization and the positions of every block's entries are computed once in
+//! `setup`, each iteration writes the values and runs the numeric factorization in
+//! preallocated memory. Both take the same iterates (to round-off); the default
+//! ([`KktSolver::Auto`]) is sparse above [`AUTO_SPARSE_DIM`] rows when the blocks fill at
+//! most a tenth of the system, which is the case of every optimal control problem of
+//! more than a few stages (its system is block-banded by stage), and dense otherwise.
 //! One step of iterative refinement follows. Where `J_N` is not a projector (a cone's
 //! boundary) the block's rows are `√J_N J` with the multiplier step recovered from the
 //! linearised estimate, which keeps the step the exact semi-smooth Newton step there.
@@ -45,19 +59,23 @@
 //!
 //! # Problems
 //!
-//! An NLP is anything implementing [`Nlp`]; [`NlpProblem`] assembles one from the
-//! library's models, and [`OcpNlp`] views an optimal control problem
-//! ([`crate::problem::Problem`]) as one NLP over all its states and controls, so that the
-//! [`Solver`](crate::solvers::Solver) [`ProxNlpOcp`] (name `proxnlp`) cross-checks
-//! ProxDDP's optimum on small problems.
+//! An NLP is anything implementing [`Nlp`]; its data ([`NlpData`]) holds the derivatives
+//! as dense blocks on the column sets of an [`NlpSparsity`] ([`NlpSparsity::dense`]: all
+//! columns). [`NlpProblem`] assembles a (dense) NLP from the library's models, and
+//! [`OcpNlp`] views an optimal control problem ([`crate::problem::Problem`]) as one NLP
+//! over all its states and controls, its blocks on the states and controls of one stage,
+//! so that the [`Solver`](crate::solvers::Solver) [`ProxNlpOcp`] (name `proxnlp`)
+//! cross-checks ProxDDP's optimum, through the sparse KKT solve on long horizons.
 
+mod kkt;
 mod ocp;
 mod options;
 mod problem;
 mod solver;
 mod workspace;
 
+pub use kkt::{AUTO_SPARSE_DIM, KktStats, MAX_KKT_DIM};
 pub use ocp::{OcpLayout, OcpNlp, ProxNlpOcp};
-pub use options::ProxNlpOptions;
-pub use problem::{ConstraintBlock, Nlp, NlpConstraint, NlpData, NlpProblem, num_rows};
-pub use solver::{MAX_KKT_DIM, NlpSolution, ProxNlp};
+pub use options::{KktSolver, ProxNlpOptions};
+pub use problem::{Columns, ConstraintBlock, Nlp, NlpConstraint, NlpData, NlpProblem, NlpSparsity, num_rows};
+pub use solver::{NlpSolution, ProxNlp};

@@ -16,7 +16,7 @@ use std::time::Duration;
 use faer::{Mat, MatRef};
 
 use super::options::ProxNlpOptions;
-use super::problem::{ConstraintBlock, Nlp, NlpData};
+use super::problem::{Columns, ConstraintBlock, Nlp, NlpData, NlpSparsity};
 use super::solver::ProxNlp;
 use crate::constraints::EqualityConstraintSet;
 use crate::error::{Error, Result};
@@ -55,6 +55,9 @@ pub struct OcpLayout {
     /// Rows of `λ_0`, `λ_{t+1}` (index `t + 1`), and of `ν_t` (`t = 0..=N`).
     lambda_rows: Vec<Range<usize>>,
     nu_rows: Vec<Range<usize>>,
+    /// The columns of each block's Jacobian and of the Hessian terms: term `t < N` on
+    /// `(x_t, u_t, x_{t+1})` (stage cost and dynamics), term `N` on `x_N`.
+    sparsity: NlpSparsity,
 }
 
 impl OcpLayout {
@@ -96,6 +99,22 @@ impl OcpLayout {
             nu_rows.push(start..off);
         }
         let lambda_rows = blocks[..=n].iter().map(|b| b.1.clone()).collect();
+        let stage = |t: usize| Columns::new([x_tan[t].clone(), u_tan[t].clone(), x_tan[t + 1].clone()]);
+        let knot = |t: usize| match t < n {
+            true => Columns::new([x_tan[t].clone(), u_tan[t].clone()]),
+            false => Columns::new([x_tan[t].clone()]),
+        };
+        let sparsity = NlpSparsity {
+            jacobian: blocks
+                .iter()
+                .map(|(kind, _, _)| match *kind {
+                    Kind::Init => Columns::new([x_tan[0].clone()]),
+                    Kind::Dynamics(t) => stage(t),
+                    Kind::Path(t, _) => knot(t),
+                })
+                .collect(),
+            hessian: (0..n).map(stage).chain([knot(n)]).collect(),
+        };
         Self {
             space,
             x_rep,
@@ -105,6 +124,7 @@ impl OcpLayout {
             blocks,
             lambda_rows,
             nu_rows,
+            sparsity,
         }
     }
 
@@ -194,49 +214,63 @@ impl OcpNlp<'_> {
         ws
     }
 
-    /// The Jacobian and Hessian blocks of the stages into `jac` and `hess`.
-    fn stage_blocks(&self, pd: &ProblemData, jac: &mut Mat<f64>, hess: &mut Mat<f64>, grad: &mut [f64]) {
+    /// The stages' dynamics Jacobians, cost gradients and Hessians, and the terminal
+    /// cost's, into the (zeroed) blocks of the data.
+    fn stage_blocks(&self, pd: &ProblemData, jac: &mut [Mat<f64>], hess: &mut [Mat<f64>], grad: &mut [f64]) {
         let (l, n) = (self.layout, self.problem.horizon());
+        let sp = &l.sparsity;
         for t in 0..n {
             let sd = &pd.stages[t];
             let (xt, ut, yt) = (&l.x_tan[t], &l.u_tan[t], &l.x_tan[t + 1]);
-            let r = &l.blocks[1 + t].1;
-            put(jac, r, xt, sd.dyn_jx.as_ref());
-            put(jac, r, ut, sd.dyn_ju.as_ref());
-            put(jac, r, yt, sd.dyn_jy.as_ref());
+            let (j, cols) = (&mut jac[1 + t], &sp.jacobian[1 + t]);
+            put(j, (None, cols), xt, sd.dyn_jx.as_ref());
+            put(j, (None, cols), ut, sd.dyn_ju.as_ref());
+            put(j, (None, cols), yt, sd.dyn_jy.as_ref());
             grad[xt.clone()].copy_from_slice(sd.cost.lx());
             grad[ut.clone()].copy_from_slice(sd.cost.lu());
             put_symmetric(
-                hess,
+                &mut hess[t],
+                &sp.hessian[t],
                 (xt, ut),
                 sd.cost.lxx.as_ref(),
                 sd.cost.lxu.as_ref(),
                 sd.cost.luu.as_ref(),
             );
         }
-        grad[l.x_tan[n].clone()].copy_from_slice(pd.terminal_cost.lx());
-        put(hess, &l.x_tan[n], &l.x_tan[n], pd.terminal_cost.lxx.as_ref());
+        let xn = &l.x_tan[n];
+        grad[xn.clone()].copy_from_slice(pd.terminal_cost.lx());
+        put(
+            &mut hess[n],
+            (Some(xn), &sp.hessian[n]),
+            xn,
+            pd.terminal_cost.lxx.as_ref(),
+        );
     }
 }
 
-/// `m[rows, cols] += b`.
-fn put(m: &mut Mat<f64>, rows: &Range<usize>, cols: &Range<usize>, b: MatRef<'_, f64>) {
-    let mut dst = m.as_mut().submatrix_mut(rows.start, cols.start, rows.len(), cols.len());
+/// `m[rows, cols] += b` for a block `m` on the columns `set` (`rows`: global columns of a
+/// Hessian term; `None`: all rows of a Jacobian block), `cols` global.
+fn put(m: &mut Mat<f64>, (rows, set): (Option<&Range<usize>>, &Columns), cols: &Range<usize>, b: MatRef<'_, f64>) {
+    let local = |r: &Range<usize>| set.local(r.start).expect("columns of the block");
+    let (i0, nr) = rows.map_or((0, m.nrows()), |r| (local(r), r.len()));
+    let mut dst = m.as_mut().submatrix_mut(i0, local(cols), nr, cols.len());
     dst += b;
 }
 
-/// The symmetric block `[[xx, xu], [xuᵀ, uu]]` added at the rows and columns `(x, u)`.
+/// The symmetric block `[[xx, xu], [xuᵀ, uu]]` added at the global rows and columns
+/// `(x, u)` of a Hessian term on the columns `set`.
 fn put_symmetric(
     m: &mut Mat<f64>,
+    set: &Columns,
     (x, u): (&Range<usize>, &Range<usize>),
     xx: MatRef<'_, f64>,
     xu: MatRef<'_, f64>,
     uu: MatRef<'_, f64>,
 ) {
-    put(m, x, x, xx);
-    put(m, x, u, xu);
-    put(m, u, x, xu.transpose());
-    put(m, u, u, uu);
+    put(m, (Some(x), set), x, xx);
+    put(m, (Some(x), set), u, xu);
+    put(m, (Some(u), set), x, xu.transpose());
+    put(m, (Some(u), set), u, uu);
 }
 
 impl Nlp for OcpNlp<'_> {
@@ -276,8 +310,9 @@ impl Nlp for OcpNlp<'_> {
             lams: s.lambdas,
             nus: s.nus,
         };
-        let nc = self.layout.blocks.last().map_or(0, |b| b.1.end);
-        NlpData::new(self.layout.space.ndx(), nc, Box::new(ws))
+        let l = self.layout;
+        let rows: Vec<usize> = l.blocks.iter().map(|b| b.1.len()).collect();
+        NlpData::new(l.space.ndx(), &rows, l.sparsity.clone(), Box::new(ws))
     }
     fn evaluate(&self, z: &[f64], data: &mut NlpData) {
         let ws = self.ws(&mut data.ws, z);
@@ -300,17 +335,22 @@ impl Nlp for OcpNlp<'_> {
         ws.pd.invalidate_constant_derivatives();
         ws.pd.compute_derivatives(self.problem, &ws.xs, &ws.us);
         let (l, pd) = (self.layout, &ws.pd);
-        data.jac.fill(0.0);
-        data.hess.fill(0.0);
+        data.jac.iter_mut().chain(&mut data.hess).for_each(|m| m.fill(0.0));
         self.stage_blocks(pd, &mut data.jac, &mut data.hess, &mut data.grad);
-        put(&mut data.jac, &l.blocks[0].1, &l.x_tan[0], pd.init.jx.as_ref());
+        let sp = &l.sparsity;
+        put(
+            &mut data.jac[0],
+            (None, &sp.jacobian[0]),
+            &l.x_tan[0],
+            pd.init.jx.as_ref(),
+        );
         let n = self.problem.horizon();
-        for (kind, rows, _) in &l.blocks {
+        for (k, (kind, _, _)) in l.blocks.iter().enumerate() {
             if let Kind::Path(t, c) = *kind {
-                let cd = &pd.constraint_data(t)[c];
-                put(&mut data.jac, rows, &l.x_tan[t], cd.jx.as_ref());
+                let (cd, jac, cols) = (&pd.constraint_data(t)[c], &mut data.jac[k], &sp.jacobian[k]);
+                put(jac, (None, cols), &l.x_tan[t], cd.jx.as_ref());
                 if t < n {
-                    put(&mut data.jac, rows, &l.u_tan[t], cd.ju.as_ref());
+                    put(jac, (None, cols), &l.u_tan[t], cd.ju.as_ref());
                 }
             }
         }
@@ -321,43 +361,54 @@ impl Nlp for OcpNlp<'_> {
         l.unpack_multipliers(nu, &mut ws.lams, &mut ws.nus);
         ws.pd
             .compute_second_order(self.problem, &ws.xs, &ws.us, &ws.lams, &ws.nus);
-        let h = &mut data.vhp;
-        h.fill(0.0);
+        let (h, sp) = (&mut data.vhp, &l.sparsity);
+        h.iter_mut().for_each(|m| m.fill(0.0));
         let n = self.problem.horizon();
         for t in 0..n {
             let sd = &ws.pd.stages[t];
             let (x, u, y) = (&l.x_tan[t], &l.u_tan[t], &l.x_tan[t + 1]);
+            let (m, set) = (&mut h[t], &sp.hessian[t]);
             match &sd.dynamics {
                 DynamicsData::Explicit(d) => {
-                    put_symmetric(h, (x, u), d.vhp_xx.as_ref(), d.vhp_xu.as_ref(), d.vhp_uu.as_ref())
+                    put_symmetric(m, set, (x, u), d.vhp_xx.as_ref(), d.vhp_xu.as_ref(), d.vhp_uu.as_ref())
                 }
                 DynamicsData::Implicit(d) => {
-                    put_symmetric(h, (x, u), d.vhp_xx.as_ref(), d.vhp_xu.as_ref(), d.vhp_uu.as_ref());
-                    put(h, x, y, d.vhp_xy.as_ref());
-                    put(h, y, x, d.vhp_xy.transpose());
-                    put(h, y, y, d.vhp_yy.as_ref());
-                    put(h, u, y, d.vhp_uy.as_ref());
-                    put(h, y, u, d.vhp_uy.transpose());
+                    put_symmetric(m, set, (x, u), d.vhp_xx.as_ref(), d.vhp_xu.as_ref(), d.vhp_uu.as_ref());
+                    put(m, (Some(x), set), y, d.vhp_xy.as_ref());
+                    put(m, (Some(y), set), x, d.vhp_xy.transpose());
+                    put(m, (Some(y), set), y, d.vhp_yy.as_ref());
+                    put(m, (Some(u), set), y, d.vhp_uy.as_ref());
+                    put(m, (Some(y), set), u, d.vhp_uy.transpose());
                 }
             }
             for cd in &sd.constraints {
-                put_symmetric(h, (x, u), cd.vhp_xx.as_ref(), cd.vhp_xu.as_ref(), cd.vhp_uu.as_ref());
+                put_symmetric(
+                    m,
+                    set,
+                    (x, u),
+                    cd.vhp_xx.as_ref(),
+                    cd.vhp_xu.as_ref(),
+                    cd.vhp_uu.as_ref(),
+                );
             }
         }
+        let xn = &l.x_tan[n];
         for cd in &ws.pd.terminal_constraints {
-            put(h, &l.x_tan[n], &l.x_tan[n], cd.vhp_xx.as_ref());
+            put(&mut h[n], (Some(xn), &sp.hessian[n]), xn, cd.vhp_xx.as_ref());
         }
         if ws.pd.init.vhp_xx.nrows() > 0 {
-            put(h, &l.x_tan[0], &l.x_tan[0], ws.pd.init.vhp_xx.as_ref());
+            let x0 = &l.x_tan[0];
+            put(&mut h[0], (Some(x0), &sp.hessian[0]), x0, ws.pd.init.vhp_xx.as_ref());
         }
     }
 }
 
 /// ProxNLP as a [`Solver`](crate::solvers::Solver) of optimal control problems (name
-/// `proxnlp`): the whole problem as one [`OcpNlp`], solved with a dense KKT system. For
-/// small problems and for cross-checking the optimum of the structured solvers. The
-/// solution's feedback gains stay zero (a dense solve has no Riccati gains); receding
-/// horizons are refused.
+/// `proxnlp`): the whole problem as one [`OcpNlp`], whose KKT system is block-banded by
+/// stage and solved sparsely above [`AUTO_SPARSE_DIM`](super::AUTO_SPARSE_DIM) rows (by
+/// default, [`ProxNlpOptions::kkt`]). For cross-checking the optimum of the structured
+/// solvers. The solution's feedback gains stay zero (the whole-problem solve has no
+/// Riccati gains); receding horizons are refused.
 pub struct ProxNlpOcp {
     /// Options; changes take effect at the next `setup`.
     pub options: ProxNlpOptions,
@@ -389,6 +440,11 @@ impl ProxNlpOcp {
             z0: Vec::new(),
             nu0: Vec::new(),
         }
+    }
+
+    /// How the Newton system is solved (dense or sparse, its size), `None` before `setup`.
+    pub fn kkt_stats(&self) -> Option<super::KktStats> {
+        self.inner.kkt_stats()
     }
 
     /// The NLP solution of the last solve (the variable `z` and stacked multipliers).

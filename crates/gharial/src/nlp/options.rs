@@ -8,7 +8,22 @@ use crate::solvers::linesearch::LinesearchOptions;
 use crate::solvers::log::LogSink;
 use crate::solvers::proxddp::{ProxDdpOptions, StepAcceptance};
 
-/// Options of [`super::ProxNlp`]; each field has the name, meaning and default of the
+/// How ProxNLP solves its primal-dual Newton system (both by LDLᵀ with the multiplier
+/// rows first and the inertia read off `D`; see [`super`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum KktSolver {
+    /// The whole matrix, densely (at most [`super::MAX_KKT_DIM`] rows).
+    Dense,
+    /// faer's sparse LDLᵀ, the primal variables in AMD order, the symbolic factorization
+    /// made once in `setup` (for optimal control problems and other sparse NLPs).
+    Sparse,
+    /// Sparse when the system has more than [`super::AUTO_SPARSE_DIM`] rows and its
+    /// derivative blocks fill at most a tenth of it, dense otherwise (default).
+    #[default]
+    Auto,
+}
+
+/// Options of [`super::ProxNlp`]; each field other than `kkt` has the name, meaning and default of the
 /// [`ProxDdpOptions`] field of the same name.
 #[derive(Debug, Clone)]
 #[non_exhaustive]
@@ -63,6 +78,8 @@ pub struct ProxNlpOptions {
     /// Where the iteration table and the outer-loop updates are written (default:
     /// nowhere).
     pub log: LogSink,
+    /// How the Newton system is solved (default [`KktSolver::Auto`]).
+    pub kkt: KktSolver,
 }
 
 impl Default for ProxNlpOptions {
@@ -73,7 +90,8 @@ impl Default for ProxNlpOptions {
 
 impl From<&ProxDdpOptions> for ProxNlpOptions {
     /// The ProxDDP options that ProxNLP shares (tolerance, penalty schedule, BCL
-    /// exponents, limits, Hessian, line search, regularisation, time budget, log).
+    /// exponents, limits, Hessian, line search, regularisation, time budget, log); the
+    /// KKT solve is [`KktSolver::Auto`].
     fn from(o: &ProxDdpOptions) -> Self {
         Self {
             tol: o.tol,
@@ -98,6 +116,7 @@ impl From<&ProxDdpOptions> for ProxNlpOptions {
             dyn_al_scale: o.dyn_al_scale,
             max_time: o.max_time,
             log: o.log.clone(),
+            kkt: KktSolver::default(),
         }
     }
 }

@@ -3,9 +3,10 @@
 //! assembled from the library's models (a [`Cost`] of the variable alone, a
 //! [`UnaryFunction`] and a [`ConstraintSet`] per constraint).
 
+use std::ops::Range;
 use std::sync::Arc;
 
-use faer::Mat;
+use faer::{Accum, Mat};
 
 use crate::constraints::ConstraintSet;
 use crate::costs::{Cost, CostData};
@@ -26,8 +27,94 @@ pub struct ConstraintBlock<'a> {
     pub scale: f64,
 }
 
+/// A set of tangent columns, as sorted disjoint ranges: where a dense block of an NLP's
+/// derivatives sits. A block on `Columns` stores its columns contiguously, range after
+/// range (its local column `k` is the `k`-th column of the set).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Columns {
+    ranges: Vec<Range<usize>>,
+    len: usize,
+}
+
+impl Columns {
+    /// The union of `ranges` (in any order, overlapping or adjacent ones merged).
+    pub fn new(ranges: impl IntoIterator<Item = Range<usize>>) -> Self {
+        let mut r: Vec<Range<usize>> = ranges.into_iter().filter(|r| !r.is_empty()).collect();
+        r.sort_unstable_by_key(|r| r.start);
+        let mut merged: Vec<Range<usize>> = Vec::with_capacity(r.len());
+        for x in r {
+            match merged.last_mut() {
+                Some(last) if x.start <= last.end => last.end = last.end.max(x.end),
+                _ => merged.push(x),
+            }
+        }
+        let len = merged.iter().map(|r| r.len()).sum();
+        Self { ranges: merged, len }
+    }
+
+    /// All columns `0..n`.
+    pub fn all(n: usize) -> Self {
+        Self::new(std::iter::once(0..n))
+    }
+
+    /// Number of columns.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the set is empty.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The ranges with the local column of their first element: `(local, global range)`.
+    pub fn blocks(&self) -> impl Iterator<Item = (usize, Range<usize>)> + '_ {
+        self.ranges.iter().scan(0, |off, r| {
+            let local = *off;
+            *off += r.len();
+            Some((local, r.clone()))
+        })
+    }
+
+    /// The global columns, in local order.
+    pub fn iter(&self) -> impl Iterator<Item = usize> + '_ {
+        self.ranges.iter().flat_map(Clone::clone)
+    }
+
+    /// The local column of global column `j`, `None` if `j` is not in the set.
+    pub fn local(&self, j: usize) -> Option<usize> {
+        self.blocks()
+            .find(|(_, r)| r.contains(&j))
+            .map(|(l, r)| l + j - r.start)
+    }
+}
+
+/// Where the derivatives of an [`Nlp`] may be nonzero: the Jacobian of each constraint
+/// block on a set of columns, and the cost Hessian and `Σ_k ∇²(ν_kᵀ c_k)` as sums of
+/// dense symmetric terms, each on a set of columns. A dense NLP has every block and one
+/// term on all columns ([`NlpSparsity::dense`]); an optimal control problem has blocks and
+/// terms on the states and controls of one stage, which the sparse KKT solve exploits.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct NlpSparsity {
+    /// Per constraint block: the columns of its Jacobian.
+    pub jacobian: Vec<Columns>,
+    /// The columns of each Hessian term.
+    pub hessian: Vec<Columns>,
+}
+
+impl NlpSparsity {
+    /// Every one of `num_blocks` blocks and one Hessian term on all `ndx` columns.
+    pub fn dense(ndx: usize, num_blocks: usize) -> Self {
+        Self {
+            jacobian: vec![Columns::all(ndx); num_blocks],
+            hessian: vec![Columns::all(ndx)],
+        }
+    }
+}
+
 /// Everything an evaluation of an [`Nlp`] writes, allocated once by
-/// [`Nlp::create_data`]. Constraint rows are stacked block after block.
+/// [`Nlp::create_data`]. Constraint rows are stacked block after block; derivative
+/// blocks are dense on the columns of the [`NlpSparsity`] the data was made with.
 #[derive(Debug)]
 pub struct NlpData {
     /// Cost `f(x)`.
@@ -36,28 +123,60 @@ pub struct NlpData {
     pub values: Vec<f64>,
     /// Cost gradient (`ndx`, tangent at `x`).
     pub grad: Vec<f64>,
-    /// Cost Hessian (`ndx x ndx`).
-    pub hess: Mat<f64>,
-    /// Constraint Jacobian (`nc x ndx`).
-    pub jac: Mat<f64>,
-    /// `Σ_k ∇²(ν_kᵀ c_k)` (`ndx x ndx`) for the multipliers of the last
-    /// [`Nlp::second_order`] (zero for blocks without second derivatives).
-    pub vhp: Mat<f64>,
+    /// The cost Hessian, term by term: term `h` is `s_h x s_h` on the columns
+    /// `sparsity.hessian[h]` (terms on shared columns add up).
+    pub hess: Vec<Mat<f64>>,
+    /// The constraint Jacobian, block by block: block `k` is `nr_k x s_k` on the columns
+    /// `sparsity.jacobian[k]`.
+    pub jac: Vec<Mat<f64>>,
+    /// `Σ_k ∇²(ν_kᵀ c_k)` for the multipliers of the last [`Nlp::second_order`] (zero for
+    /// blocks without second derivatives), term by term as `hess`.
+    pub vhp: Vec<Mat<f64>>,
+    /// Where the derivative blocks sit.
+    pub sparsity: NlpSparsity,
     /// The NLP's own scratch memory (model data of its parts).
     pub ws: Workspace,
 }
 
 impl NlpData {
-    /// Zero-filled data of a problem with tangent size `ndx` and `nc` constraint rows.
-    pub fn new(ndx: usize, nc: usize, ws: Workspace) -> Self {
+    /// Zero-filled data of a problem with tangent size `ndx`, constraint blocks of
+    /// `block_rows` rows and derivative blocks on `sparsity` (one Jacobian column set
+    /// per block).
+    pub fn new(ndx: usize, block_rows: &[usize], sparsity: NlpSparsity, ws: Workspace) -> Self {
+        debug_assert_eq!(block_rows.len(), sparsity.jacobian.len());
+        let nc = block_rows.iter().sum();
+        let square = |c: &Columns| Mat::zeros(c.len(), c.len());
         Self {
             cost: 0.0,
             values: vec![0.0; nc],
             grad: vec![0.0; ndx],
-            hess: Mat::zeros(ndx, ndx),
-            jac: Mat::zeros(nc, ndx),
-            vhp: Mat::zeros(ndx, ndx),
+            hess: sparsity.hessian.iter().map(square).collect(),
+            jac: block_rows
+                .iter()
+                .zip(&sparsity.jacobian)
+                .map(|(&nr, c)| Mat::zeros(nr, c.len()))
+                .collect(),
+            vhp: sparsity.hessian.iter().map(square).collect(),
+            sparsity,
             ws,
+        }
+    }
+
+    /// `out = J_k dx` for constraint block `k` (`out` of the block's rows).
+    pub fn jacobian_mul(&self, k: usize, dx: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        let jac = self.jac[k].as_ref();
+        for (l, r) in self.sparsity.jacobian[k].blocks() {
+            crate::linalg::matvec(out, Accum::Add, jac.subcols(l, r.len()), &dx[r], 1.0);
+        }
+    }
+
+    /// `out += J_kᵀ v` for constraint block `k` (`v` of the block's rows, `out` of tangent
+    /// size).
+    pub fn jacobian_t_mul_add(&self, k: usize, v: &[f64], out: &mut [f64]) {
+        let jac = self.jac[k].as_ref();
+        for (l, r) in self.sparsity.jacobian[k].blocks() {
+            crate::linalg::matvec_t(&mut out[r.clone()], Accum::Add, jac.subcols(l, r.len()), v, 1.0);
         }
     }
 }
@@ -78,12 +197,13 @@ pub trait Nlp: Send + Sync {
     fn block_name(&self, k: usize) -> String {
         format!("constraint {k}")
     }
-    /// Allocates the data of an evaluation.
+    /// Allocates the data of an evaluation, with the [`NlpSparsity`] of the problem's
+    /// derivatives ([`NlpSparsity::dense`] unless the problem knows better).
     fn create_data(&self) -> NlpData;
     /// Writes `f(x)` into `data.cost` and the stacked `c(x)` into `data.values`.
     fn evaluate(&self, x: &[f64], data: &mut NlpData);
-    /// Writes the cost gradient and Hessian and the constraint Jacobian; `evaluate` has
-    /// been called at the same point before.
+    /// Writes the cost gradient and Hessian and the constraint Jacobian (the blocks of
+    /// the data's [`NlpSparsity`]); `evaluate` has been called at the same point before.
     fn derivatives(&self, x: &[f64], data: &mut NlpData);
     /// Writes `Σ_k ∇²(ν_kᵀ c_k)(x)` into `data.vhp` (`nu` stacked like the values);
     /// `derivatives` has been called at the same point before.
@@ -243,7 +363,9 @@ impl Nlp for NlpProblem {
                 .map(|c| StageFunctionData::new(c.func.ndx(), 0, c.func.nr(), c.func.create_workspace()))
                 .collect(),
         };
-        NlpData::new(self.space.ndx(), num_rows(self), Box::new(ws))
+        let rows: Vec<usize> = self.constraints.iter().map(|c| c.func.nr()).collect();
+        let sparsity = NlpSparsity::dense(self.space.ndx(), rows.len());
+        NlpData::new(self.space.ndx(), &rows, sparsity, Box::new(ws))
     }
     fn evaluate(&self, x: &[f64], data: &mut NlpData) {
         let ws: &mut ProblemWs = data.ws.downcast_mut().expect("data of another NLP");
@@ -261,24 +383,22 @@ impl Nlp for NlpProblem {
         let ws: &mut ProblemWs = data.ws.downcast_mut().expect("data of another NLP");
         self.cost.derivatives(x, &[], &mut ws.cost);
         data.grad.copy_from_slice(ws.cost.lx());
-        copy(data.hess.as_mut(), ws.cost.lxx.as_ref());
-        let mut off = 0;
-        for (c, cd) in self.constraints.iter().zip(&mut ws.cons) {
+        copy(data.hess[0].as_mut(), ws.cost.lxx.as_ref());
+        for ((c, cd), jac) in self.constraints.iter().zip(&mut ws.cons).zip(&mut data.jac) {
             c.func.jacobian(x, cd);
-            let nr = c.func.nr();
-            copy(data.jac.as_mut().subrows_mut(off, nr), cd.jx.as_ref());
-            off += nr;
+            copy(jac.as_mut(), cd.jx.as_ref());
         }
     }
     fn second_order(&self, x: &[f64], nu: &[f64], data: &mut NlpData) {
         let ws: &mut ProblemWs = data.ws.downcast_mut().expect("data of another NLP");
-        data.vhp.fill(0.0);
+        let vhp = &mut data.vhp[0];
+        vhp.fill(0.0);
         let mut off = 0;
         for (c, cd) in self.constraints.iter().zip(&mut ws.cons) {
             let nr = c.func.nr();
             if c.func.has_vhp() {
                 c.func.vhp(x, &nu[off..off + nr], cd);
-                data.vhp += &cd.vhp_xx;
+                *vhp += &cd.vhp_xx;
             }
             off += nr;
         }

@@ -4,9 +4,10 @@
 
 use std::time::{Duration, Instant};
 
+use super::kkt::NonFiniteStep;
 use super::options::ProxNlpOptions;
 use super::problem::Nlp;
-use super::workspace::{NonFiniteStep, Residuals, Workspace};
+use super::workspace::{Residuals, Workspace};
 use crate::error::{Error, Result, check_dim, check_finite};
 use crate::solvers::filter::Filter;
 use crate::solvers::linesearch::{LinesearchResult, Nonmonotone, armijo};
@@ -21,10 +22,6 @@ const MIN_ETA_FACTOR: f64 = 1e-2;
 /// Trials of the filter may be at most this factor more infeasible than the initial
 /// point (or than 1), as in IPOPT and ProxDDP.
 const THETA_MAX_FACTOR: f64 = 1e4;
-
-/// The largest dense Newton system (`ndx + nc` rows) ProxNLP allocates: three matrices of
-/// this dimension (the system, its regularised copy, the factorization) take 216 MB.
-pub const MAX_KKT_DIM: usize = 3000;
 
 /// Failed outer steps at the smallest penalty after which the problem is declared
 /// (locally) infeasible.
@@ -59,7 +56,8 @@ pub struct NlpSolution {
 }
 
 /// The ProxNLP solver: ProxDDP's primal-dual augmented-Lagrangian method on a generic
-/// [`Nlp`], with the Newton system solved densely.
+/// [`Nlp`], with the Newton system solved densely or sparsely
+/// ([`ProxNlpOptions::kkt`]).
 ///
 /// ```text
 /// let mut solver = ProxNlp::new(ProxNlpOptions::default());
@@ -100,18 +98,12 @@ impl ProxNlp {
     ///
     /// # Errors
     /// If an option is out of range, or a block's set requires another dimension than
-    /// the block has (named), or a block's scale is not positive and finite, or the dense
-    /// system would have more than [`MAX_KKT_DIM`] rows.
+    /// the block has (named), or a block's scale is not positive and finite, or the
+    /// derivative blocks of the problem's data do not fit its dimensions, or the dense
+    /// system would have more than [`MAX_KKT_DIM`](super::MAX_KKT_DIM) rows.
     pub fn setup(&mut self, nlp: &dyn Nlp) -> Result<()> {
         self.options.validate()?;
         self.ws = None;
-        let dim = nlp.space().ndx() + super::num_rows(nlp);
-        if dim > MAX_KKT_DIM {
-            return Err(Error::InvalidModel(format!(
-                "ProxNlp: the dense Newton system would have {dim} rows (at most {MAX_KKT_DIM}); \
-                 solve large optimal control problems with proxddp"
-            )));
-        }
         for k in 0..nlp.num_blocks() {
             let b = nlp.block(k);
             if let Some(d) = b.set.dim() {
@@ -130,7 +122,8 @@ impl ProxNlp {
             sp.ndx(),
             (0..nlp.num_blocks()).map(|k| nlp.block(k).nr).collect(),
         );
-        let ws = Workspace::new(nlp);
+        check_sparsity(nlp)?;
+        let ws = Workspace::new(nlp, &self.options)?;
         let cap = self.options.max_iters.min(HISTORY_LIMIT);
         self.solution = NlpSolution {
             x: vec![0.0; sp.nx()],
@@ -141,6 +134,11 @@ impl ProxNlp {
         self.ws = Some(Box::new(ws));
         self.filter = Filter::new(self.options.max_iters.saturating_add(1), 1e-5, 1e-5);
         Ok(())
+    }
+
+    /// How the Newton system is solved (dense or sparse, its size), `None` before `setup`.
+    pub fn kkt_stats(&self) -> Option<super::KktStats> {
+        self.ws.as_ref().map(|ws| ws.kkt.stats())
     }
 
     /// The solution of the last solve.
@@ -211,6 +209,29 @@ impl ProxNlp {
         }
         Ok(())
     }
+}
+
+/// Checks that the derivative blocks of `nlp`'s data fit its dimensions: one Jacobian
+/// block per constraint block, every column set within the tangent space.
+fn check_sparsity(nlp: &dyn Nlp) -> Result<()> {
+    let data = nlp.create_data();
+    let (sp, ndx) = (&data.sparsity, nlp.space().ndx());
+    let inside = |c: &super::Columns| c.iter().all(|j| j < ndx);
+    let rows_fit = (0..nlp.num_blocks()).all(|k| data.jac.get(k).is_some_and(|m| m.nrows() == nlp.block(k).nr));
+    if sp.jacobian.len() != nlp.num_blocks()
+        || !rows_fit
+        || data.hess.len() != sp.hessian.len()
+        || !sp.jacobian.iter().chain(&sp.hessian).all(inside)
+    {
+        return Err(Error::InvalidModel(format!(
+            "ProxNlp: the derivative blocks of the data ({} Jacobian blocks, {} Hessian terms) \
+             do not fit the problem ({} constraint blocks, {ndx} tangent columns)",
+            sp.jacobian.len(),
+            sp.hessian.len(),
+            nlp.num_blocks()
+        )));
+    }
+    Ok(())
 }
 
 /// What the loop needs besides its state.

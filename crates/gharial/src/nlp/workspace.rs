@@ -1,15 +1,18 @@
-//! ProxNLP's workspace: iterates, multipliers, estimates, the dense primal-dual Newton
-//! system and its factorization, and the per-iteration computations (residuals, Newton
-//! step, merit). Everything is allocated in [`Workspace::new`]; no method allocates.
+//! ProxNLP's workspace: iterates, multipliers, estimates, the primal-dual Newton system
+//! (dense or sparse, [`super::kkt`]), and the per-iteration computations (residuals,
+//! Newton step, merit). Everything is allocated in [`Workspace::new`]; no method
+//! allocates.
 
 use std::ops::Range;
 
 use faer::prelude::ReborrowMut;
 use faer::{Accum, Mat};
 
+use super::kkt::{Kkt, NonFiniteStep};
 use super::options::ProxNlpOptions;
 use super::problem::{Nlp, NlpData};
-use crate::linalg::{Ldlt, col_of, col_of_mut, dot, matmul, matvec_t, norm_inf};
+use crate::error::Result;
+use crate::linalg::{col_of, col_of_mut, dot, matmul, norm_inf};
 use crate::solvers::HessianApprox;
 
 /// Residuals at the current point: ProxDDP (19), (52), (53) for one "stage".
@@ -24,9 +27,6 @@ pub(super) struct Residuals {
     /// Complementarity of the current multipliers, `|c - proj_C(c + ν)|_∞`.
     pub comp: f64,
 }
-
-/// A non-finite value in the Newton system or its step.
-pub(super) struct NonFiniteStep;
 
 /// A primal-dual point `(x, ν)` and the evaluation of the NLP at `x`.
 pub(super) struct Point {
@@ -86,19 +86,22 @@ pub(super) struct Workspace {
     jn: Mat<f64>,
     jn2: Mat<f64>,
     eig: Mat<f64>,
-    /// The Newton system (42)-(46) without the primal regularisation, and with it.
-    kkt_base: Mat<f64>,
-    kkt: Mat<f64>,
-    factor: Ldlt,
-    /// Right-hand side, step `(δx, δν)` and refinement residual.
+    /// The rows `C` of a constraint block on its columns (largest block's size).
+    cbuf: Mat<f64>,
+    /// The Newton system (42)-(46) and its factorization.
+    pub kkt: Kkt,
+    /// Right-hand side and step `(δν, δx)`.
     rhs: Mat<f64>,
     pub step: Mat<f64>,
-    resid: Mat<f64>,
 }
 
 impl Workspace {
-    /// The workspace of `nlp` (allocates everything a solve needs).
-    pub fn new(nlp: &dyn Nlp) -> Self {
+    /// The workspace of `nlp` (allocates everything a solve needs), with the Newton
+    /// system solved as `opts.kkt` says.
+    ///
+    /// # Errors
+    /// As [`Kkt::new`].
+    pub fn new(nlp: &dyn Nlp, opts: &ProxNlpOptions) -> Result<Self> {
         let mut rows = Vec::with_capacity(nlp.num_blocks());
         let mut scales = Vec::with_capacity(nlp.num_blocks());
         let mut off = 0;
@@ -112,7 +115,10 @@ impl Workspace {
         let n = ndx + nc;
         let mmax = rows.iter().map(|r| r.len()).max().unwrap_or(0);
         let cur = Point::new(nlp, nc);
-        Self {
+        let sp = &cur.data.sparsity;
+        let kkt = Kkt::new(opts.kkt, ndx, &rows, sp)?;
+        let smax = sp.jacobian.iter().map(|c| c.len()).max().unwrap_or(0);
+        Ok(Self {
             rows,
             scales,
             ndx,
@@ -133,13 +139,11 @@ impl Workspace {
             jn: Mat::zeros(mmax, mmax),
             jn2: Mat::zeros(mmax, mmax),
             eig: Mat::zeros(mmax, mmax),
-            kkt_base: Mat::zeros(n, n),
-            kkt: Mat::zeros(n, n),
-            factor: Ldlt::new(n),
+            cbuf: Mat::zeros(mmax, smax),
+            kkt,
             rhs: Mat::zeros(n, 1),
             step: Mat::zeros(n, 1),
-            resid: Mat::zeros(n, 1),
-        }
+        })
     }
 
     /// Loads the starting point; `ν_e` starts at the initial multipliers (zero if absent).
@@ -219,7 +223,7 @@ impl Workspace {
                 comp = comp.max((ci - pi).abs());
             }
         }
-        lagrangian_gradient(&self.cur.data, &self.cur.nu, &mut self.gbuf);
+        lagrangian_gradient(&self.cur.data, &self.rows, &self.cur.nu, &mut self.gbuf);
         let dual = norm_inf(&self.gbuf);
         Residuals {
             prim,
@@ -243,31 +247,24 @@ impl Workspace {
     /// elimination gives the exact `H + Jᵀ J_N J / mu`; the multiplier step of such a
     /// block is recovered after the solve ([`Workspace::solve_system`]).
     pub fn build_system(&mut self, nlp: &dyn Nlp, opts: &ProxNlpOptions, mu: f64) {
-        let (ndx, nc) = (self.ndx, self.nc);
-        self.kkt_base.fill(0.0);
-        crate::linalg::copy(
-            self.kkt_base.as_mut().submatrix_mut(nc, nc, ndx, ndx),
-            self.cur.data.hess.as_ref(),
-        );
+        self.kkt.clear();
+        let d = &self.cur.data;
+        for (h, m) in d.hess.iter().enumerate() {
+            self.kkt.add_hessian(h, &d.sparsity.hessian[h], m.as_ref());
+        }
         for b in 0..self.rows.len() {
             self.constraint_rows(nlp, b, mu);
         }
-        let mut k = self.kkt_base.as_mut();
-        // Cᵀ in the lower-left block (the factorization reads the lower triangle; the
-        // refinement multiplies by the whole matrix).
-        for i in 0..nc {
-            for j in 0..ndx {
-                k[(nc + j, i)] = k[(i, nc + j)];
-            }
-        }
         if opts.hessian == HessianApprox::Exact {
             nlp.second_order(&self.cur.x, &self.nu_p, &mut self.cur.data);
-            let mut h = k.rb_mut().submatrix_mut(nc, nc, ndx, ndx);
-            h += self.cur.data.vhp.as_ref();
+            let d = &self.cur.data;
+            for (h, m) in d.vhp.iter().enumerate() {
+                self.kkt.add_hessian(h, &d.sparsity.hessian[h], m.as_ref());
+            }
         }
-        lagrangian_gradient(&self.cur.data, &self.nu_g, &mut self.gbuf);
+        lagrangian_gradient(&self.cur.data, &self.rows, &self.nu_g, &mut self.gbuf);
         let rhs = col_of_mut(&mut self.rhs, 0);
-        for (r, g) in rhs[nc..].iter_mut().zip(&self.gbuf) {
+        for (r, g) in rhs[self.nc..].iter_mut().zip(&self.gbuf) {
             *r = -g;
         }
     }
@@ -275,7 +272,7 @@ impl Workspace {
     /// The rows of block `b` in the system of [`build_system`](Self::build_system), its
     /// effective multipliers `ν_g` and its part of the right-hand side.
     fn constraint_rows(&mut self, nlp: &dyn Nlp, b: usize, mu: f64) {
-        let (ndx, nc, r) = (self.ndx, self.nc, self.rows[b].clone());
+        let r = self.rows[b].clone();
         let (m, set) = (r.len(), nlp.block(b).set);
         let mu_k = self.scales[b] * mu;
         let d = &self.cur.data;
@@ -298,12 +295,8 @@ impl Workspace {
         };
         self.sqrt_block[b] = !projector;
         let rhs = col_of_mut(&mut self.rhs, 0);
-        let mut k = self.kkt_base.as_mut();
-        for i in r.clone() {
-            k[(i, i)] = -mu_k;
-        }
-        let mut c = k.submatrix_mut(r.start, nc, m, ndx);
-        let jac = d.jac.as_ref().subrows(r.start, m);
+        let jac = d.jac[b].as_ref();
+        let mut c = self.cbuf.as_mut().submatrix_mut(0, 0, m, jac.ncols());
         if projector {
             let w = &mut self.wbuf[r.clone()];
             for i in r.clone() {
@@ -315,7 +308,7 @@ impl Workspace {
                 self.nu_g[i] = self.nu_p[i] - w[i - r.start];
             }
             crate::linalg::copy(c.rb_mut(), jac);
-            set.apply_normal_cone_jacobian(z, mu_k, c);
+            set.apply_normal_cone_jacobian(z, mu_k, c.rb_mut());
         } else {
             for i in r.clone() {
                 self.nu_g[i] = self.nu_p[i];
@@ -323,8 +316,10 @@ impl Workspace {
             }
             let mut v = self.eig.as_mut().submatrix_mut(0, 0, m, m);
             crate::linalg::psd_sqrt(jn.rb_mut(), v.rb_mut());
-            matmul(c, Accum::Replace, jn.as_ref(), jac, 1.0);
+            matmul(c.rb_mut(), Accum::Replace, jn.as_ref(), jac, 1.0);
         }
+        self.kkt
+            .set_constraint_rows(b, &r, &d.sparsity.jacobian[b], c.as_ref(), mu_k);
     }
 
     /// The multiplier steps of the blocks whose rows are `√J_N J`: from the linearised
@@ -344,7 +339,7 @@ impl Workspace {
                 *zi = ci + mu_k * ei;
             }
             let w = &mut self.wbuf[r.clone()];
-            crate::linalg::matvec(w, Accum::Replace, d.jac.as_ref().subrows(r.start, r.len()), dx, 1.0);
+            d.jacobian_mul(b, dx, w);
             set.apply_normal_cone_jacobian_vec(z, mu_k, w);
             for i in r.clone() {
                 dnu[i] = self.nu_p[i] - self.cur.nu[i] + w[i - r.start] / mu_k;
@@ -353,45 +348,17 @@ impl Workspace {
     }
 
     /// Solves the system of [`build_system`](Self::build_system) (ordered multipliers
-    /// first, then the primal step) with the primal
-    /// regularisation `preg`, checking its inertia (`ndx` positive, `nc` negative
-    /// eigenvalues: the reduced Hessian is positive definite), with one step of
-    /// iterative refinement, then the multiplier steps of the cone-boundary blocks.
-    /// Returns `Ok(false)` for the wrong inertia.
-    pub fn solve_system(&mut self, nlp: &dyn Nlp, mu: f64, preg: f64) -> Result<bool, NonFiniteStep> {
+    /// first, then the primal step) with the primal regularisation `preg`, checking its
+    /// inertia (`ndx` positive, `nc` negative eigenvalues: the reduced Hessian is positive
+    /// definite), with one step of iterative refinement, then the multiplier steps of the
+    /// cone-boundary blocks. Returns `Ok(false)` for the wrong inertia.
+    pub fn solve_system(&mut self, nlp: &dyn Nlp, mu: f64, preg: f64) -> std::result::Result<bool, NonFiniteStep> {
         let n = self.ndx + self.nc;
-        crate::linalg::copy(self.kkt.as_mut(), self.kkt_base.as_ref());
-        for i in self.nc..n {
-            self.kkt[(i, i)] += preg;
-        }
-        if !crate::linalg::all_finite(self.kkt.as_ref()) {
-            return Err(NonFiniteStep);
-        }
-        // LDLᵀ without pivoting, the multiplier rows first: their pivots are the
-        // negative `-mu`, then those of the reduced Hessian `H + δI + Cᵀ C / mu`, positive
-        // exactly when the inertia is right (a breakdown is the wrong inertia).
-        crate::linalg::copy(self.factor.matrix_mut(), self.kkt.as_ref());
-        let Ok(inertia) = self.factor.factor_filled() else {
+        if !self
+            .kkt
+            .solve(preg, col_of(&self.rhs, 0), col_of_mut(&mut self.step, 0))?
+        {
             return Ok(false);
-        };
-        if inertia.positive != self.ndx || inertia.negative != self.nc || inertia.zero != 0 {
-            return Ok(false);
-        }
-        crate::linalg::copy(self.step.as_mut(), self.rhs.as_ref());
-        self.factor.solve_in_place(self.step.as_mut());
-        // One refinement step: δ += K⁻¹ (rhs - K δ).
-        crate::linalg::copy(self.resid.as_mut(), self.rhs.as_ref());
-        matmul(
-            self.resid.as_mut(),
-            Accum::Add,
-            self.kkt.as_ref(),
-            self.step.as_ref(),
-            -1.0,
-        );
-        self.factor.solve_in_place(self.resid.as_mut());
-        let (s, r) = (col_of_mut(&mut self.step, 0), col_of(&self.resid, 0));
-        for (si, ri) in s.iter_mut().zip(r) {
-            *si += ri;
         }
         self.recover_multiplier_steps(nlp, mu);
         let s = col_of(&self.step, 0);
@@ -409,7 +376,9 @@ impl Workspace {
         let st = col_of(&self.step, 0);
         let (dnu, dx) = st.split_at(self.nc);
         let d = &self.cur.data;
-        crate::linalg::matvec(&mut self.jdx, Accum::Replace, d.jac.as_ref(), dx, 1.0);
+        for (b, r) in self.rows.iter().enumerate() {
+            d.jacobian_mul(b, dx, &mut self.jdx[r.clone()]);
+        }
         let mut slope = dot(&d.grad, dx);
         for (b, r) in self.rows.iter().enumerate() {
             let set = nlp.block(b).set;
@@ -470,10 +439,12 @@ impl Workspace {
     }
 }
 
-/// `∇f + Jᵀ ν` into `out`.
-fn lagrangian_gradient(d: &NlpData, nu: &[f64], out: &mut [f64]) {
+/// `∇f + Jᵀ ν` into `out` (`rows`: the rows of each constraint block).
+fn lagrangian_gradient(d: &NlpData, rows: &[Range<usize>], nu: &[f64], out: &mut [f64]) {
     out.copy_from_slice(&d.grad);
-    matvec_t(out, Accum::Add, d.jac.as_ref(), nu, 1.0);
+    for (b, r) in rows.iter().enumerate() {
+        d.jacobian_t_mul_add(b, &nu[r.clone()], out);
+    }
 }
 
 /// The primal-dual merit function (17) at `p` and its infeasibility `max_k dist(c_k, C_k)`:
