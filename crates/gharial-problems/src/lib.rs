@@ -43,11 +43,13 @@
 //! | `altro-pendulum` | [`altro_systems`] | R² | 30 | 150 ms |
 //! | `altro-pendulum-min-time` | [`altro_systems`] | R² × R (step) | 30 | 150 ms at start |
 //! | `altro-acrobot`, `altro-cartpole` | [`altro_systems`] | R⁴ | 100 | 50 ms |
+//! | `quadrotor-line` | [`altro_quadrotor`] | SE(3) × R⁶ | 100 | 50 ms |
 //!
 //! Every module documents its model, its numbers and the results measured with
 //! ProxDDP.
 
 pub mod acrobot;
+pub mod altro_quadrotor;
 pub mod altro_systems;
 pub mod altro_table;
 pub mod cartpole;
@@ -275,6 +277,10 @@ static CATALOGUE: &[ProblemInfo] = &[
         summary: "ALTRO Table I: cart-pole swing-up (authors' model), |u| <= 3, goal constraint, N = 100, T = 5 s",
     },
     ProblemInfo {
+        name: "quadrotor-line",
+        summary: "ALTRO Table I: quadrotor (SE(3) x R^6) flying 60 m along y in 5 s, u >= 0, goal constraint, N = 100",
+    },
+    ProblemInfo {
         name: "ecddp-cartpole",
         summary: "ECDDP cart-pole swing-up (El Kazdadi et al. 2021, Figs. 1-4): force norm, terminal configuration upright, N = 200, dt = 10 ms",
     },
@@ -336,6 +342,7 @@ pub fn build(name: &str) -> Result<Example> {
         "altro-pendulum-min-time" => altro_systems::pendulum_min_time(),
         "altro-acrobot" => altro_systems::acrobot(),
         "altro-cartpole" => altro_systems::cartpole(),
+        "quadrotor-line" => altro_quadrotor::line(),
         "ecddp-cartpole" => ecddp::cartpole(false),
         "ecddp-cartpole-advanced" => ecddp::cartpole(true),
         "ecddp-ur5" => ecddp::ur5(),
