@@ -17,6 +17,7 @@
 //! | `block-move` | 21, 2 s | I, 0.1 I, I | `|u| ≤ 1.5` | `u = 0.01`, rollout |
 //! | `car-parallel-park` | 101, 3 s | 1e-2 I, 1e-2 I, 100 I | `|x| ≤ 0.25`, `-0.001 ≤ y ≤ 1.001`, `|u| ≤ 2` | `u = 0.1`, rollout |
 //! | `car-3-obstacles` | 101, 5 s | I, 0.1 I, 100 I | outside three discs of radius 0.1 at (0.25, 0.25), (0.5, 0.5), (0.75, 0.75) | `u = 0.01`, rollout |
+//! | `car-parallel-park-min-time` | 101, from 3 s | as `car-parallel-park`, per unit of time | as `car-parallel-park`; the step `h = τ²` a control in `[1e-3, 0.2]`, equal steps, `R_min_time = 2` ([`MinimumTime`], ALTRO §III-C) | `u = 0.1`, `h = 0.03`, rollout |
 //! | `car-escape` | 101, 3 s | 1e-3 I, 1e-2 I, 100 I | outside 170 discs of radius 0.5 that draw two rooms and a door, `|u| ≤ 5` | states interpolated through 6 poses, `u = 1` |
 //!
 //! `arm-obstacles` (N = 80, T = 2 s, dt = 25 ms, the peer harness's UR5 dynamics):
