@@ -17,6 +17,7 @@
 //! | `block-move` | 21, 2 s | I, 0.1 I, I | `|u| ≤ 1.5` | `u = 0.01`, rollout |
 //! | `car-parallel-park` | 101, 3 s | 1e-2 I, 1e-2 I, 100 I | `|x| ≤ 0.25`, `-0.001 ≤ y ≤ 1.001`, `|u| ≤ 2` | `u = 0.1`, rollout |
 //! | `car-3-obstacles` | 101, 5 s | I, 0.1 I, 100 I | outside three discs of radius 0.1 at (0.25, 0.25), (0.5, 0.5), (0.75, 0.75) | `u = 0.01`, rollout |
+//! | `car-parallel-park-min-time` | 101, from 3 s | as `car-parallel-park`, per unit of time | as `car-parallel-park`; the step `h = τ²` a control in `[1e-3, 0.2]`, equal steps, `R_min_time = 2` ([`MinimumTime`], ALTRO §III-C) | `u = 0.1`, `h = 0.03`, rollout |
 //! | `car-escape` | 101, 3 s | 1e-3 I, 1e-2 I, 100 I | outside 170 discs of radius 0.5 that draw two rooms and a door, `|u| ≤ 5` | states interpolated through 6 poses, `u = 1` |
 //!
 //! `arm-obstacles` (N = 80, T = 2 s, dt = 25 ms, the peer harness's UR5 dynamics):
@@ -42,9 +43,9 @@ use gharial::Result;
 use gharial::autodiff::{AutoDiff, AutoOdeFn, AutoStageFn, ManifoldScalar};
 use gharial::constraints::{BoxConstraint, NegativeOrthant};
 use gharial::costs::{CostStack, QuadraticControlCost, QuadraticStateCost};
-use gharial::dynamics::{Dynamics, ExplicitRungeKutta};
+use gharial::dynamics::{Dynamics, ExplicitRungeKutta, Ode, RkMethod};
 use gharial::functions::{ControlError, Slice, StageFunction, StageFunctionData, StateError, Unary, Workspace};
-use gharial::problem::{Problem, StageConstraint, StageModel};
+use gharial::problem::{ContinuousStage, MinimumTime, Problem, StageConstraint, StageModel};
 use gharial::solvers::proxddp::ProxDdpOptions;
 use gharial::spaces::{Manifold, VectorSpace};
 
@@ -112,46 +113,36 @@ impl AutoStageFn for Discs {
 }
 
 /// The numbers of one problem of the table.
-struct Spec {
-    name: &'static str,
-    horizon: usize,
-    duration: f64,
+pub(crate) struct Spec {
+    pub(crate) name: &'static str,
+    pub(crate) horizon: usize,
+    pub(crate) duration: f64,
     /// Diagonals of Q, R, Q_f.
-    weights: [f64; 3],
-    x0: Vec<f64>,
-    xf: Vec<f64>,
+    pub(crate) weights: [f64; 3],
+    pub(crate) x0: Vec<f64>,
+    pub(crate) xf: Vec<f64>,
     /// Constant guess of the controls.
-    u_guess: f64,
-    description: &'static str,
+    pub(crate) u_guess: f64,
+    pub(crate) description: &'static str,
 }
 
 impl Spec {
-    fn dt(&self) -> f64 {
+    pub(crate) fn dt(&self) -> f64 {
         self.duration / self.horizon as f64
     }
 
-    /// The problem with the control constraints `controls` on every running stage, the
-    /// state constraints `states` on every running stage but the first (which cannot
-    /// move `x_0`), and the goal constraint.
-    fn problem(
-        &self,
-        ode: Arc<AutoDiff<impl AutoOdeFn + 'static>>,
-        controls: &[StageConstraint],
-        states: &[StageConstraint],
-    ) -> Result<Problem> {
-        let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(self.x0.len()));
-        let nu = ode.inner().nu();
-        let dt = self.dt();
-        let [q, r, qf] = self.weights;
-        let dynamics = Dynamics::Explicit(Arc::new(ExplicitRungeKutta::rk4(ode, dt)?));
+    /// The running cost `½ scale ((x − x_f)ᵀQ(x − x_f) + uᵀRu)` (`scale = dt`, or 1 for
+    /// the cost per unit of time of a minimum-time problem).
+    fn running_cost(&self, space: &Arc<dyn Manifold>, nu: usize, scale: f64) -> Result<CostStack> {
+        let [q, r, _] = self.weights;
         let nx = self.x0.len();
-        let cost = CostStack::new(space.as_ref(), nu)
+        CostStack::new(space.as_ref(), nu)
             .with(
                 "x",
                 Arc::new(QuadraticStateCost::diagonal(
                     space.clone(),
                     &self.xf,
-                    &vec![q * dt; nx],
+                    &vec![q * scale; nx],
                     nu,
                 )?),
                 1.0,
@@ -161,10 +152,32 @@ impl Spec {
                 Arc::new(QuadraticControlCost::diagonal(
                     space.as_ref(),
                     &vec![0.0; nu],
-                    &vec![r * dt; nu],
+                    &vec![r * scale; nu],
                 )?),
                 1.0,
-            )?;
+            )
+    }
+
+    /// The terminal cost `½ (x_N − x_f)ᵀQ_f(x_N − x_f)` and the goal `x_N = x_f`.
+    fn terminal(&self, space: &Arc<dyn Manifold>) -> Result<(Arc<QuadraticStateCost>, StageConstraint)> {
+        let qf = self.weights[2];
+        let cost = QuadraticStateCost::diagonal(space.clone(), &self.xf, &vec![qf; self.x0.len()], 0)?;
+        Ok((Arc::new(cost), terminal_state(space.clone(), &self.xf)?))
+    }
+
+    /// The problem with the control constraints `controls` on every running stage, the
+    /// state constraints `states` on every running stage but the first (which cannot
+    /// move `x_0`), and the goal constraint.
+    pub(crate) fn problem(
+        &self,
+        ode: Arc<dyn Ode>,
+        controls: &[StageConstraint],
+        states: &[StageConstraint],
+    ) -> Result<Problem> {
+        let space = ode.space().clone();
+        let nu = ode.nu();
+        let dynamics = Dynamics::Explicit(Arc::new(ExplicitRungeKutta::rk4(ode, self.dt())?));
+        let cost = self.running_cost(&space, nu, self.dt())?;
         let mut first = StageModel::new(Arc::new(cost), dynamics)?;
         for c in controls {
             first.add_constraint(c.clone())?;
@@ -175,14 +188,50 @@ impl Spec {
         }
         let mut stages = vec![stage; self.horizon];
         stages[0] = first;
-        let terminal = Arc::new(QuadraticStateCost::diagonal(space.clone(), &self.xf, &vec![qf; nx], 0)?);
-        Problem::new(&self.x0, stages, terminal)?.with_terminal_constraint(terminal_state(space, &self.xf)?)
+        let (terminal, goal) = self.terminal(&space)?;
+        Problem::new(&self.x0, stages, terminal)?.with_terminal_constraint(goal)
+    }
+
+    /// The time-penalised version of [`Spec::problem`] (ALTRO §III-C,
+    /// [`MinimumTime`]): the same constraints and goal, the running cost per unit of time
+    /// weighted by the steps, the total time weighted by `mt.r_min_time`.
+    pub(crate) fn min_time_problem(
+        &self,
+        ode: Arc<dyn Ode>,
+        controls: &[StageConstraint],
+        states: &[StageConstraint],
+        mt: &MinimumTime,
+    ) -> Result<Problem> {
+        let space = ode.space().clone();
+        let first = ContinuousStage {
+            cost: Arc::new(self.running_cost(&space, ode.nu(), 1.0)?),
+            ode,
+            constraints: controls.to_vec(),
+        };
+        let mut stage = first.clone();
+        stage.constraints.extend_from_slice(states);
+        let mut stages = vec![stage; self.horizon];
+        stages[0] = first;
+        let (terminal, goal) = self.terminal(&space)?;
+        mt.problem(&self.x0, &stages, terminal, &[goal])
     }
 
     /// The example from `problem`, with the controls' constant guess and `xs0` (`None`:
     /// their rollout).
-    fn example(&self, problem: Problem, xs0: Option<Vec<Vec<f64>>>) -> Result<Example> {
+    pub(crate) fn example(&self, problem: Problem, xs0: Option<Vec<Vec<f64>>>) -> Result<Example> {
         let us0 = vec![vec![self.u_guess; problem.nu(0)]; self.horizon];
+        self.example_from(problem, us0, xs0)
+    }
+
+    /// The example of the time-penalised `problem`: the constant controls with the step
+    /// `h = T / N` as `τ = √h`, and their rollout.
+    pub(crate) fn min_time_example(&self, problem: Problem) -> Result<Example> {
+        let us = vec![vec![self.u_guess; problem.nu(0) - 1]; self.horizon];
+        self.example_from(problem, MinimumTime::controls(&us, self.dt()), None)
+    }
+
+    /// The example from `problem`, the guess `us0` and `xs0` (`None`: the rollout).
+    fn example_from(&self, problem: Problem, us0: Vec<Vec<f64>>, xs0: Option<Vec<Vec<f64>>>) -> Result<Example> {
         let xs0 = match xs0 {
             Some(xs) => xs,
             None => rollout(&problem, &us0)?,
@@ -203,7 +252,7 @@ impl Spec {
 }
 
 /// Bounds `lower ≤ u ≤ upper` on the controls.
-fn control_bounds(nx: usize, lower: &[f64], upper: &[f64]) -> Result<StageConstraint> {
+pub(crate) fn control_bounds(nx: usize, lower: &[f64], upper: &[f64]) -> Result<StageConstraint> {
     let space = VectorSpace::new(nx);
     let f = Arc::new(ControlError::new(&space, &vec![0.0; lower.len()])?);
     Ok(StageConstraint::new(
@@ -249,8 +298,38 @@ fn discs(discs: Vec<[f64; 3]>) -> Result<StageConstraint> {
 /// # Errors
 /// Never for these fixed numbers.
 pub fn parallel_park() -> Result<Example> {
+    let (spec, controls, walls) = parallel_park_parts("car-parallel-park")?;
+    let problem = spec.problem(car_ode()?, &controls, &walls)?;
+    spec.example(problem, None)
+}
+
+/// Step bounds and time weight of `car-parallel-park-min-time`: `h ∈ [1e-3, 0.2]`,
+/// `R_min_time = 2` (the authors' `parallelpark_mintime.jl`: `min_dt`, `max_dt`,
+/// `R_minimum_time`).
+pub const PARK_MIN_TIME: [f64; 3] = [1e-3, 0.2, 2.0];
+
+/// `car-parallel-park-min-time` (module documentation): `car-parallel-park` with the
+/// step as a control, started from its fixed step `T / N = 0.03`.
+///
+/// # Errors
+/// Never for these fixed numbers.
+pub fn parallel_park_min_time() -> Result<Example> {
+    let (spec, controls, walls) = parallel_park_parts("car-parallel-park-min-time")?;
+    let [h_min, h_max, r] = PARK_MIN_TIME;
+    let mt = MinimumTime::new(h_min, h_max, r, RkMethod::Rk4)?;
+    let problem = spec.min_time_problem(car_ode()?, &controls, &walls, &mt)?;
+    let mut ex = spec.min_time_example(problem)?;
+    ex.description = "ALTRO Table I: parallel park time-penalised, the step h = tau^2 a control in [1e-3, 0.2], \
+                      R_min_time = 2, equal steps; started from T = 3 s";
+    ex.proxddp.tol = 1e-6;
+    crate::altro_systems::nonmonotone(&mut ex, 1e-2, gharial::solvers::proxddp::Rollout::Linear);
+    Ok(ex)
+}
+
+/// The parallel park's numbers, control bounds and walls.
+fn parallel_park_parts(name: &'static str) -> Result<(Spec, Vec<StageConstraint>, Vec<StageConstraint>)> {
     let spec = Spec {
-        name: "car-parallel-park",
+        name,
         horizon: 100,
         duration: 3.0,
         weights: [1e-2, 1e-2, 100.0],
@@ -270,8 +349,7 @@ pub fn parallel_park() -> Result<Example> {
         position,
         Arc::new(BoxConstraint::new(&[-0.25, -0.001], &[0.25, 1.001])?),
     );
-    let problem = spec.problem(car_ode()?, &[control_bounds(3, &[-2.0; 2], &[2.0; 2])?], &[walls])?;
-    spec.example(problem, None)
+    Ok((spec, vec![control_bounds(3, &[-2.0; 2], &[2.0; 2])?], vec![walls]))
 }
 
 /// `car-3-obstacles` (module documentation).

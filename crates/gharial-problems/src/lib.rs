@@ -39,11 +39,18 @@
 //! | `car-parallel-park`, `car-escape` | [`altro_table`] | R³ | 100 | 30 ms |
 //! | `car-3-obstacles` | [`altro_table`] | R³ | 100 | 50 ms |
 //! | `arm-obstacles` | [`altro_table`] | UR5 phase space (R¹²) | 80 | 25 ms |
+//! | `car-parallel-park-min-time` | [`altro_table`] | R³ × R (step) | 100 | 30 ms at start |
+//! | `altro-pendulum` | [`altro_systems`] | R² | 30 | 150 ms |
+//! | `altro-pendulum-min-time` | [`altro_systems`] | R² × R (step) | 30 | 150 ms at start |
+//! | `altro-acrobot`, `altro-cartpole` | [`altro_systems`] | R⁴ | 100 | 50 ms |
+//! | `quadrotor-line` | [`altro_quadrotor`] | SE(3) × R⁶ | 100 | 50 ms |
 //!
 //! Every module documents its model, its numbers and the results measured with
 //! ProxDDP.
 
 pub mod acrobot;
+pub mod altro_quadrotor;
+pub mod altro_systems;
 pub mod altro_table;
 pub mod cartpole;
 pub mod ecddp;
@@ -250,6 +257,30 @@ static CATALOGUE: &[ProblemInfo] = &[
         summary: "ALTRO Table I robot arm with obstacles, on the UR5: configuration to configuration at rest, tool outside two spheres, URDF torque limits, N = 80, T = 2 s",
     },
     ProblemInfo {
+        name: "car-parallel-park-min-time",
+        summary: "ALTRO Table I: parallel park time-penalised, the step a control in [1e-3, 0.2], R_min_time = 2, N = 100",
+    },
+    ProblemInfo {
+        name: "altro-pendulum",
+        summary: "ALTRO Table I: pendulum swing-up (authors' model), |u| <= 3, goal constraint, N = 30, T = 4.5 s",
+    },
+    ProblemInfo {
+        name: "altro-pendulum-min-time",
+        summary: "ALTRO Table I: pendulum time-penalised, the step a control in [1e-3, 0.2], R_min_time = 1, N = 30",
+    },
+    ProblemInfo {
+        name: "altro-acrobot",
+        summary: "ALTRO Table I: acrobot swing-up by the elbow torque, |u| <= 15, goal constraint, N = 100, T = 5 s",
+    },
+    ProblemInfo {
+        name: "altro-cartpole",
+        summary: "ALTRO Table I: cart-pole swing-up (authors' model), |u| <= 3, goal constraint, N = 100, T = 5 s",
+    },
+    ProblemInfo {
+        name: "quadrotor-line",
+        summary: "ALTRO Table I: quadrotor (SE(3) x R^6) flying 60 m along y in 5 s, u >= 0, goal constraint, N = 100",
+    },
+    ProblemInfo {
         name: "ecddp-cartpole",
         summary: "ECDDP cart-pole swing-up (El Kazdadi et al. 2021, Figs. 1-4): force norm, terminal configuration upright, N = 200, dt = 10 ms",
     },
@@ -306,6 +337,12 @@ pub fn build(name: &str) -> Result<Example> {
         "car-3-obstacles" => altro_table::three_obstacles(),
         "car-escape" => altro_table::escape(),
         "arm-obstacles" => altro_table::arm_obstacles(),
+        "car-parallel-park-min-time" => altro_table::parallel_park_min_time(),
+        "altro-pendulum" => altro_systems::pendulum(),
+        "altro-pendulum-min-time" => altro_systems::pendulum_min_time(),
+        "altro-acrobot" => altro_systems::acrobot(),
+        "altro-cartpole" => altro_systems::cartpole(),
+        "quadrotor-line" => altro_quadrotor::line(),
         "ecddp-cartpole" => ecddp::cartpole(false),
         "ecddp-cartpole-advanced" => ecddp::cartpole(true),
         "ecddp-ur5" => ecddp::ur5(),

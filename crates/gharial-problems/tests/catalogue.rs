@@ -55,6 +55,11 @@ fn horizons_and_steps_are_as_documented() {
         ("car-3-obstacles", 100, Some(0.05)),
         ("car-escape", 100, Some(0.03)),
         ("arm-obstacles", 80, Some(0.025)),
+        ("car-parallel-park-min-time", 100, Some(0.03)),
+        ("altro-pendulum", 30, Some(0.15)),
+        ("altro-pendulum-min-time", 30, Some(0.15)),
+        ("altro-acrobot", 100, Some(0.05)),
+        ("altro-cartpole", 100, Some(0.05)),
         ("ecddp-cartpole", 200, Some(0.01)),
         ("ecddp-ur5", 200, Some(0.01)),
     ] {

@@ -373,3 +373,57 @@ fn mpc_cycles_do_not_allocate_after_construction() {
         }
     }
 }
+
+/// A minimum-time problem (`MinimumTime`: the step a control, equal steps, step bounds,
+/// time-weighted costs) solved by ProxDDP and ALTRO without allocating after `setup`.
+#[test]
+fn minimum_time_solves_do_not_allocate_after_setup() {
+    use gharial::dynamics::RkMethod;
+    use gharial::problem::{ContinuousStage, MinimumTime};
+    use gharial::solvers::altro::{Altro, AltroOptions};
+    let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(2));
+    let target = [std::f64::consts::PI, 0.0];
+    let stage = ContinuousStage {
+        ode: Arc::new(Pendulum { space: space.clone() }),
+        cost: Arc::new(QuadraticControlCost::diagonal(space.as_ref(), &[0.0], &[0.1]).unwrap()),
+        constraints: vec![StageConstraint::new(
+            "u_box",
+            Arc::new(ControlError::new(space.as_ref(), &[0.0]).unwrap()),
+            Arc::new(BoxConstraint::new(&[-1.5], &[1.5]).unwrap()),
+        )],
+    };
+    let goal = StageConstraint::new(
+        "x_N",
+        Arc::new(Unary::new(
+            Arc::new(StateError::new(space.clone(), &target).unwrap()),
+            0,
+        )),
+        Arc::new(EqualityConstraintSet),
+    );
+    let term = Arc::new(QuadraticStateCost::diagonal(space.clone(), &target, &[1.0, 1.0], 0).unwrap());
+    let mt = MinimumTime::new(1e-3, 0.2, 1.0, RkMethod::Rk4).unwrap();
+    let p = mt.problem(&[0.0, 0.0], &vec![stage; 30], term, &[goal]).unwrap();
+    let us = MinimumTime::controls(&vec![vec![0.0]; 30], 0.05);
+    let xs: Vec<Vec<f64>> = (0..=30)
+        .map(|t| {
+            let delta = if t == 0 { 0.0 } else { 0.05_f64.sqrt() };
+            vec![std::f64::consts::PI * t as f64 / 30.0, 0.0, delta]
+        })
+        .collect();
+    let solvers: Vec<Box<dyn Solver>> = vec![
+        Box::new(ProxDdp::new(ProxDdpOptions::default().with(|o| o.max_iters = 20))),
+        Box::new(Altro::new(AltroOptions::default().with(|o| {
+            o.iterations_outer = 4;
+            o.iterations_inner = 20;
+        }))),
+    ];
+    for mut solver in solvers {
+        solver.setup(&p).unwrap();
+        let mut iterations = 0;
+        let count = counting_alloc::allocations(|| {
+            iterations = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().iterations;
+        });
+        assert!(iterations > 3, "the solves must do real work");
+        assert_eq!(count, 0, "{}", solver.name());
+    }
+}

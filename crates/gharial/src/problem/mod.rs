@@ -13,9 +13,11 @@
 
 mod data;
 mod kkt;
+pub mod minimum_time;
 
 pub use data::{DynamicsData, ImplicitSolve, ProblemData, StageData};
 pub use kkt::{KktResiduals, kkt_residuals};
+pub use minimum_time::{ContinuousStage, MinimumTime};
 
 use std::sync::Arc;
 
