@@ -47,6 +47,14 @@ pub struct MpcOptions {
     pub max_iters: usize,
     /// Wall-time budget per cycle (`None`: iterations only).
     pub max_time: Option<Duration>,
+    /// Whether a cycle that ends at `max_iters` evaluates the derivatives and residuals
+    /// at the plan it returns (default true). The next cycle evaluates the shifted
+    /// problem anyway, so they serve only the reported status, `prim_err` and `dual_err`:
+    /// off, a cycle saves one derivative evaluation of the horizon, ends as
+    /// `MaxIterations` with the residuals of the point before its last step, and returns
+    /// the same plan, cost and feedback gains. Solvers without the option always
+    /// evaluate them.
+    pub final_residuals: bool,
 }
 
 impl Default for MpcOptions {
@@ -54,6 +62,7 @@ impl Default for MpcOptions {
         Self {
             max_iters: 1,
             max_time: None,
+            final_residuals: true,
         }
     }
 }
@@ -221,6 +230,7 @@ impl<S: Solver> Mpc<S> {
         crate::error::check_positive("max_iters", options.max_iters as f64)?;
         guess.check(&problem)?;
         solver.set_limits(options.max_iters, options.max_time);
+        solver.set_final_residuals(options.final_residuals);
         solver.setup_receding(&problem, &queue)?;
         let shaped = Solution::new(&problem, 0);
         let mut g = Guess {

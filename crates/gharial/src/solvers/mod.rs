@@ -322,6 +322,13 @@ pub trait Solver: Send {
     /// iteration history for `max_iters`.
     fn set_limits(&mut self, max_iters: usize, max_time: Option<Duration>);
 
+    /// Whether a solve that ends at its iteration limit right after a step evaluates the
+    /// derivatives and residuals at the point it returns (see
+    /// [`crate::mpc::MpcOptions::final_residuals`]); solvers that always do ignore it.
+    fn set_final_residuals(&mut self, on: bool) {
+        let _ = on;
+    }
+
     /// As `setup`, and prepares the receding horizon of [`crate::mpc`]: the workspace
     /// also holds the data of the stages of `queue`, which enter the horizon in turn
     /// through [`Solver::shift`].
@@ -366,6 +373,9 @@ impl<S: Solver + ?Sized> Solver for Box<S> {
     }
     fn set_limits(&mut self, max_iters: usize, max_time: Option<Duration>) {
         (**self).set_limits(max_iters, max_time)
+    }
+    fn set_final_residuals(&mut self, on: bool) {
+        (**self).set_final_residuals(on)
     }
     fn setup_receding(&mut self, problem: &Problem, queue: &[crate::problem::StageModel]) -> Result<()> {
         (**self).setup_receding(problem, queue)

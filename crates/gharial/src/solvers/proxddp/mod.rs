@@ -215,6 +215,9 @@ impl crate::solvers::Solver for ProxDdp {
         self.options.max_iters = max_iters;
         self.options.max_time = max_time;
     }
+    fn set_final_residuals(&mut self, on: bool) {
+        self.options.final_residuals = on;
+    }
     fn setup_receding(&mut self, problem: &Problem, queue: &[StageModel]) -> Result<()> {
         self.setup_with(problem, Some(queue))
     }

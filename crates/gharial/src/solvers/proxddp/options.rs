@@ -154,6 +154,13 @@ pub struct ProxDdpOptions {
     pub active_set_iters: usize,
     /// Wall-time budget; the best iterate so far is returned when it runs out.
     pub max_time: Option<Duration>,
+    /// Whether a solve that ends at `max_iters` right after a step evaluates the
+    /// derivatives and residuals at the point it returns (default true). Off, it returns
+    /// [`Status::MaxIterations`](crate::solvers::Status::MaxIterations) with the residuals
+    /// of the point before the last step and saves one derivative evaluation: for
+    /// receding horizons, whose next cycle evaluates the shifted problem anyway
+    /// ([`crate::mpc::MpcOptions::final_residuals`]).
+    pub final_residuals: bool,
     /// Threads for stage-wise evaluation (default 1).
     pub num_threads: usize,
     /// Where the iteration table and the outer-loop updates are written (default:
@@ -198,6 +205,7 @@ impl Default for ProxDdpOptions {
             watchdog_trials: 3,
             active_set_iters: 0,
             max_time: None,
+            final_residuals: true,
             num_threads: 1,
             log: crate::solvers::log::LogSink::Silent,
         }

@@ -428,6 +428,10 @@ impl State {
             self.res = cx.ws.estimates_and_residuals(cx.problem, self.mu, self.mu_d);
             return Some(Status::Interrupted);
         }
+        if !opts.final_residuals && self.iter >= opts.max_iters {
+            self.cost = cx.ws.accepted_cost().unwrap_or(f64::NAN);
+            return Some(Status::MaxIterations);
+        }
         match cx.ws.derivatives_at_accepted(cx.problem) {
             Some(c) => {
                 self.cost = c;

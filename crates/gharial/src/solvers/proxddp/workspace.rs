@@ -333,12 +333,16 @@ impl Workspace {
     /// trial, the last point evaluated, so only the first derivatives are computed;
     /// returns the cost, or `None` if a value is not finite.
     pub fn derivatives_at_accepted(&mut self, problem: &Problem) -> Option<f64> {
-        let c = self.data.cost;
-        if !self.values_finite() || !c.is_finite() {
-            return None;
-        }
+        let c = self.accepted_cost()?;
         self.data.compute_derivatives(problem, &self.cur.xs, &self.cur.us);
         Some(c)
+    }
+
+    /// After [`accept_trial`](Self::accept_trial): the cost of the accepted trial, or
+    /// `None` if a value is not finite.
+    pub fn accepted_cost(&self) -> Option<f64> {
+        let c = self.data.cost;
+        (self.values_finite() && c.is_finite()).then_some(c)
     }
 
     fn values_finite(&self) -> bool {
