@@ -90,9 +90,11 @@
 //! controller does not plan. Over the tests' 1.5 s (`tests/solo_walk.rs`) the flat and
 //! uphill scenarios keep the base within 8 % of the standing height, the velocity within
 //! 7 % of the command and every stance force inside its cone. Each stage solves the
-//! contact dynamics and their derivatives three times, for its dynamics, for the stacked
-//! contact-force cost and for the stacked friction cones ([`StackedContactResidual`];
-//! with one residual per foot it was 5 to 9 times).
+//! contact dynamics and their derivatives once: its dynamics, its stacked contact-force
+//! cost and its stacked friction cones ([`StackedContactResidual`]) share the solve
+//! ([`MultibodyConstraintFwdDynamics::shared_contact_data`]); a cycle skips the
+//! derivatives at its end ([`MpcOptions::final_residuals`]), which the next cycle's
+//! shifted problem would not use.
 
 use std::sync::{Arc, Mutex};
 
