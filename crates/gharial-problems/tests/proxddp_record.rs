@@ -4,7 +4,9 @@
 //! before the solver layer was reshaped (which left them unchanged bit for bit); changes
 //! of behaviour update this table in their own commits: the exact dynamics step on
 //! problems without constraints (`DynamicsStep::Auto`) changed the rows of `lqr`,
-//! `se2-car`, `peers-lqr`, `ur5` and `double-pendulum`, not their iteration counts.
+//! `se2-car`, `peers-lqr`, `ur5` and `double-pendulum`, not their iteration counts; the
+//! block-structured Riccati step on SE(3) knots (another rounding of the same algebra)
+//! moved `quadrotor-slalom`'s nonlinear-rollout dual residual by 2.4e-8 relative.
 
 use Rollout::{Linear, Nonlinear};
 use gharial::solvers::InitialGuess;
@@ -40,7 +42,7 @@ const RECORDED: &[Row] = &[
     ("quadrotor", Linear, 45, 5, 3.2980271533312986, 1.7263641424042353e-7, 5.52245213003566e-7, 1.4078547890879116, 33.728271484375),
     ("quadrotor", Nonlinear, 46, 5, 3.2980271500480587, 1.0527113831343415e-7, 6.393497614110011e-7, 1.40785494172018, 22.906761169433594),
     ("quadrotor-slalom", Linear, 103, 6, 2.382424894783753, 1.5466924724316655e-7, 8.180744106023319e-7, -0.30000000018769474, 74.40174865722656),
-    ("quadrotor-slalom", Nonlinear, 91, 6, 2.382424655276093, 8.71464029494895e-7, 5.008490330804527e-7, -0.2999999965683361, 66.3017578125),
+    ("quadrotor-slalom", Nonlinear, 91, 6, 2.382424655276094, 8.71464029494895e-7, 5.008490212565775e-7, -0.2999999965683359, 66.3017578125),
     ("peers-lqr", Linear, 1, 0, 6.248581777225142, 8.049116928532385e-16, 7.913808497406194e-15, 0.000301874882205011, 1.0),
     ("peers-lqr", Nonlinear, 1, 0, 6.248581777225143, 8.049116928532385e-16, 7.157469061880306e-15, 0.0003018748822042239, 1.0),
     ("peers-lqr-box", Linear, 8, 1, 6.922115864410658, 7.783062467443537e-9, 1.7763568394002505e-15, 0.0002981072954270975, 8.0),
