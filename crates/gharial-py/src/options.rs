@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use gharial::nlp::ProxNlpOptions;
+use gharial::nlp::{KktSolver, ProxNlpOptions};
 use gharial::solvers::altro::AltroOptions;
 use gharial::solvers::bcl_ddp::{BclDdpOptions, Multipliers, PenaltyUpdate, Schedule};
 use gharial::solvers::csqp::CsqpOptions;
@@ -76,6 +76,8 @@ pub enum Field<'a> {
     Penalty(&'a mut PenaltyUpdate),
     /// BCL-DDP's schedule.
     Schedule(&'a mut Schedule),
+    /// ProxNLP's Newton-system solve.
+    Kkt(&'a mut KktSolver),
 }
 
 const PROXDDP: &[&str] = &[
@@ -110,6 +112,7 @@ const PROXDDP: &[&str] = &[
     "active_set_iters",
     "max_time",
     "num_threads",
+    "final_residuals",
 ];
 
 fn proxddp_field<'a>(o: &'a mut ProxDdpOptions, name: &str) -> Option<Field<'a>> {
@@ -145,6 +148,7 @@ fn proxddp_field<'a>(o: &'a mut ProxDdpOptions, name: &str) -> Option<Field<'a>>
         "active_set_iters" => Field::Usize(&mut o.active_set_iters),
         "max_time" => Field::Time(&mut o.max_time),
         "num_threads" => Field::Usize(&mut o.num_threads),
+        "final_residuals" => Field::Bool(&mut o.final_residuals),
         _ => return None,
     })
 }
@@ -332,6 +336,7 @@ const PROXNLP: &[&str] = &[
     "preg_decrease",
     "dphi_thresh",
     "max_time",
+    "kkt",
 ];
 
 fn proxnlp_field<'a>(o: &'a mut ProxNlpOptions, name: &str) -> Option<Field<'a>> {
@@ -359,6 +364,7 @@ fn proxnlp_field<'a>(o: &'a mut ProxNlpOptions, name: &str) -> Option<Field<'a>>
         "preg_decrease" => Field::F64(&mut o.preg_decrease),
         "dphi_thresh" => Field::F64(&mut o.dphi_thresh),
         "max_time" => Field::Time(&mut o.max_time),
+        "kkt" => Field::Kkt(&mut o.kkt),
         _ => return None,
     })
 }
@@ -403,6 +409,11 @@ const MERITS: &[(&str, Merit)] = &[("primal-dual", Merit::PrimalDual), ("primal"
 const MULTIPLIERS: &[(&str, Multipliers)] = &[("constant", Multipliers::Constant), ("affine", Multipliers::Affine)];
 const PENALTIES: &[(&str, PenaltyUpdate)] = &[("factor", PenaltyUpdate::Factor), ("adaptive", PenaltyUpdate::Adaptive)];
 const SCHEDULES: &[(&str, Schedule)] = &[("bcl", Schedule::Bcl), ("every-iteration", Schedule::EveryIteration)];
+const KKTS: &[(&str, KktSolver)] = &[
+    ("dense", KktSolver::Dense),
+    ("sparse", KktSolver::Sparse),
+    ("auto", KktSolver::Auto),
+];
 const HESSIANS: &[(&str, HessianApprox)] = &[
     ("gauss-newton", HessianApprox::GaussNewton),
     ("exact", HessianApprox::Exact),
@@ -424,6 +435,7 @@ impl Field<'_> {
             Field::Multipliers(v) => name_of(**v, MULTIPLIERS).into_py_any(py),
             Field::Penalty(v) => name_of(**v, PENALTIES).into_py_any(py),
             Field::Schedule(v) => name_of(**v, SCHEDULES).into_py_any(py),
+            Field::Kkt(v) => name_of(**v, KKTS).into_py_any(py),
         }
     }
 
@@ -450,6 +462,7 @@ impl Field<'_> {
             Field::Multipliers(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, MULTIPLIERS)?,
             Field::Penalty(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, PENALTIES)?,
             Field::Schedule(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, SCHEDULES)?,
+            Field::Kkt(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, KKTS)?,
         }
         Ok(())
     }

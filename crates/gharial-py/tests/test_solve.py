@@ -226,3 +226,33 @@ def test_examples_run(example):
     path = os.path.join(os.path.dirname(__file__), "..", "examples", example)
     out = subprocess.run([sys.executable, path], capture_output=True, text=True, check=True).stdout
     assert "status=converged" in out
+
+
+def test_proxnlp_kkt_option_dense_and_sparse_take_the_same_iterates():
+    ex = gharial.problems.build("pendulum")
+    runs = {}
+    for kkt in ["dense", "sparse"]:
+        s = gharial.SolverProxNLP(kkt=kkt, tol=1e-6)
+        assert s.kkt == kkt
+        s.run(ex.problem, ex.xs0, ex.us0)
+        runs[kkt] = s.results
+    assert runs["dense"].num_iters == runs["sparse"].num_iters
+    assert abs(runs["dense"].traj_cost - runs["sparse"].traj_cost) <= 1e-10 * abs(runs["dense"].traj_cost)
+    np.testing.assert_allclose(np.array(runs["sparse"].us), np.array(runs["dense"].us), atol=1e-9)
+    with pytest.raises(ValueError, match="kkt"):
+        gharial.SolverProxNLP(kkt="banded")
+
+
+def test_proxddp_final_residuals_option_keeps_the_step():
+    """Without the residuals at the end of the budget the returned point is the same."""
+    problem = lqr_problem(bounds=0.3)
+    out = {}
+    for on in [True, False]:
+        s = gharial.SolverProxDDP(tol=1e-12, max_iters=2, final_residuals=on)
+        assert s.final_residuals == on
+        s.run(problem)
+        out[on] = s.results
+    assert out[True].num_iters == out[False].num_iters == 2
+    assert out[False].status == "max_iterations"
+    assert [list(u) for u in out[True].us] == [list(u) for u in out[False].us]
+    assert out[True].traj_cost == out[False].traj_cost
