@@ -146,6 +146,8 @@ pub struct AdmmQp {
     equality: Vec<Vec<bool>>,
     /// The penalty of each row (`ρ`, `1000 ρ` on equalities), set with the knots' rows.
     rho_rows: Vec<Vec<f64>>,
+    /// Whether a knot's `C` is zero (rows on controls only): its products are skipped.
+    c_zero: Vec<bool>,
     y: Vec<Vec<f64>>,
     z_prev: Vec<Vec<f64>>,
     gd: Vec<Vec<f64>>,
@@ -185,6 +187,7 @@ impl AdmmQp {
             z_prev: z.clone(),
             equality: z.iter().map(|r| vec![false; r.len()]).collect(),
             rho_rows: z.clone(),
+            c_zero: vec![false; lq.knots.len()],
             gd: z.clone(),
             tx: lq.knots.iter().map(|k| vec![0.0; k.nx]).collect(),
             tu: lq.knots.iter().map(|k| vec![0.0; k.nu]).collect(),
@@ -223,6 +226,11 @@ impl AdmmQp {
             for (i, ei) in e.iter_mut().enumerate() {
                 *ei = sets.is_equality(t, i);
             }
+        }
+        for (c_zero, knot) in self.c_zero.iter_mut().zip(&lq.knots) {
+            // Exact zeros only: a NaN keeps the products, which report it.
+            let c = knot.C.as_ref();
+            *c_zero = (0..c.ncols()).all(|j| (0..c.nrows()).all(|i| c[(i, j)] == 0.0));
         }
         self.set_rows(lq);
         self.factor(lq)?;
@@ -294,7 +302,11 @@ impl AdmmQp {
         self.riccati.resolve_vectors(lq, &mut self.sol).map_err(lq_error)?;
         for (t, knot) in lq.knots.iter().enumerate() {
             let g = &mut self.gd[t];
-            matvec(g, Accum::Replace, knot.C.as_ref(), slice(&self.sol.xs[t]), 1.0);
+            if self.c_zero[t] {
+                g.fill(0.0);
+            } else {
+                matvec(g, Accum::Replace, knot.C.as_ref(), slice(&self.sol.xs[t]), 1.0);
+            }
             if knot.nu > 0 {
                 matvec(g, Accum::Add, knot.D.as_ref(), slice(&self.sol.us[t]), 1.0);
             }
@@ -347,8 +359,11 @@ impl AdmmQp {
     /// `|Gᵀ v|_∞` at knot `t` for `v = y` (`duals`) or the scaled change of `z`.
     fn transpose_norm(&mut self, knot: &crate::lq::LqKnot, t: usize, duals: bool) -> f64 {
         let v = if duals { &self.y[t] } else { &self.z_prev[t] };
-        matvec_t(&mut self.tx[t], Accum::Replace, knot.C.as_ref(), v, 1.0);
-        let mut m = norm_inf(&self.tx[t]);
+        let mut m = 0.0;
+        if !self.c_zero[t] {
+            matvec_t(&mut self.tx[t], Accum::Replace, knot.C.as_ref(), v, 1.0);
+            m = norm_inf(&self.tx[t]);
+        }
         if knot.nu > 0 {
             matvec_t(&mut self.tu[t], Accum::Replace, knot.D.as_ref(), v, 1.0);
             m = m.max(norm_inf(&self.tu[t]));
