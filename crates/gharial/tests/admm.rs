@@ -136,6 +136,44 @@ fn a_warm_start_takes_fewer_iterations_and_bad_bounds_are_refused() {
     assert!(AdmmQp::new(&lq, AdmmOptions::default().with(|o| o.alpha = 2.0)).is_err());
 }
 
+/// The residuals are computed on the check iterations only, but those reported are of the
+/// last iteration: a converged solve stops on a check (a multiple of 25 iterations) and
+/// its primal residual `|G δ - z|_∞` bounds the violation of the bounds by `G δ`, recomputed
+/// here from the solution; so does the residual of a solve stopped by a limit that is not
+/// a multiple of 25.
+#[test]
+fn the_reported_residuals_are_those_of_the_last_iteration() {
+    let case = &qp_reference_cases()[1];
+    let (mut lq, lo, hi) = qp(case);
+    for max_iters in [1000, 37] {
+        let mut admm = AdmmQp::new(&lq, AdmmOptions::default().with(|o| o.max_iters = max_iters)).unwrap();
+        let status = admm.solve(&mut lq, &lo, &hi, false).unwrap();
+        let (prim, dual) = admm.residuals();
+        let sol = admm.solution();
+        let (mut violation, mut g_max) = (0.0_f64, 0.0_f64);
+        for (t, knot) in lq.knots.iter().enumerate() {
+            for i in 0..knot.nc {
+                let mut g = (0..knot.nx).map(|j| knot.C[(i, j)] * sol.xs[t][j]).sum::<f64>();
+                g += (0..knot.nu).map(|j| knot.D[(i, j)] * sol.us[t][j]).sum::<f64>();
+                violation = violation.max(lo[t][i] - g).max(g - hi[t][i]);
+                g_max = g_max.max(g.abs());
+            }
+        }
+        assert!(dual.is_finite() && dual >= 0.0, "{dual}");
+        assert!(
+            violation <= prim * (1.0 + 1e-12) + 1e-15,
+            "violation {violation:e} > residual {prim:e}"
+        );
+        if max_iters == 1000 {
+            assert_eq!(status, AdmmStatus::Converged);
+            assert_eq!(admm.iterations() % 25, 0, "{}", admm.iterations());
+            assert!(prim <= 1e-4 + 1e-4 * (g_max + prim), "{prim:e}");
+        } else {
+            assert_eq!((status, admm.iterations()), (AdmmStatus::MaxIterations, 37));
+        }
+    }
+}
+
 /// An infeasible QP (a terminal target out of reach of the bounded controls) ends at the
 /// iteration limit with a large primal residual, not in a hang.
 #[test]

@@ -198,6 +198,23 @@ impl RiccatiSolver {
         }
         check_same_dims(problem, &self.dims, self.nc0)?;
         check_regularisation(problem)?;
+        self.vectors_unchecked(problem)
+    }
+
+    /// [`backward_vectors`](Self::backward_vectors) then [`forward`](Self::forward)
+    /// without their checks of the problem's shapes and regularisations: for a caller
+    /// that re-solves, many times, the problem of its last (checked) backward pass with
+    /// new vectors `q, r, f, d, g0` (an ADMM's x-updates), where the checks would cost as
+    /// much as the vector pass of a small knot.
+    pub(crate) fn resolve_vectors(&mut self, problem: &LqProblem, sol: &mut LqSolution) -> Result<(), LqError> {
+        if !self.factored || self.square_root_factored {
+            return Err(LqError::NotFactored);
+        }
+        self.vectors_unchecked(problem)?;
+        self.forward_unchecked(problem, sol)
+    }
+
+    fn vectors_unchecked(&mut self, problem: &LqProblem) -> Result<(), LqError> {
         sweep(
             &mut self.stages,
             &mut self.scratch,
@@ -247,6 +264,10 @@ impl RiccatiSolver {
         }
         check_same_dims(problem, &self.dims, self.nc0)?;
         sol.check_dims(problem)?;
+        self.forward_unchecked(problem, sol)
+    }
+
+    fn forward_unchecked(&mut self, problem: &LqProblem, sol: &mut LqSolution) -> Result<(), LqError> {
         self.initial.solve(
             problem,
             slice(&problem.g0),

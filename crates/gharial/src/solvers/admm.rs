@@ -144,6 +144,10 @@ pub struct AdmmQp {
     z: Vec<Vec<f64>>,
     /// Whether each row is an equality (from the sets of the last solve).
     equality: Vec<Vec<bool>>,
+    /// The penalty of each row (`ρ`, `1000 ρ` on equalities), set with the knots' rows.
+    rho_rows: Vec<Vec<f64>>,
+    /// Whether a knot's `C` is zero (rows on controls only): its products are skipped.
+    c_zero: Vec<bool>,
     y: Vec<Vec<f64>>,
     z_prev: Vec<Vec<f64>>,
     gd: Vec<Vec<f64>>,
@@ -182,6 +186,8 @@ impl AdmmQp {
             y: z.clone(),
             z_prev: z.clone(),
             equality: z.iter().map(|r| vec![false; r.len()]).collect(),
+            rho_rows: z.clone(),
+            c_zero: vec![false; lq.knots.len()],
             gd: z.clone(),
             tx: lq.knots.iter().map(|k| vec![0.0; k.nx]).collect(),
             tu: lq.knots.iter().map(|k| vec![0.0; k.nu]).collect(),
@@ -221,20 +227,29 @@ impl AdmmQp {
                 *ei = sets.is_equality(t, i);
             }
         }
+        for (c_zero, knot) in self.c_zero.iter_mut().zip(&lq.knots) {
+            // Exact zeros only: a NaN keeps the products, which report it.
+            let c = knot.C.as_ref();
+            *c_zero = (0..c.ncols()).all(|j| (0..c.nrows()).all(|i| c[(i, j)] == 0.0));
+        }
         self.set_rows(lq);
         self.factor(lq)?;
         let o = self.options;
         for it in 0..o.max_iters {
             self.iters = it + 1;
             self.x_update(lq)?;
-            let r = self.z_y_update(lq, sets);
-            (self.prim, self.dual) = (r.prim, r.dual);
             let check = self.iters.is_multiple_of(o.check_interval) || self.iters == o.max_iters;
+            let update = o.rho_update_interval > 0 && self.iters.is_multiple_of(o.rho_update_interval);
+            // The residuals (two products with Gᵀ per knot) only where they are used.
+            let Some(r) = self.z_y_update(lq, sets, check || update) else {
+                continue;
+            };
+            (self.prim, self.dual) = (r.prim, r.dual);
             if check && r.prim <= o.eps_abs + o.eps_rel * r.prim_scale && r.dual <= o.eps_abs + o.eps_rel * r.dual_scale
             {
                 return Ok(AdmmStatus::Converged);
             }
-            if o.rho_update_interval > 0 && self.iters.is_multiple_of(o.rho_update_interval) && self.update_rho(&r) {
+            if update && self.update_rho(&r) {
                 self.set_rows(lq);
                 self.factor(lq)?;
             }
@@ -259,16 +274,13 @@ impl AdmmQp {
         Ok(())
     }
 
-    /// The penalty of row `i` of knot `t` (`1000 ρ` on equality rows).
-    fn row_rho(&self, t: usize, i: usize) -> f64 {
-        if self.equality[t][i] { 1e3 * self.rho } else { self.rho }
-    }
-
-    /// Writes `mu_c = 1/ρ_i` and `d = y/ρ_i - z` into the knots.
-    fn set_rows(&self, lq: &mut LqProblem) {
+    /// Sets the rows' penalties `ρ_i` (`1000 ρ` on equality rows) and writes
+    /// `mu_c = 1/ρ_i` and `d = y/ρ_i - z` into the knots.
+    fn set_rows(&mut self, lq: &mut LqProblem) {
         for (t, knot) in lq.knots.iter_mut().enumerate() {
             for i in 0..knot.nc {
-                let rho = self.row_rho(t, i);
+                let rho = if self.equality[t][i] { 1e3 * self.rho } else { self.rho };
+                self.rho_rows[t][i] = rho;
                 knot.mu_c[i] = 1.0 / rho;
                 knot.d[i] = self.y[t][i] / rho - self.z[t][i];
             }
@@ -286,11 +298,15 @@ impl AdmmQp {
                 knot.d[i] = self.y[t][i] * knot.mu_c[i] - self.z[t][i];
             }
         }
-        self.riccati.backward_vectors(lq).map_err(lq_error)?;
-        self.riccati.forward(lq, &mut self.sol).map_err(lq_error)?;
+        // The knots' shapes and regularisations were checked by the factorisation.
+        self.riccati.resolve_vectors(lq, &mut self.sol).map_err(lq_error)?;
         for (t, knot) in lq.knots.iter().enumerate() {
             let g = &mut self.gd[t];
-            matvec(g, Accum::Replace, knot.C.as_ref(), slice(&self.sol.xs[t]), 1.0);
+            if self.c_zero[t] {
+                g.fill(0.0);
+            } else {
+                matvec(g, Accum::Replace, knot.C.as_ref(), slice(&self.sol.xs[t]), 1.0);
+            }
             if knot.nu > 0 {
                 matvec(g, Accum::Add, knot.D.as_ref(), slice(&self.sol.us[t]), 1.0);
             }
@@ -298,8 +314,9 @@ impl AdmmQp {
         Ok(())
     }
 
-    /// The relaxed projection and dual update; the residuals of the iteration.
-    fn z_y_update(&mut self, lq: &LqProblem, sets: &mut dyn RowSets) -> Residuals {
+    /// The relaxed projection and dual update; with `residuals`, the residuals of the
+    /// iteration.
+    fn z_y_update(&mut self, lq: &LqProblem, sets: &mut dyn RowSets, residuals: bool) -> Option<Residuals> {
         let a = self.options.alpha;
         let mut r = Residuals {
             prim: 0.0,
@@ -308,33 +325,45 @@ impl AdmmQp {
             dual_scale: 0.0,
         };
         for t in 0..self.z.len() {
-            self.z_prev[t].copy_from_slice(&self.z[t]);
-            let zh = |s: &Self, i: usize| a * s.gd[t][i] + (1.0 - a) * s.z_prev[t][i];
-            for i in 0..self.z[t].len() {
-                self.z[t][i] = zh(self, i) + self.y[t][i] / self.row_rho(t, i);
+            let (z, z_prev, y) = (&mut self.z[t], &mut self.z_prev[t], &mut self.y[t]);
+            let (gd, rho) = (&self.gd[t], &self.rho_rows[t]);
+            z_prev.copy_from_slice(z);
+            for i in 0..z.len() {
+                z[i] = a * gd[i] + (1.0 - a) * z_prev[i] + y[i] / rho[i];
             }
-            sets.project(t, &mut self.z[t]);
-            for i in 0..self.z[t].len() {
-                let (rho, z) = (self.row_rho(t, i), self.z[t][i]);
-                self.y[t][i] += rho * (zh(self, i) - z);
-                r.prim = r.prim.max((self.gd[t][i] - z).abs());
-                r.prim_scale = r.prim_scale.max(self.gd[t][i].abs()).max(z.abs());
-                self.z_prev[t][i] = rho * (z - self.z_prev[t][i]);
+            sets.project(t, z);
+            for i in 0..z.len() {
+                // ẑ, the relaxed G δ⁺.
+                let zh = a * gd[i] + (1.0 - a) * z_prev[i];
+                y[i] += rho[i] * (zh - z[i]);
             }
+            if residuals {
+                for i in 0..z.len() {
+                    r.prim = r.prim.max((gd[i] - z[i]).abs());
+                    r.prim_scale = r.prim_scale.max(gd[i].abs()).max(z[i].abs());
+                    z_prev[i] = rho[i] * (z[i] - z_prev[i]);
+                }
+            }
+        }
+        if !residuals {
+            return None;
         }
         // Dual residual ρ Gᵀ(z - z_prev) (z_prev now holds ρ (z - z_prev)) and Gᵀ y.
         for (t, knot) in lq.knots.iter().enumerate() {
             r.dual = r.dual.max(self.transpose_norm(knot, t, false));
             r.dual_scale = r.dual_scale.max(self.transpose_norm(knot, t, true));
         }
-        r
+        Some(r)
     }
 
     /// `|Gᵀ v|_∞` at knot `t` for `v = y` (`duals`) or the scaled change of `z`.
     fn transpose_norm(&mut self, knot: &crate::lq::LqKnot, t: usize, duals: bool) -> f64 {
         let v = if duals { &self.y[t] } else { &self.z_prev[t] };
-        matvec_t(&mut self.tx[t], Accum::Replace, knot.C.as_ref(), v, 1.0);
-        let mut m = norm_inf(&self.tx[t]);
+        let mut m = 0.0;
+        if !self.c_zero[t] {
+            matvec_t(&mut self.tx[t], Accum::Replace, knot.C.as_ref(), v, 1.0);
+            m = norm_inf(&self.tx[t]);
+        }
         if knot.nu > 0 {
             matvec_t(&mut self.tu[t], Accum::Replace, knot.D.as_ref(), v, 1.0);
             m = m.max(norm_inf(&self.tu[t]));

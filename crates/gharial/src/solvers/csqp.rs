@@ -152,6 +152,11 @@ struct Workspace {
     /// Scratch of the projections (the largest constraint's rows).
     w: Vec<f64>,
     out: Vec<f64>,
+    /// Per knot row: the bounds `lo - h, hi - h` of the QP's rows of box-shaped sets
+    /// (boxes, orthants, equalities), whether the row's set is one (by its first row).
+    lo: Vec<Vec<f64>>,
+    hi: Vec<Vec<f64>>,
+    boxed: Vec<Vec<bool>>,
     /// Entries of `cons` of each knot: `knot_entries[t]..knot_entries[t + 1]`.
     knot_entries: Vec<usize>,
     gx: Vec<Vec<f64>>,
@@ -196,6 +201,7 @@ impl Workspace {
         let mut cons = constraint_index(problem);
         let lq = super::skeleton::lq_for(problem, true, receding.map(|r| r.max_nc));
         let admm = AdmmQp::new(&lq, opts.admm)?;
+        let rows: Vec<Vec<f64>> = lq.knots.iter().map(|k| vec![0.0; k.nc]).collect();
         let mut s = Solution::new(problem, 0);
         if let Some(r) = receding {
             r.reserve_index(problem, &mut cons);
@@ -215,6 +221,9 @@ impl Workspace {
             nus: s.nus,
             w: vec![0.0; max_nr],
             out: vec![0.0; max_nr],
+            boxed: rows.iter().map(|r| vec![false; r.len()]).collect(),
+            lo: rows.clone(),
+            hi: rows,
             knot_entries: vec![0; n + 2],
             cons,
             filter: SqpFilter::new(opts.filter_size),
@@ -330,6 +339,17 @@ impl Workspace {
             crate::linalg::copy(knot.C.as_mut().subrows_mut(off, nr), d.jx.as_ref());
             if knot.nu > 0 {
                 crate::linalg::copy(knot.D.as_mut().subrows_mut(off, nr), d.ju.as_ref());
+            }
+            // A box-shaped set's shifted bounds, for a projection by clamping.
+            let r = e.rows.clone();
+            let (lo, hi) = (&mut self.lo[t][r.clone()], &mut self.hi[t][r]);
+            if nr > 0 && c.set.box_bounds(lo, hi) {
+                self.boxed[t][off] = true;
+                for ((l, u), h) in lo.iter_mut().zip(hi.iter_mut()).zip(d.value()) {
+                    (*l, *u) = (*l - h, *u - h);
+                }
+            } else if nr > 0 {
+                self.boxed[t][off] = false;
             }
         }
     }
@@ -481,6 +501,9 @@ fn iterate(
             data: &ws.data,
             cons: &ws.cons,
             knot_entries: &ws.knot_entries,
+            lo: &ws.lo,
+            hi: &ws.hi,
+            boxed: &ws.boxed,
             w: &mut ws.w,
             out: &mut ws.out,
         };
@@ -529,12 +552,15 @@ fn iterate(
 }
 
 /// The sets of the QP's rows at the current point: row block `δh` of constraint `h ∈ C`
-/// lies in `C - h(x, u)`.
+/// lies in `C - h(x, u)` (for a box `[lo, hi]`, the box `[lo - h, hi - h]`).
 struct ShiftedSets<'a> {
     problem: &'a Problem,
     data: &'a ProblemData,
     cons: &'a [ConstraintEntry],
     knot_entries: &'a [usize],
+    lo: &'a [Vec<f64>],
+    hi: &'a [Vec<f64>],
+    boxed: &'a [Vec<bool>],
     w: &'a mut [f64],
     out: &'a mut [f64],
 }
@@ -550,6 +576,17 @@ impl RowSets for ShiftedSets<'_> {
 
     fn project(&mut self, t: usize, v: &mut [f64]) {
         for e in &self.cons[self.knot_entries[t]..self.knot_entries[t + 1]] {
+            let r = e.rows.clone();
+            if r.is_empty() {
+                continue;
+            }
+            if self.boxed[t][r.start] {
+                let bounds = self.lo[t][r.clone()].iter().zip(&self.hi[t][r.clone()]);
+                for (vi, (l, u)) in v[r].iter_mut().zip(bounds) {
+                    *vi = vi.max(*l).min(*u);
+                }
+                continue;
+            }
             let c = &self.problem.constraints(t)[e.k];
             let (nr, r) = (c.nr(), e.rows.clone());
             let h = self.data.constraint_data(t)[e.k].value();
