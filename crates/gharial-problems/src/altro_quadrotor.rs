@@ -34,10 +34,12 @@
 //! 0.1` and `cost_tolerance_intermediate = 1e-2` (97 iterations; from the default penalty
 //! 1 it stalls at 3e-5), ProxDDP at the settings below reaches a feasible point of the
 //! same cost (2e-5 relative) whose dual residual stalls above 1e-8 (measured).
-//! `quadrotor-maze` ([`maze`]) is not yet: the paper solves it with the infeasible start,
-//! whose slack controls ALTRO adds on vector-space states only (it refuses this SE(3)
-//! state with that reason), and from the hover rollout AL-iLQR is what the paper shows
-//! failing.
+//! `quadrotor-maze` ([`maze`]) is solved as the paper does, by ALTRO's infeasible start
+//! from the guess through the seven points (slack controls in SE(3) × R⁶'s tangent
+//! space), with `penalty_initial = 0.1` and `cost_tolerance_intermediate = 1e-2`: 223
+//! iterations to a violation of 4e-12, collision-free (0.9-1.2 s release on this
+//! machine; Table I: 33 s). From the hover rollout without it, AL-iLQR converged too here,
+//! in 2245 iterations (the paper's failed).
 
 use std::sync::Arc;
 

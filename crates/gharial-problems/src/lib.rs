@@ -281,6 +281,11 @@ static CATALOGUE: &[ProblemInfo] = &[
         summary: "ALTRO Table I: quadrotor (SE(3) x R^6) flying 60 m along y in 5 s, u >= 0, goal constraint, N = 100",
     },
     ProblemInfo {
+        name: "quadrotor-maze",
+        summary: "ALTRO Table I: the quadrotor through 44 cylinders between walls, floor and ceiling, 0 <= u <= 100, \
+                  goal constraint, N = 100; guess: positions through 7 points (infeasible: take ALTRO's infeasible start)",
+    },
+    ProblemInfo {
         name: "ecddp-cartpole",
         summary: "ECDDP cart-pole swing-up (El Kazdadi et al. 2021, Figs. 1-4): force norm, terminal configuration upright, N = 200, dt = 10 ms",
     },
@@ -343,6 +348,7 @@ pub fn build(name: &str) -> Result<Example> {
         "altro-acrobot" => altro_systems::acrobot(),
         "altro-cartpole" => altro_systems::cartpole(),
         "quadrotor-line" => altro_quadrotor::line(),
+        "quadrotor-maze" => altro_quadrotor::maze(),
         "ecddp-cartpole" => ecddp::cartpole(false),
         "ecddp-cartpole-advanced" => ecddp::cartpole(true),
         "ecddp-ur5" => ecddp::ur5(),

@@ -1,6 +1,7 @@
 //! ALTRO's Table I quadrotor (`altro_quadrotor`): the line converged by ALTRO to the
-//! paper's 1e-8 at a KKT point, ProxDDP reaching the same cost; the maze's data, and
-//! ALTRO's refusal of its infeasible start on the SE(3) state.
+//! paper's 1e-8 at a KKT point, ProxDDP reaching the same cost, and ALTRO's infeasible
+//! start (slack controls in SE(3)'s tangent space) from interpolated states reaching it
+//! too; the maze solved by the infeasible start from the authors' guess, collision-free.
 
 use gharial::problem::kkt_residuals;
 use gharial::solvers::altro::{Altro, AltroOptions};
@@ -47,10 +48,37 @@ fn quadrotor_line_reaches_its_goal() {
     );
     assert!(p.prim_err < 1e-10);
     assert!((p.cost - a.cost).abs() < 1e-4 * a.cost, "{} vs {}", p.cost, a.cost);
+    // The infeasible start (slack controls in SE(3)'s tangent space) from states
+    // interpolated from x0 to the goal, which violate the dynamics: the same optimum.
+    let n = ex.xs0.len() - 1;
+    let x0 = ex.xs0[0].clone();
+    let xs: Vec<Vec<f64>> = (0..=n)
+        .map(|t| {
+            let s = t as f64 / n as f64;
+            let mut x = x0.clone();
+            x[1] = 60.0 * s;
+            x
+        })
+        .collect();
+    let mut inf = Altro::new(AltroOptions::default().with(|o| {
+        o.constraint_tolerance = 1e-8;
+        o.penalty_initial = 0.1;
+        o.cost_tolerance_intermediate = 1e-2;
+        o.infeasible_start = true;
+    }));
+    inf.setup(&ex.problem).unwrap();
+    let b = inf.solve(&ex.problem, InitialGuess::primal(&xs, &ex.us0)).unwrap();
+    eprintln!(
+        "quadrotor-line / altro, infeasible start: {:?}, {} iterations, cost {}, c_max {:e}",
+        b.status, b.iterations, b.cost, b.prim_err
+    );
+    assert_eq!(b.status, Status::Converged);
+    assert!(b.prim_err <= 1e-8);
+    assert!((b.cost - a.cost).abs() < 1e-4 * a.cost, "{} vs {}", b.cost, a.cost);
 }
 
 #[test]
-fn quadrotor_maze_data_and_the_infeasible_start_on_se3() {
+fn quadrotor_maze_is_solved_by_the_infeasible_start_on_se3() {
     let ex = gharial_problems::altro_quadrotor::maze().unwrap();
     let cylinders = gharial_problems::altro_quadrotor::maze_cylinders();
     assert_eq!(cylinders.len(), 44);
@@ -66,7 +94,46 @@ fn quadrotor_maze_data_and_the_infeasible_start_on_se3() {
         .count();
     eprintln!("guess nodes inside a cylinder: {inside}");
     assert_eq!(inside, 0);
-    let mut altro = Altro::new(AltroOptions::default().with(|o| o.infeasible_start = true));
-    let e = altro.setup(&ex.problem).unwrap_err().to_string();
-    assert!(e.contains("infeasible_start") && e.contains("vector spaces"), "{e}");
+    // ALTRO's infeasible start on the SE(3) state: slack controls in the tangent space.
+    let mut altro = Altro::new(AltroOptions::default().with(|o| {
+        o.infeasible_start = true;
+        o.constraint_tolerance = 1e-6;
+        o.penalty_initial = 0.1;
+        o.cost_tolerance_intermediate = 1e-2;
+    }));
+    altro.setup(&ex.problem).unwrap();
+    let t = std::time::Instant::now();
+    let a = altro
+        .solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0))
+        .unwrap()
+        .clone();
+    eprintln!(
+        "quadrotor-maze / altro (infeasible start): {:?}, {} iterations, cost {}, c_max {:e}, {:?}",
+        a.status,
+        a.iterations,
+        a.cost,
+        a.prim_err,
+        t.elapsed()
+    );
+    assert_eq!(a.status, Status::Converged);
+    assert!(a.prim_err <= 1e-6);
+    // Recomputed from the states: every node outside every cylinder's clearance, inside
+    // the walls, floor and ceiling, at the goal; the dynamics closed (KKT residuals).
+    let worst =
+        a.xs.iter()
+            .skip(1)
+            .flat_map(|x| cylinders.iter().map(move |c| r - (x[0] - c[0]).hypot(x[1] - c[1])))
+            .fold(f64::NEG_INFINITY, f64::max);
+    assert!(worst <= 1e-6, "deepest point inside a cylinder: {worst:e}");
+    assert!(
+        a.xs.iter()
+            .all(|x| x[0].abs() <= 25.0 + 1e-6 && x[2] >= -1e-6 && x[2] <= 20.0 + 1e-6)
+    );
+    let x = a.xs.last().unwrap();
+    assert!(
+        (x[1] - 60.0).abs() < 1e-6 && x[0].abs() < 1e-6 && (x[2] - 10.0).abs() < 1e-6,
+        "{x:?}"
+    );
+    let kkt = kkt_residuals(&ex.problem, &a.xs, &a.us, &a.lambdas, &a.nus).unwrap();
+    assert!(kkt.dynamics < 1e-8, "{kkt:?}");
 }

@@ -20,8 +20,8 @@ fn every_catalogue_entry_builds_a_consistent_example() {
         assert_eq!(p.x0().unwrap(), ex.xs0[0].as_slice(), "{}", info.name);
         // ur10-ballistic: the flight nodes hold the released mug at rest (cold start);
         // solo-com-circle: x0 at every node (the rollout of u_qs leaves the unstable
-        // standing equilibrium); car-escape: states through six poses (ALTRO's infeasible
-        // start).
+        // standing equilibrium); car-escape and quadrotor-maze: states through six or seven
+        // poses (ALTRO's infeasible start).
         let not_rollouts = [
             "clqr",
             "pendulum",
@@ -30,6 +30,7 @@ fn every_catalogue_entry_builds_a_consistent_example() {
             "ur10-ballistic",
             "solo-com-circle",
             "car-escape",
+            "quadrotor-maze",
         ];
         if !not_rollouts.contains(&info.name) {
             let xs = gharial_problems::rollout(p, &ex.us0).unwrap();
@@ -60,6 +61,8 @@ fn horizons_and_steps_are_as_documented() {
         ("altro-pendulum-min-time", 30, Some(0.15)),
         ("altro-acrobot", 100, Some(0.05)),
         ("altro-cartpole", 100, Some(0.05)),
+        ("quadrotor-line", 100, Some(0.05)),
+        ("quadrotor-maze", 100, Some(0.05)),
         ("ecddp-cartpole", 200, Some(0.01)),
         ("ecddp-ur5", 200, Some(0.01)),
     ] {

@@ -14,7 +14,9 @@ use gharial::solvers::{InitialGuess, Solution, SolverOptions};
 /// converges at the default settings; the time-penalised `altro-pendulum-min-time` and
 /// `car-parallel-park-min-time` converge with ProxDDP and (the park) ALTRO, to optima that
 /// agree to 0.5% only (ALTRO's iLQR stops while the steps still move), and ALTRO's
-/// park takes 6000 iterations, too long for this debug-build test.
+/// park takes 6000 iterations, too long for this debug-build test; `quadrotor-line` and
+/// `quadrotor-maze` are compared in `altro_quadrotor.rs` (ProxDDP's dual residual stalls on
+/// the line; the maze's guess is infeasible, for ALTRO's infeasible start).
 const PROBLEMS: [&str; 20] = [
     "lqr",
     "lqr-bounds",

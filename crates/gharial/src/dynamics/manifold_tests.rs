@@ -80,7 +80,7 @@ impl AutoOdeFn for Drift {
     }
 }
 
-fn models() -> Vec<(&'static str, Arc<dyn Ode>)> {
+pub(crate) fn models() -> Vec<(&'static str, Arc<dyn Ode>)> {
     let so2_r: Arc<dyn Manifold> = Arc::new(CartesianProduct::pair(Arc::new(SO2), Arc::new(VectorSpace::new(1))));
     let tso3: Arc<dyn Manifold> = Arc::new(TangentBundle::new(Arc::new(SO3)));
     vec![
@@ -131,7 +131,7 @@ fn rk_ref<D: ManifoldScalar>(k: usize, space: &dyn Manifold, dt: f64, method: Rk
     D::integrate(space, x, &v, y);
 }
 
-fn random_point(space: &dyn Manifold, g: &mut rand::rngs::SmallRng) -> Vec<f64> {
+pub(crate) fn random_point(space: &dyn Manifold, g: &mut rand::rngs::SmallRng) -> Vec<f64> {
     let mut x = vec![0.0; space.nx()];
     space.random(g, &mut x);
     x

@@ -18,7 +18,7 @@ pub mod implicit;
 pub mod integrators;
 mod linear;
 #[cfg(test)]
-mod manifold_tests;
+pub(crate) mod manifold_tests;
 
 pub use implicit::{ExplicitAsImplicit, ImplicitEuler, ImplicitMidpoint};
 pub use integrators::{ExplicitRungeKutta, RkMethod, SemiImplicitEuler};

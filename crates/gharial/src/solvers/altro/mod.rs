@@ -39,7 +39,7 @@
 //! its stationarity.
 //!
 //! - *Infeasible start* (III-B, [`AltroOptions::infeasible_start`]): slack controls `s`
-//!   with `x_{k+1} = f(x_k, u_k) + s_k` (30) start from the guess's states with the slacks
+//!   with `x_{k+1} = f(x_k, u_k) ⊕ s_k` ((30); `+` on vector spaces) start from the guess's states with the slacks
 //!   (31) that make them feasible; the cost `½R_s|s|²` (32) and the constraint `s = 0` join
 //!   the augmented Lagrangian, and the projection closes what is left of the gaps.
 //! - *Projection* (Algorithm 2, [`AltroOptions::projected_newton`]): module `projection`.
@@ -152,10 +152,10 @@ struct Workspace {
 
 impl Workspace {
     fn new(problem: &Problem, opts: &AltroOptions) -> Result<Self> {
-        if opts.infeasible_start && !vector_spaces(problem) {
+        if opts.infeasible_start && !explicit(problem) {
             return Err(Error::option(
                 "infeasible_start",
-                "needs explicit dynamics on vector spaces (the slack controls are added to the next state)",
+                "needs explicit dynamics (the slack controls move the next state)",
             ));
         }
         let mut costs = Vec::with_capacity(problem.horizon() + 1);
@@ -227,7 +227,7 @@ impl Workspace {
     }
 
     /// The starting point (Algorithm 4, lines 3-7): the guess's controls; with the
-    /// infeasible start, its states and the slack controls (31) `s_k = x̃_{k+1} - f(x̃_k, u_k)`
+    /// infeasible start, its states and the slack controls (31) `s_k = x̃_{k+1} ⊖ f(x̃_k, u_k)`
     /// that make them feasible; otherwise the states simulated from `x_0`.
     fn start(&mut self, problem: &Problem, guess: &InitialGuess<'_>, infeasible: bool) -> Result<()> {
         copy_trajectory(&mut self.xs, guess.xs);
@@ -247,9 +247,9 @@ impl Workspace {
             let f = self.data.stages[t]
                 .xnext()
                 .expect("explicit dynamics (checked in setup)");
-            for ((s, y), fi) in u[g.len()..].iter_mut().zip(&self.xs[t + 1]).zip(f) {
-                *s = y - fi;
-            }
+            problem.stages()[t]
+                .space_next()
+                .difference(f, &self.xs[t + 1], &mut u[g.len()..]);
         }
         Ok(())
     }
@@ -312,6 +312,14 @@ impl Workspace {
         }
         m
     }
+}
+
+/// Whether every stage has explicit dynamics.
+fn explicit(problem: &Problem) -> bool {
+    problem
+        .stages()
+        .iter()
+        .all(|s| matches!(s.dynamics, crate::dynamics::Dynamics::Explicit(_)))
 }
 
 /// Whether every knot's LQ has `E = -I` (explicit dynamics on vector spaces).

@@ -44,8 +44,8 @@ pub struct AltroOptions {
     /// Newton steps of the projection at most (default 10).
     pub projected_newton_steps: usize,
     /// Start from the guess's states, made feasible by slack controls (III-B; default
-    /// false: the states are the rollout of the guess's controls). Explicit dynamics on
-    /// vector spaces.
+    /// false: the states are the rollout of the guess's controls). Explicit dynamics; on
+    /// a Lie group the slack is a tangent vector at `f(x, u)`.
     pub infeasible_start: bool,
     /// Weight `R_s` of the slack cost `½R_s|s|²` (32) (default 1).
     pub slack_weight: f64,

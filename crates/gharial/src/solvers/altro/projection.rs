@@ -28,6 +28,10 @@ use crate::solvers::skeleton::{LinearTrial, copy_stage_model, copy_trajectory, l
 /// Regularisation of the active rows in the projection's LQ problem.
 const MU_ACTIVE: f64 = 1e-10;
 
+/// Range of the primal regularisation of the projection's metric when `H` alone fails.
+const PREG_MIN: f64 = 1e-9;
+const PREG_MAX: f64 = 1e-3;
+
 /// Workspace of the projection, allocated in `setup`.
 pub(super) struct Projection {
     lq: LqProblem,
@@ -156,12 +160,24 @@ impl Projection {
         true
     }
 
-    /// The backward and forward passes of the projection's LQ problem into `step`.
+    /// The backward and forward passes of the projection's LQ problem into `step`. The
+    /// metric is the objective's Hessian `H`; where the plain pass loses its inertia with
+    /// it (the square-root pass needs `E = -I`: not on Lie groups), `H + ρI` for the
+    /// smallest `ρ = 1e-9, 1e-8, ..., 1e-3` that passes (any positive-definite metric
+    /// gives a projection onto the same constraint manifold).
     fn solve_lq(&mut self) -> Result<(), crate::lq::LqError> {
-        if self.square_root {
-            self.riccati.backward_square_root(&self.lq, 0.0)?;
-        } else {
-            self.riccati.backward(&self.lq, 0.0)?;
+        let mut rho = 0.0;
+        loop {
+            let pass = if self.square_root {
+                self.riccati.backward_square_root(&self.lq, rho)
+            } else {
+                self.riccati.backward(&self.lq, rho)
+            };
+            match pass {
+                Ok(()) => break,
+                Err(e) if rho >= PREG_MAX => return Err(e),
+                Err(_) => rho = if rho == 0.0 { PREG_MIN } else { 10.0 * rho },
+            }
         }
         self.riccati.forward(&self.lq, &mut self.step)
     }
