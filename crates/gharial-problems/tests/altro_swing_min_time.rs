@@ -160,10 +160,26 @@ fn pendulum_min_time_is_shorter_with_equal_steps() {
     assert!(kkt.max() < 1e-5, "{kkt:?}");
     assert!(t < 0.5 * 4.5, "{t}");
     assert!(goal_error(&p, &[(0, PI), (1, 0.0)]) < 1e-6);
-    // ALTRO comes within 0.1% of that time but stalls with a violation of 1.6e-3
-    // (measured): its inner iLQR stops moving once the penalties pass 1e4.
-    let a = solve_from(&ex, altro(1e-6), &ex.xs0, &ex.us0);
+    // ALTRO's inner iLQR stops moving once the penalties pass 1e4, at a violation of
+    // 1.6e-3 (measured); from there the projection (entered at ALTRO's default tolerance,
+    // 1e-3, twice which a stuck point is handed over) makes the point feasible in 30
+    // Newton steps at most, its time 0.95% above ProxDDP's (the projection does not move
+    // towards the optimum: measured 1.6218 s against 1.6065 s).
+    let options = SolverOptions::Altro(AltroOptions::default().with(|o| {
+        o.constraint_tolerance = 1e-6;
+        o.cost_tolerance = 1e-10;
+    }));
+    let a = solve_from(&ex, options, &ex.xs0, &ex.us0);
     let t_altro = MinimumTime::total_time(&a.us);
-    assert!(a.prim_err < 5e-3, "{:e}", a.prim_err);
-    assert!((t_altro - t).abs() < 5e-3 * t, "ALTRO T = {t_altro}, ProxDDP T = {t}");
+    eprintln!(
+        "{name} / altro: {:?}, {} iterations, c_max {:e}, T = {t_altro} (ProxDDP {t})",
+        a.status, a.iterations, a.prim_err
+    );
+    assert_eq!(a.status, Status::Converged);
+    assert!(a.prim_err <= 1e-6, "{:e}", a.prim_err);
+    check_steps(name, &a, bounds);
+    assert!(
+        t_altro >= t - 1e-6 && t_altro < 1.015 * t,
+        "ALTRO T = {t_altro}, ProxDDP T = {t}"
+    );
 }

@@ -314,6 +314,10 @@ impl Workspace {
     }
 }
 
+/// How far above the projection's tolerance a stuck AL-iLQR point is still handed to
+/// the projection.
+const HANDOFF: f64 = 2.0;
+
 /// Whether every stage has explicit dynamics.
 fn explicit(problem: &Problem) -> bool {
     problem
@@ -413,6 +417,14 @@ impl Altro {
             // The inner solve converged to cost_tolerance when it ran with it.
             let inner_ok = last && matches!(inner_status, Status::Converged | Status::Stalled);
             if viol <= tol && inner_ok {
+                status = Status::Converged;
+                break;
+            }
+            // An inner solve that can no longer step (its line search or regularisation
+            // gave up) near the projection's tolerance: the penalties would only grow
+            // while the point stays, so the projection (Algorithm 3) takes it from here.
+            let stuck = matches!(inner_status, Status::RegularizationFailure | Status::LinesearchFailure);
+            if stuck && opts.projected_newton && viol <= HANDOFF * tol {
                 status = Status::Converged;
                 break;
             }

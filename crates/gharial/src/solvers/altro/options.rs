@@ -41,7 +41,7 @@ pub struct AltroOptions {
     /// Constraint tolerance of the AL-iLQR stage when the projection follows (default
     /// `1e-3`, the paper's coarse tolerance).
     pub projected_newton_tolerance: f64,
-    /// Newton steps of the projection at most (default 10).
+    /// Newton steps of the projection at most (default 30).
     pub projected_newton_steps: usize,
     /// Start from the guess's states, made feasible by slack controls (III-B; default
     /// false: the states are the rollout of the guess's controls). Explicit dynamics; on
@@ -74,7 +74,7 @@ impl Default for AltroOptions {
             square_root: false,
             projected_newton: true,
             projected_newton_tolerance: 1e-3,
-            projected_newton_steps: 10,
+            projected_newton_steps: 30,
             infeasible_start: false,
             slack_weight: 1.0,
             inner: DdpOptions::new(DdpVariant::Ddp),
