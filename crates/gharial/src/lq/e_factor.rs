@@ -41,7 +41,14 @@ impl EFactor {
         self.k == 0
     }
 
-    /// Factors `e` (nothing to factor when `e = -I`).
+    /// Records `E = -I` without a factorization (knots whose step was computed elsewhere,
+    /// as the square-root pass's).
+    pub(crate) fn mark_minus_identity(&mut self) {
+        self.k = 0;
+    }
+
+    /// Factors `e` (nothing to factor when `e = -I`; the vectorised exact test first,
+    /// the block search only for other `E`).
     pub(crate) fn factor(&mut self, e: MatRef<'_, f64>) -> Result<(), FactorError> {
         self.k = if super::is_minus_identity(e) {
             0

@@ -70,7 +70,6 @@ pub struct RiccatiStage {
     ny: usize,
     extra: ExtraGains,
     // Step 1: [Ã B̃] and the factorization of E (general E only), f̃.
-    e_minus_identity: bool,
     e_fac: EFactor,
     ab_tilde: Mat<f64>,
     f_tilde: Col<f64>,
@@ -143,7 +142,6 @@ impl RiccatiStage {
             nc,
             ny,
             extra,
-            e_minus_identity: true,
             e_fac: EFactor::new(ny, (nx + nu).max(max_rhs)),
             ab_tilde: Mat::zeros(ny, nx + nu),
             f_tilde: Col::zeros(ny),
@@ -231,8 +229,7 @@ impl RiccatiStage {
                 },
                 FactorError::Singular { .. } => self.singular("dynamics matrix E"),
             })?;
-            self.e_minus_identity = self.e_fac.is_minus_identity();
-            if !self.e_minus_identity {
+            if !self.e_fac.is_minus_identity() {
                 let mut ab = self.ab_tilde.as_mut();
                 linalg::copy(ab.rb_mut().submatrix_mut(0, 0, ny, nx), knot.A.as_ref());
                 linalg::copy(ab.rb_mut().submatrix_mut(0, nx, ny, nu), knot.B.as_ref());
@@ -255,7 +252,7 @@ impl RiccatiStage {
                 P_next
             };
             let n = nx + nu;
-            let contiguous = if !self.e_minus_identity {
+            let contiguous = if !self.e_fac.is_minus_identity() {
                 Some(self.ab_tilde.as_ref())
             } else if n <= SMALL_AB {
                 let mut ab = scratch.ab.as_mut().submatrix_mut(0, 0, ny, n);
@@ -313,7 +310,7 @@ impl RiccatiStage {
         let ny = self.ny;
         let mu = self.mu_dyn;
         self.prox.congruent = false;
-        if self.e_minus_identity {
+        if self.e_fac.is_minus_identity() {
             // Its lower triangle straight into the Cholesky factor's storage, the whole
             // of it for LU if that fails.
             linalg::identity_plus_scaled_lower(self.prox.llt.matrix_mut(), P_next, mu);
@@ -386,7 +383,7 @@ impl RiccatiStage {
         let (P_next, p_next) = next.expect("a knot with dynamics has a next value function");
         // f̃ = -E⁻¹ f.
         slice_mut(&mut self.f_tilde).copy_from_slice(v.f);
-        if !self.e_minus_identity {
+        if !self.e_fac.is_minus_identity() {
             let mut ft = self.f_tilde.as_mut().as_mat_mut();
             self.e_fac.solve_in_place(ft.rb_mut());
             linalg::negate(ft);
@@ -409,7 +406,7 @@ impl RiccatiStage {
         };
         matvec(vv, Accum::Add, pt, slice(&self.f_tilde), 1.0);
         // [Q_x; Q_u] += [Ã B̃]ᵀ v.
-        let (a, b) = ab_of(self.e_minus_identity, &self.ab_tilde, knot);
+        let (a, b) = ab_of(self.e_fac.is_minus_identity(), &self.ab_tilde, knot);
         let qv = slice_mut(&mut self.qvec);
         let (qx, qu) = qv.split_at_mut(nx);
         matvec_t(qx, Accum::Add, a, slice(&self.v), 1.0);
@@ -614,7 +611,7 @@ impl RiccatiStage {
     /// `Ξ = -E⁻ᵀY`.
     fn feedback_extra_gains(&mut self, knot: &LqKnot, P_next: MatRef<'_, f64>) {
         let (nx, nu, ny) = (self.nx, self.nu, self.ny);
-        let (a, b) = ab_of(self.e_minus_identity, &self.ab_tilde, knot);
+        let (a, b) = ab_of(self.e_fac.is_minus_identity(), &self.ab_tilde, knot);
         {
             let mut t = self.zg.as_mut().submatrix_mut(0, 1, ny, nx);
             linalg::copy(t.rb_mut(), a);
@@ -635,10 +632,10 @@ impl RiccatiStage {
         let y = self.lg.as_ref().submatrix(0, 1, ny, nx);
         let mut c = self.xg.as_mut().submatrix_mut(0, 1, ny, nx);
         linalg::copy(c.rb_mut(), t);
-        sub_g_times(self.mu_dyn, self.e_minus_identity, self.g.as_ref(), c, y);
+        sub_g_times(self.mu_dyn, self.e_fac.is_minus_identity(), self.g.as_ref(), c, y);
         let mut xi = self.lamg.as_mut().submatrix_mut(0, 1, ny, nx);
         linalg::copy(xi.rb_mut(), y);
-        if !self.e_minus_identity {
+        if !self.e_fac.is_minus_identity() {
             self.e_fac.solve_transpose_in_place(xi.rb_mut());
             linalg::negate(xi);
         }
@@ -721,7 +718,7 @@ impl RiccatiStage {
     /// `t0 = B̃k + f̃`, and with rollout gains `y0 = P̃t0 + p̃`, `c = t0 - Gy0`, `ξ = -E⁻ᵀy0`.
     fn feedforward_extra_gains(&mut self, knot: &LqKnot, P_next: MatRef<'_, f64>, p_next: &[f64]) {
         let nu = self.nu;
-        let (_, b) = ab_of(self.e_minus_identity, &self.ab_tilde, knot);
+        let (_, b) = ab_of(self.e_fac.is_minus_identity(), &self.ab_tilde, knot);
         {
             let t0 = col_of_mut(&mut self.zg, 0);
             t0.copy_from_slice(slice(&self.f_tilde));
@@ -748,13 +745,13 @@ impl RiccatiStage {
         col_of_mut(&mut self.xg, 0).copy_from_slice(col_of(&self.zg, 0));
         sub_g_times(
             self.mu_dyn,
-            self.e_minus_identity,
+            self.e_fac.is_minus_identity(),
             self.g.as_ref(),
             self.xg.as_mut().subcols_mut(0, 1),
             self.lg.as_ref().subcols(0, 1),
         );
         col_of_mut(&mut self.lamg, 0).copy_from_slice(col_of(&self.lg, 0));
-        if !self.e_minus_identity {
+        if !self.e_fac.is_minus_identity() {
             let mut xi = self.lamg.as_mut().subcols_mut(0, 1);
             self.e_fac.solve_transpose_in_place(xi.rb_mut());
             linalg::negate(xi);
@@ -844,7 +841,7 @@ impl RiccatiStage {
         }
         let (P_next, p_next) = next.expect("a knot with dynamics has a next value function");
         // z = Ã x + B̃ u + f̃ (in x_next).
-        let (a, b) = ab_of(self.e_minus_identity, &self.ab_tilde, knot);
+        let (a, b) = ab_of(self.e_fac.is_minus_identity(), &self.ab_tilde, knot);
         x_next.copy_from_slice(slice(&self.f_tilde));
         matvec(x_next, Accum::Add, a, x, 1.0);
         matvec(x_next, Accum::Add, b, u, 1.0);
@@ -858,7 +855,7 @@ impl RiccatiStage {
         matvec(lambda_next, Accum::Add, pt, x_next, 1.0);
         // x_{t+1} = z - G λ̃.
         if self.mu_dyn > 0.0 {
-            if self.e_minus_identity {
+            if self.e_fac.is_minus_identity() {
                 for i in 0..ny {
                     x_next[i] -= self.mu_dyn * lambda_next[i];
                 }
@@ -867,7 +864,7 @@ impl RiccatiStage {
             }
         }
         // λ_{t+1} = -E⁻ᵀ λ̃.
-        if !self.e_minus_identity {
+        if !self.e_fac.is_minus_identity() {
             slice_mut(&mut self.w_y).copy_from_slice(lambda_next);
             self.e_fac.solve_transpose_in_place(self.w_y.as_mut().as_mat_mut());
             for i in 0..ny {
@@ -1042,12 +1039,12 @@ impl RiccatiStage {
 
     /// Whether `E` was exactly `-I` at the last Q-function.
     pub fn e_is_minus_identity(&self) -> bool {
-        self.e_minus_identity
+        self.e_fac.is_minus_identity()
     }
 
     /// `B̃` (the knot's `B` when `E = -I`).
     pub(crate) fn b_tilde<'a>(&'a self, knot: &'a LqKnot) -> MatRef<'a, f64> {
-        ab_of(self.e_minus_identity, &self.ab_tilde, knot).1
+        ab_of(self.e_fac.is_minus_identity(), &self.ab_tilde, knot).1
     }
 
     /// `[t0 | T]`: the closed-loop `z = Ã x + B̃ u + f̃ = t0 + T x`.
@@ -1079,7 +1076,7 @@ impl RiccatiStage {
     /// the value function and `f̃`; marks the knot as one with `E = -I` and `mu_dyn = 0`
     /// (the only knots that step accepts), so that the forward pass (50) reads it as such.
     pub(super) fn square_root_parts(&mut self) -> SquareRootParts<'_> {
-        self.e_minus_identity = true;
+        self.e_fac.mark_minus_identity();
         self.mu_dyn = 0.0;
         SquareRootParts {
             qmat: &mut self.qmat,
