@@ -851,11 +851,42 @@ pub(crate) fn blame(problem: &LqProblem, knot: usize, fallback: LqError) -> LqEr
 /// `true` if `m` is exactly `-I`. Sums of absolute values (no early exit), which
 /// vectorise: this runs on every knot at every backward pass.
 pub(crate) fn is_minus_identity(m: MatRef<'_, f64>) -> bool {
+    // Off-diagonal entries are tested by OR-ing their bits without the sign (so `-0.0`
+    // counts as zero and NaN does not): one branch per column, vectorised.
+    let nonzero = |v: &[f64]| v.iter().fold(0u64, |acc, x| acc | (x.to_bits() << 1)) != 0;
     (0..m.ncols()).all(|j| match m.col(j).try_as_col_major() {
         Some(c) => {
             let c = c.as_slice();
-            c.get(j) == Some(&-1.0) && linalg::norm_l1(&c[..j]) + linalg::norm_l1(&c[j + 1..]) == 0.0
+            c.get(j) == Some(&-1.0) && !nonzero(&c[..j]) && !nonzero(&c[j + 1..])
         }
         None => (0..m.nrows()).all(|i| m[(i, j)] == if i == j { -1.0 } else { 0.0 }),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use faer::Mat;
+
+    use super::is_minus_identity;
+
+    /// Against the entrywise definition, on `-I` with one entry changed (column-major and
+    /// transposed views): signed zeros count as zero, NaN and tiny values do not.
+    #[test]
+    fn minus_identity_matches_the_entrywise_test() {
+        let entrywise =
+            |m: &Mat<f64>| (0..m.ncols()).all(|j| (0..m.nrows()).all(|i| m[(i, j)] == if i == j { -1.0 } else { 0.0 }));
+        for n in [1, 3, 12, 37] {
+            let minus = Mat::<f64>::from_fn(n, n, |i, j| if i == j { -1.0 } else { 0.0 });
+            assert!(is_minus_identity(minus.as_ref()) && is_minus_identity(minus.transpose()));
+            for (i, j) in [(0, 0), (n - 1, 0), (0, n - 1), (n / 2, n / 3), (n - 1, n - 1)] {
+                for v in [-0.0, 0.0, 1e-300, -1.0, 1.0, f64::NAN, f64::INFINITY] {
+                    let mut m = minus.clone();
+                    m[(i, j)] = v;
+                    let expected = entrywise(&m);
+                    assert_eq!(is_minus_identity(m.as_ref()), expected, "n {n} ({i}, {j}) = {v}");
+                    assert_eq!(is_minus_identity(m.transpose()), expected, "transposed");
+                }
+            }
+        }
+    }
 }
