@@ -298,6 +298,11 @@ pub struct PeersArgs {
     /// with an `error`).
     #[arg(long, value_delimiter = ',', default_values_t = HARNESS_PROBLEMS.iter().map(|s| s.to_string()).collect::<Vec<_>>())]
     pub problems: Vec<String>,
+    /// Solvers by their harness names (`ProxDDP`, `ProxDDP_ls`, `ProxDDP_as`, `DDP`,
+    /// `FDDP`, `BoxDDP`, `BoxFDDP`, `SQP`, `CSQP`, `BCL-DDP`, `ALTRO`, `ProxNLP`), comma
+    /// separated; all of them when absent.
+    #[arg(long, value_delimiter = ',')]
+    pub solvers: Option<Vec<String>>,
     /// Timed solves per problem and solver (at most 10,000).
     #[arg(long, default_value_t = 5, value_parser = count(1, MAX_REPEATS))]
     pub repeats: usize,
@@ -425,6 +430,23 @@ fn peers_solvers(args: &PeersArgs) -> Vec<(&'static str, SolverArgs)> {
     solvers
 }
 
+/// The solvers of `all` named in `names` (all when `None`), in the order of `all`; an
+/// error naming the valid labels for an unknown name.
+fn chosen_solvers(
+    all: Vec<(&'static str, SolverArgs)>,
+    names: Option<&[String]>,
+) -> Result<Vec<(&'static str, SolverArgs)>, String> {
+    let Some(names) = names else { return Ok(all) };
+    if let Some(unknown) = names.iter().find(|n| !all.iter().any(|(label, _)| label == n)) {
+        let valid: Vec<&str> = all.iter().map(|(label, _)| *label).collect();
+        return Err(format!("unknown solver `{unknown}`; valid names: {}", valid.join(", ")));
+    }
+    Ok(all
+        .into_iter()
+        .filter(|(label, _)| names.iter().any(|n| n == label))
+        .collect())
+}
+
 /// `gharial bench peers`: one JSON line per (problem, solver), trajectories written for
 /// the harness's independent check, all solvers of a problem together. ProxDDP starts
 /// from each problem's catalogue settings (the harness's: `mu_init` and rollout per
@@ -439,7 +461,13 @@ pub fn peers(args: &PeersArgs) -> i32 {
         eprintln!("gharial bench peers: {e}");
         return 2;
     }
-    let solvers = peers_solvers(args);
+    let solvers = match chosen_solvers(peers_solvers(args), args.solvers.as_deref()) {
+        Ok(solvers) => solvers,
+        Err(e) => {
+            eprintln!("gharial bench peers: {e}");
+            return 2;
+        }
+    };
     let params = lqr.params();
     for name in &args.problems {
         let ex = match harness_problem(name, &params) {

@@ -440,6 +440,35 @@ fn bench_solve_all_solvers_prints_the_matrix_of_problems_by_solvers() {
 }
 
 #[test]
+fn bench_peers_runs_the_solvers_asked_for() {
+    let o = gharial(&[
+        "bench",
+        "peers",
+        "--problems",
+        "lqr",
+        "--solvers",
+        "SQP,FDDP",
+        "--repeats",
+        "1",
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let lines: Vec<serde_json::Value> = stdout(&o)
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect();
+    let solvers: Vec<&str> = lines.iter().map(|l| l["solver"].as_str().unwrap()).collect();
+    // In the table's order, each once, and solved to the same optimum.
+    assert_eq!(solvers, ["FDDP", "SQP"]);
+    let costs: Vec<f64> = lines.iter().map(|l| l["final_cost"].as_f64().unwrap()).collect();
+    assert!((costs[0] - costs[1]).abs() < 1e-9 * costs[0], "{costs:?}");
+    let o = gharial(&["bench", "peers", "--problems", "lqr", "--solvers", "FDDP,Crocoddyl"]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(e.contains("unknown solver `Crocoddyl`") && e.contains("BoxFDDP"), "{e}");
+    assert!(stdout(&o).is_empty());
+}
+
+#[test]
 fn bench_peers_reports_every_solver_on_the_problems_it_takes() {
     let dir = std::env::temp_dir().join(format!("gharial-cli-peers-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
