@@ -162,3 +162,45 @@ fn bad_names_and_counts_are_errors() {
     assert!(e.contains(&MAX_COUNT.to_string()), "{e}");
     assert!(family("pendulum", 1, 0).unwrap().is_empty());
 }
+
+/// SQP on the first two `quadrotor` instances (SE(3) × R⁶) against references outside
+/// gharial (`bench/peers/fig1_quadrotor.py`, the instances rebuilt with crocoddyl 3.2.1):
+/// - the initial cost (crocoddyl's cost models) and the first step, from the guess whose
+///   gaps are only in the velocities: mim_solvers 0.3.0's SQP with `reg_min = 0`
+///   (gharial's regularisation starts at 0), to 1e-9;
+/// - the second step, from a point with gaps in the pose: a dense KKT solve of the LQ
+///   subproblem with the gaps `fs = log(x₊⁻¹ f(x, u))` linearised in all their arguments,
+///   `dx₊ = fs + Ad(exp fs)(F_x dx + F_u du)`, to 1e-9. mim_solvers leaves the transport
+///   `Ad(exp fs)` out (`dx₊ = F_x dx + F_u du + fs`) and its second step differs
+///   (0.26272 and 0.010052 instead); both reach the same optimum, in as many iterations
+///   within a few (crates/gharial-problems/README.md, "Benchmark families").
+#[test]
+fn sqp_steps_on_the_quadrotor_match_mim_solvers_and_the_exact_gap_linearisation() {
+    // (initial cost, cost after 1 step, after 2 steps)
+    let refs = [
+        (16.7662344737636, 8.285674292691685e-1, 2.835127889332449e-1),
+        (7.345599659277933, 2.959045243825743e-2, 1.172084027855727e-2),
+    ];
+    for (i, (ex, r)) in family("quadrotor", 1, 2).unwrap().iter().zip(refs).enumerate() {
+        let start = total_cost(&ex.problem, &ex.xs0, &ex.us0).unwrap();
+        assert!(
+            (start - r.0).abs() <= 1e-12 * r.0,
+            "instance {i}: initial cost {start} vs {}",
+            r.0
+        );
+        for (steps, cost) in [(1, r.1), (2, r.2)] {
+            let mut sqp = Ddp::new(DdpOptions::new(DdpVariant::Sqp).with(|o| {
+                o.tol = 1e-14;
+                o.max_iters = steps;
+            }));
+            sqp.setup(&ex.problem).unwrap();
+            let sol = sqp.solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0)).unwrap();
+            assert_eq!(sol.iterations, steps, "instance {i}");
+            assert!(
+                (sol.cost - cost).abs() <= 1e-9 * cost,
+                "instance {i}: cost after {steps} steps {} vs {cost}",
+                sol.cost
+            );
+        }
+    }
+}
