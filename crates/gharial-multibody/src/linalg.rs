@@ -61,6 +61,16 @@ impl<'a> DofTree<'a> {
     pub(crate) fn ancestors(&self, k: usize) -> Ancestors<'a> {
         Ancestors { parent: self.parent, k }
     }
+
+    /// Whether the dofs form one chain (dof `k`'s parent is `k − 1`): a serial arm, whose
+    /// tree-sparse products are dense.
+    #[inline]
+    pub(crate) fn is_chain(&self) -> bool {
+        self.parent
+            .iter()
+            .enumerate()
+            .all(|(k, &p)| p == k.checked_sub(1).unwrap_or(NONE))
+    }
 }
 
 /// `out[j] += Σ_(k, b) b · src[k·stride + j]` for every `j < out.len()`: a linear
@@ -155,6 +165,10 @@ pub(crate) fn minv_times_tree_sparse(
     terms: &mut Vec<(usize, f64)>,
 ) {
     let n = tree.n();
+    if n > 0 && tree.is_chain() {
+        minus_dense_product(n, s, b, out);
+        return;
+    }
     for c in 0..n {
         let col = &b[c * n..(c + 1) * n];
         terms.clear();
@@ -163,6 +177,44 @@ pub(crate) fn minv_times_tree_sparse(
         let o = &mut out[c * n..(c + 1) * n];
         o.fill(0.0);
         add_combination(o, s, n, terms);
+    }
+}
+
+/// `out = −S B` for dense n × n column-major `S`, `B` (a chain's tree-sparse product has
+/// no zeros to skip): each output column accumulated in registers, the sizes of serial
+/// arms (up to 8 dofs) unrolled.
+fn minus_dense_product(n: usize, s: &[f64], b: &[f64], out: &mut [f64]) {
+    match n {
+        1 => minus_dense_product_fixed::<1>(s, b, out),
+        2 => minus_dense_product_fixed::<2>(s, b, out),
+        3 => minus_dense_product_fixed::<3>(s, b, out),
+        4 => minus_dense_product_fixed::<4>(s, b, out),
+        5 => minus_dense_product_fixed::<5>(s, b, out),
+        6 => minus_dense_product_fixed::<6>(s, b, out),
+        7 => minus_dense_product_fixed::<7>(s, b, out),
+        8 => minus_dense_product_fixed::<8>(s, b, out),
+        _ => {
+            for (o, col) in out.chunks_exact_mut(n).zip(b.chunks_exact(n)) {
+                o.fill(0.0);
+                for (s_r, &b_r) in s.chunks_exact(n).zip(col) {
+                    axpy(-b_r, s_r, o);
+                }
+            }
+        }
+    }
+}
+
+/// [`minus_dense_product`] for `n = N`.
+fn minus_dense_product_fixed<const N: usize>(s: &[f64], b: &[f64], out: &mut [f64]) {
+    for (o, col) in out.chunks_exact_mut(N).zip(b.chunks_exact(N)) {
+        let mut acc = [0.0; N];
+        for (s_r, &b_r) in s.chunks_exact(N).zip(col) {
+            let s_r: &[f64; N] = s_r.try_into().expect("a column of N entries");
+            for (a, x) in acc.iter_mut().zip(s_r) {
+                *a -= b_r * x;
+            }
+        }
+        o.copy_from_slice(&acc);
     }
 }
 
@@ -332,4 +384,70 @@ pub(crate) fn small_spd_inverse(n: usize, a: &mut [[f64; 6]; 6]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{DofTree, NONE, minv_times_tree_sparse};
+
+    /// `−S B` by the definition, for column-major n × n slices.
+    fn naive(n: usize, s: &[f64], b: &[f64]) -> Vec<f64> {
+        let mut out = vec![0.0; n * n];
+        for c in 0..n {
+            for i in 0..n {
+                out[c * n + i] = -(0..n).map(|r| s[r * n + i] * b[c * n + r]).sum::<f64>();
+            }
+        }
+        out
+    }
+
+    /// The tree of `parent` (dofs numbered depth first), with its subtree ends and
+    /// compressed-row offsets.
+    fn tree_data(parent: &[usize]) -> (Vec<usize>, Vec<usize>) {
+        let n = parent.len();
+        let mut end: Vec<usize> = (1..=n).collect();
+        for k in (0..n).rev() {
+            if parent[k] != NONE {
+                end[parent[k]] = end[parent[k]].max(end[k]);
+            }
+        }
+        let mut anc = vec![0];
+        for k in 0..n {
+            let depth = std::iter::successors(Some(k), |&i| Some(parent[i]).filter(|&p| p != NONE)).count() - 1;
+            anc.push(anc[k] + depth);
+        }
+        (end, anc)
+    }
+
+    /// The chain's dense path and the general tree-sparse path both give `−S B` (B with
+    /// the tree's sparsity), to round-off.
+    #[test]
+    fn minv_times_tree_sparse_is_the_product() {
+        let chain = [NONE, 0, 1, 2, 3, 4];
+        let long_chain = [NONE, 0, 1, 2, 3, 4, 5, 6, 7, 8];
+        let branched = [NONE, 0, 1, 0, 3, NONE, 5];
+        for parent in [&chain[..], &long_chain[..], &branched[..]] {
+            let n = parent.len();
+            let (end, anc) = tree_data(parent);
+            let tree = DofTree {
+                parent,
+                subtree_end: &end,
+                anc_start: &anc,
+            };
+            assert_eq!(tree.is_chain(), parent != branched);
+            let value = |i: usize, j: usize| ((i * 7 + j * 3) % 11) as f64 / 5.0 - 1.0;
+            let s: Vec<f64> = (0..n * n).map(|k| value(k % n, k / n) + value(k / n, k % n)).collect();
+            let mut b = vec![0.0; n * n];
+            for c in 0..n {
+                for r in tree.ancestors(c).chain(c..end[c]) {
+                    b[c * n + r] = value(r, c + 1);
+                }
+            }
+            let mut out = vec![f64::NAN; n * n];
+            minv_times_tree_sparse(&tree, &s, &b, &mut out, &mut Vec::new());
+            for (x, y) in out.iter().zip(naive(n, &s, &b)) {
+                assert!((x - y).abs() <= 1e-14, "{x} vs {y}");
+            }
+        }
+    }
 }
