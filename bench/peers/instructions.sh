@@ -26,14 +26,20 @@ TMP="$(mktemp -d)"
 trap 'rm -rf "$TMP"' EXIT
 export OMP_NUM_THREADS=1
 
-# Instructions collected by callgrind while the functions matching $1 run; the command
-# follows. Its standard output goes to $TMP/out.
+# Instructions collected by callgrind while the functions matching $1 run, without those
+# of the OpenMP runtime (crocoddyl's parallel loops call it even on one thread, and its
+# waiting loops execute a load-dependent number of instructions); the command follows.
+# Its standard output goes to $TMP/out.
 collected() {
   local pattern="$1"
   shift
   valgrind --tool=callgrind --callgrind-out-file="$TMP/cg.out" --collect-atstart=no \
     --toggle-collect="$pattern" "$@" >"$TMP/out" 2>"$TMP/err" || { cat "$TMP/err" >&2; return 1; }
-  sed -n 's/^==[0-9]*== Collected : //p' "$TMP/err"
+  local total openmp
+  total=$(sed -n 's/^==[0-9]*== Collected : //p' "$TMP/err")
+  openmp=$(callgrind_annotate --threshold=100 "$TMP/cg.out" 2>/dev/null \
+    | awk '/libgomp/ { gsub(",", "", $1); s += $1 } END { print s + 0 }')
+  echo $((total - openmp))
 }
 
 # The solve function of each peer solver (BoxFDDP and BoxDDP inherit FDDP's and DDP's).
