@@ -3,7 +3,7 @@
 //! warm start, and the iterations FDDP and SQP take to the profile's KKT test
 //! `max(|gaps|_∞, |Q_u|_∞) ≤ tol` (`-` if not within the budget), and SQP's iterations to
 //! its own test, the KKT residual (20) (the test of mim_solvers' `termination_tolerance`).
-//! The numbers the Python reproduction `bench/peers/fig1_quadrotor.py` compares
+//! The numbers the Python reproduction `bench/peers/fig1.py` compares
 //! with; `--x0` prints the initial states as a Python list for that script.
 //!
 //! ```text

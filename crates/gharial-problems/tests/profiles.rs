@@ -164,7 +164,7 @@ fn bad_names_and_counts_are_errors() {
 }
 
 /// SQP on the first two `quadrotor` instances (SE(3) × R⁶) against references outside
-/// gharial (`bench/peers/fig1_quadrotor.py`, the instances rebuilt with crocoddyl 3.2.1):
+/// gharial (`bench/peers/fig1.py`, the instances rebuilt with crocoddyl 3.2.1):
 /// - the initial cost (crocoddyl's cost models) and the first step, from the guess whose
 ///   gaps are only in the velocities: mim_solvers 0.3.0's SQP with `reg_min = 0`
 ///   (gharial's regularisation starts at 0), to 1e-9;
