@@ -553,7 +553,7 @@ def main():
         for b, row in budgets.items():
             for n in row:
                 row[n] += got[n][0] is not None and got[n][0] <= b
-    for b, row in sorted(budgets.items()):
+    for b, row in sorted(budgets.items()) if args.count else []:
         print("solved within %3d: " % b + "  ".join(
             "%s %.2f" % (k, v / args.count) for k, v in row.items()))
     if args.trace is not None:
