@@ -12,7 +12,7 @@
 //! ```
 //! Defaults: `quadrotor`, 20 instances, budget 100, tol `1e-4`, filter size the
 //! iteration limit (the paper's; `--filter-size 1` is mim_solvers' default). `--log I`
-//! prints SQP's iteration table on instance `I`.
+//! prints FDDP's and SQP's iteration tables on instance `I`.
 
 use gharial::solvers::ddp::{DdpOptions, DdpVariant};
 use gharial::solvers::log::LogSink;
@@ -128,7 +128,7 @@ fn main() {
         let mut data = gharial::problem::ProblemData::new(&ex.problem, 1).expect("data");
         let cost = data.evaluate(&ex.problem, &ex.xs0, &ex.us0);
         let log = args.log == Some(i);
-        let fddp = iterations(ex, options(DdpVariant::Fddp, &args, false, false), false);
+        let fddp = iterations(ex, options(DdpVariant::Fddp, &args, false, log), false);
         let sqp = iterations(ex, options(DdpVariant::Sqp, &args, false, false), false);
         let own = iterations(ex, options(DdpVariant::Sqp, &args, true, log), true);
         println!("{i},{cost:.17e},{},{},{}", show(fddp), show(sqp), show(own));
