@@ -4,7 +4,8 @@
 //! `max(|gaps|_∞, |Q_u|_∞) ≤ tol` (`-` if not within the budget), and SQP's iterations to
 //! its own test, the KKT residual (20) (the test of mim_solvers' `termination_tolerance`).
 //! The numbers the Python reproduction `bench/peers/fig1.py` compares
-//! with; `--x0` prints the initial states as a Python list for that script.
+//! with (its `--gharial FILE` reads this output); `--x0` prints the initial states, which
+//! that script regenerates from the same random stream.
 //!
 //! ```text
 //! cargo run --release -p gharial-problems --example profile_instances -- \
