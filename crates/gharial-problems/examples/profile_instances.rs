@@ -3,8 +3,9 @@
 //! warm start, and the iterations FDDP and SQP take to the profile's KKT test
 //! `max(|gaps|_∞, |Q_u|_∞) ≤ tol` (`-` if not within the budget), and SQP's iterations to
 //! its own test, the KKT residual (20) (the test of mim_solvers' `termination_tolerance`).
-//! The numbers the Python reproduction `bench/peers/fig1_quadrotor.py` compares
-//! with; `--x0` prints the initial states as a Python list for that script.
+//! The numbers the Python reproduction `bench/peers/fig1.py` compares
+//! with (its `--gharial FILE` reads this output); `--x0` prints the initial states, which
+//! that script regenerates from the same random stream.
 //!
 //! ```text
 //! cargo run --release -p gharial-problems --example profile_instances -- \
@@ -12,7 +13,7 @@
 //! ```
 //! Defaults: `quadrotor`, 20 instances, budget 100, tol `1e-4`, filter size the
 //! iteration limit (the paper's; `--filter-size 1` is mim_solvers' default). `--log I`
-//! prints SQP's iteration table on instance `I`.
+//! prints FDDP's and SQP's iteration tables on instance `I`.
 
 use gharial::solvers::ddp::{DdpOptions, DdpVariant};
 use gharial::solvers::log::LogSink;
@@ -128,7 +129,7 @@ fn main() {
         let mut data = gharial::problem::ProblemData::new(&ex.problem, 1).expect("data");
         let cost = data.evaluate(&ex.problem, &ex.xs0, &ex.us0);
         let log = args.log == Some(i);
-        let fddp = iterations(ex, options(DdpVariant::Fddp, &args, false, false), false);
+        let fddp = iterations(ex, options(DdpVariant::Fddp, &args, false, log), false);
         let sqp = iterations(ex, options(DdpVariant::Sqp, &args, false, false), false);
         let own = iterations(ex, options(DdpVariant::Sqp, &args, true, log), true);
         println!("{i},{cost:.17e},{},{},{}", show(fddp), show(sqp), show(own));

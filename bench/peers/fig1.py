@@ -1,29 +1,46 @@
 #!/usr/bin/env python3
-"""The quadrotor family of `gharial bench profile` (stagewise-SQP paper, Fig. 1b)
-rebuilt with crocoddyl and solved by mim_solvers' SQP and crocoddyl's FDDP.
+"""The `quadrotor` and `pendulum` families of `gharial bench profile` (stagewise-SQP
+paper, Fig. 1b and 1c) rebuilt with crocoddyl and solved by mim_solvers' SQP and
+crocoddyl's FDDP.
 
-Question it answers: does mim_solvers' SQP, the paper's own software, solve gharial's
-quadrotor instances (crates/gharial-problems/src/profiles.rs, `quadrotor`) in fewer
-iterations than crocoddyl's FDDP, as Fig. 1b of Jordana et al. (2023) shows, or does it
-behave like gharial's SQP (many more iterations than FDDP)?
+Question it answers: do mim_solvers' SQP and crocoddyl's FDDP, the paper's own software,
+solve gharial's instances as Fig. 1 of Jordana et al. (2023) shows (SQP solving at least
+as many instances as FDDP at every iteration budget), or do they behave like gharial's
+solvers on the same instances?
 
-The instances: the Hector quadrotor of example-robot-data (free-flyer base, m = 1.477 kg,
-I = diag(0.01152, 0.01152, 0.0218)), crocoddyl's `quadrotor_fwddyn.py` thrusters
-(arm 0.1525 m, cm / cf = 1e-6 / 6.6e-5), dt = 0.03, N = 33, the example's costs
-(running dt [1e-6 |x|^2_W / 2 + 1e-6 |u|^2 / 2 + 1e-2 |log6(M*^-1 M)|^2 / 2] with
-W = diag(0.1 x3, 1000 x3, 1000 x6), terminal 3 |log6(M*^-1 M)|^2 / 2, M* = (1, 0, 1),
-identity attitude), warm start x_t = x0, u_t = m g / 4; the initial states X0 below are
-gharial's (printed by `cargo run --release -p gharial-problems --example profile_instances
--- quadrotor 20 --x0`, seed 1).
+The instances (--family, --count, --seed): the initial states of
+crates/gharial-problems/src/profiles.rs, regenerated here from gharial's SplitMix64
+stream bit for bit (`cargo run -p gharial-problems --example profile_instances --
+FAMILY COUNT --x0` prints gharial's; --gharial checks the initial costs, which depend on
+them).
 
-Two discretisations (--dynamics):
-  explicit  gharial's family exactly: x+ = x (+) dt (v, a(x, u)) on SE(3) x R^6, a crocoddyl
-            action model written here (crocoddyl has no explicit Euler on manifolds);
-            --gharial checks the initial costs against gharial's.
-  semi      the paper's own model: crocoddyl's IntegratedActionModelEuler (semi-implicit:
-            q+ = q (+) dt (v + dt a), v+ = v + dt a), as in crocoddyl's example.
-Two guesses (--guess): `hover` (u = m g / 4, gharial's family) or `quasistatic`
-(crocoddyl's `quasiStatic` controls at x0, the paper's rollout_benchmark.py).
+quadrotor  the Hector quadrotor of example-robot-data (free-flyer base, m = 1.477 kg,
+           I = diag(0.01152, 0.01152, 0.0218)), crocoddyl's `quadrotor_fwddyn.py`
+           thrusters (arm 0.1525 m, cm / cf = 1e-6 / 6.6e-5), dt = 0.03, N = 33, the
+           example's costs (running dt [1e-6 |x|^2_W / 2 + 1e-6 |u|^2 / 2
+           + 1e-2 |log6(M*^-1 M)|^2 / 2] with W = diag(0.1 x3, 1000 x3, 1000 x6), terminal
+           3 |log6(M*^-1 M)|^2 / 2, M* = (1, 0, 1), identity attitude); position U(-1, 1)^3,
+           attitude uniform on SO(3) (Shoemake), at rest. Two discretisations (--dynamics):
+             explicit  gharial's family exactly: x+ = x (+) dt (v, a(x, u)) on SE(3) x R^6,
+                       a crocoddyl action model written here (crocoddyl has no explicit
+                       Euler on manifolds);
+             semi      the paper's own model: crocoddyl's IntegratedActionModelEuler
+                       (semi-implicit: q+ = q (+) dt (v + dt a), v+ = v + dt a).
+           Two guesses (--guess): `hover` (u = m g / 4, gharial's family) or `quasistatic`
+           (crocoddyl's `quasiStatic` controls at x0, the paper's rollout_benchmark.py).
+pendulum   the double pendulum of example-robot-data (gharial's copy of the URDF is the
+           same file), first joint actuated (crocoddyl's ActuationModelDoublePendulum,
+           actLink = 1), crocoddyl's IntegratedActionModelEuler (semi-implicit, as
+           gharial's family), dt = 0.01, N = 100, the paper's costs (running
+           1e-4 u^2 / 2 + 1e-5 |r(x)|^2_W / 2, terminal 100 |r(x)|^2_W / 2,
+           r = (sin q1, sin q2, 1 - cos q1, 1 - cos q2, v1, v2), W = diag(1 x4, 0.1 x2));
+           q0 = (U(-pi, pi), 0) at rest, guess x_t = x0 and the quasi-static torque.
+           Two cost Hessians (--hessian):
+             gn     gharial's family exactly: the Gauss-Newton Hessian r_x^T W r_x;
+             exact  the paper's own model: crocoddyl's CostModelDoublePendulum, whose
+                    Hessian is the exact one (w cos q_i on the angles: indefinite when
+                    |q_i| > pi / 2); SQP then runs without the `reg0` setting (mim_solvers'
+                    regularisation cannot grow from 0 when Q_uu is indefinite).
 
 Per instance and solver it prints the iterations to the profile's test
 max(|gaps|_inf, |Q_u|_inf) <= tol (`gharial bench profile`'s default criterion, read from
@@ -33,63 +50,85 @@ as `profile/own`. SQP runs with mim_solvers' defaults (filter size 1, regularisa
 1e-9), with the paper's filter (size = iteration limit), and with gharial's settings (that
 filter, regularisation from 0); FDDP with crocoddyl's defaults, its own test switched off.
 
-    ~/.cache/gharial-peers/croc/bin/python bench/peers/fig1_quadrotor.py \
-        [--dynamics explicit|semi] [--guess hover|quasistatic] [--count 20] \
-        [--budget 100] [--tol 1e-4] [--gharial FILE] [--trace I] [--transport-check I]
+    ~/.cache/gharial-peers/croc/bin/python bench/peers/fig1.py [--family quadrotor|pendulum] \
+        [--dynamics explicit|semi] [--guess hover|quasistatic] [--hessian gn|exact] \
+        [--count 20] [--seed 1] [--budget 100] [--tol 1e-4] [--gharial FILE] [--trace I] \
+        [--transport-check I]
 
 --gharial FILE: the CSV of gharial's example (`cargo run --release -p gharial-problems
---example profile_instances > FILE`, lines `instance,initial_cost,fddp,sqp,sqp_own`),
-printed side by side. --trace I: mim's SQP's first 12 iterations on instance I.
---transport-check I: from mim's first SQP iterate on instance I (gaps open on SE(3)), the
-cost after mim's second step and after the full step of a dense KKT solve of the LQ
-subproblem with crocoddyl's linearised dynamics and with gharial's (the gap linearised in
-all its arguments, which adds the transport Ad(exp fs)). Run time: about 30 s.
+--example profile_instances -- FAMILY COUNT > FILE`, lines
+`instance,initial_cost,fddp,sqp,sqp_own`), printed side by side with the relative
+difference of the initial costs. --trace I: mim's SQP's first 12 iterations on instance I.
+--transport-check I (quadrotor): from mim's first SQP iterate on instance I (gaps open on
+SE(3)), the cost after mim's second step and after the full step of a dense KKT solve of
+the LQ subproblem with crocoddyl's linearised dynamics and with gharial's (the gap
+linearised in all its arguments, which adds the transport Ad(exp fs)). Run time: about
+30 s for 20 quadrotor instances, 2 to 3 s (CPU) per pendulum instance.
 """
 
 import argparse
+import math
 import os
 import sys
 
 import numpy as np
 
-DT = 0.03
-N = 33
-TARGET = np.array([1.0, 0.0, 1.0])
-
-# gharial's `profiles::family("quadrotor", 1, 20)` initial states (p, quaternion xyzw, twist).
-X0 = [
-    [0.1331231503445618, 0.49156351452540226, 0.9420055071735924, 0.2557372263266478, -0.7001708748691142, -0.6644161850629069, 0.053947660581578086, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.754697373528346, 0.04613435970196278, -0.4289826312060667, 0.25713575111288706, -0.3740114969319871, -0.5479976919875361, -0.7026344250309966, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [-0.09012418505942077, 0.060157995003177867, -0.12806920035054992, -0.7223246819741863, -0.5578638406191421, -0.3747270768154572, 0.16313983891708825, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.3634099467611771, 0.7686491270795797, -0.8680796137088471, 0.02480809615655807, -0.95810745971505, 0.1993490198830807, 0.20414363148312004, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [-0.42617729035252183, -0.9041976343115175, 0.031039792822940893, 0.14521612665627237, 0.5149189001344635, -0.011954567653435588, 0.8447649916725263, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.19570434609117493, 0.17319028442039675, -0.20566148667052775, 0.7488497994815745, -0.015402861827094, -0.12315925786271718, -0.651013461355943, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.08734157884882077, 0.49647065764330955, 0.6360669967669679, -0.43933718463718013, 0.37203410138163373, -0.7895969602853107, -0.2123913979247607, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [-0.5272789302524608, 0.31247105846438195, 0.7378178842478063, 0.35779235416332517, -0.18070228081205683, 0.7709896918975078, 0.4948799975745356, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.7878780598425066, 0.8253803273581597, -0.39628744895212265, 0.8284932526454438, -0.42663097474189526, -0.13316721491942815, 0.33741878220151866, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [-0.21267568550618932, -0.8245383318729729, 0.21409946941058045, -0.23785614068393643, 0.8876637624517694, -0.2777367456556032, 0.27989248164526864, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.05291195975748608, -0.8632600037081652, 0.5047028667633311, -0.6708276444917979, -0.12618946178444262, 0.7179094108366234, -0.1366476086594674, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [-0.9251320712311051, -0.9559667663383808, 0.1369148851606381, 0.7974168758926158, 0.4940746508320087, -0.31030289393655125, 0.15404116158186637, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.9453760807576317, 0.3821727402666808, 0.13124735673194854, -0.5112090933837942, -0.5177609325932446, -0.5281415704230561, 0.43778460584282886, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.6115001750896452, -0.7819031117569648, 0.29916975003429136, 0.41190983719081686, -0.7807414702398084, -0.30590020953719754, 0.35664843260319473, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.37013944164453516, 0.881678599482939, 0.5011442006654203, 0.8378139104067281, 0.41390544130160756, -0.3550231970783563, -0.02662079499509819, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.5608319257710925, -0.22378403020240412, -0.8063952482950181, -0.12417640380066308, -0.1780155748437257, 0.5431173268936577, 0.8111191312502007, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.711918955088992, 0.68760895715068, -0.9997716352251791, -0.8282985167197044, -0.07236853795189592, -0.2943268361968251, -0.47122826253208744, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.3300139008750069, -0.03307551030563061, -0.0761271846535061, -0.07599504795379176, -0.06263930966304772, 0.18227592456776623, 0.9783028962925561, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [0.6956104141174644, 0.8195193011668729, -0.22768883562769937, -0.6968701080447779, -0.6042782001304672, -0.22203639845306825, -0.31610084960773677, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [-0.630084237644762, -0.7996895832394115, 0.9769629914649898, 0.12588639365102505, -0.760731869343384, -0.24399439143071752, -0.5881380584600977, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-]
+MASK64 = (1 << 64) - 1
 
 
-def hector():
-    import pinocchio as pin
+class SplitMix64:
+    """gharial's `lq::random::SplitMix64` (the families' random stream), bit for bit."""
 
+    def __init__(self, seed):
+        self.state = seed & MASK64
+
+    def next_u64(self):
+        self.state = (self.state + 0x9E3779B97F4A7C15) & MASK64
+        z = self.state
+        z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & MASK64
+        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & MASK64
+        return z ^ (z >> 31)
+
+    def uniform(self, a, b):
+        """U(a, b) = a + (b - a) u, u = (next >> 11) 2^-53."""
+        return a + (b - a) * ((self.next_u64() >> 11) * (1.0 / (1 << 53)))
+
+
+def robots_dir():
     robots = os.environ.get("EXAMPLE_ROBOT_DATA_ROBOTS")
     if robots is None:
         import sysconfig
         robots = os.path.join(sysconfig.get_paths()["purelib"], "cmeel.prefix", "share",
                               "example-robot-data", "robots")
-    urdf = os.path.join(robots, "hector_description", "robots", "quadrotor_base.urdf")
+    return robots
+
+
+# --- quadrotor --------------------------------------------------------------------------
+
+QUAD_DT = 0.03
+QUAD_N = 33
+TARGET = np.array([1.0, 0.0, 1.0])
+
+
+def quadrotor_x0s(seed, count):
+    """`profiles::family("quadrotor", seed, count)`'s initial states: position U(-1, 1)^3,
+    a unit quaternion (x, y, z, w) uniform on SO(3) (Shoemake), twist 0."""
+    rng, tau = SplitMix64(seed), 2.0 * math.pi
+    out = []
+    for _ in range(count):
+        p = [rng.uniform(-1.0, 1.0) for _ in range(3)]
+        u1, u2, u3 = (rng.uniform(0.0, 1.0) for _ in range(3))
+        a, b = math.sqrt(1.0 - u1), math.sqrt(u1)
+        quat = [a * math.sin(tau * u2), a * math.cos(tau * u2),
+                b * math.sin(tau * u3), b * math.cos(tau * u3)]
+        out.append(p + quat + [0.0] * 6)
+    return out
+
+
+def hector():
+    import pinocchio as pin
+
+    urdf = os.path.join(robots_dir(), "hector_description", "robots", "quadrotor_base.urdf")
     return pin.buildModelFromUrdf(urdf, pin.JointModelFreeFlyer())
 
 
@@ -108,7 +147,7 @@ def thrusters(state):
     expected = np.array([[0, 0, 0, 0], [0, 0, 0, 0], [1, 1, 1, 1],
                          [0, d, 0, -d], [-d, 0, d, 0], [-k, k, -k, k]])
     data = act.createData()
-    x = np.concatenate([X0[0][:7], np.zeros(6)])
+    x = state.zero()
     for j in range(4):
         u = np.zeros(4)
         u[j] = 1.0
@@ -117,7 +156,7 @@ def thrusters(state):
     return act
 
 
-def costs(state, nu, model, terminal):
+def quadrotor_costs(state, nu, model, terminal):
     import crocoddyl
     import pinocchio as pin
 
@@ -196,9 +235,10 @@ def explicit_euler_classes():
     return ExplicitEuler
 
 
-def build(x0, dynamics, guess="hover"):
-    """(problem, xs0, us0) of one instance; `guess`: hover thrusts (gharial's family) or
-    crocoddyl's `quasiStatic` controls at x0 (the paper's script)."""
+def quadrotor_build(x0, args):
+    """(problem, xs0, us0) of one instance; `args.dynamics`: see the module's doc;
+    `args.guess`: hover thrusts (gharial's family) or crocoddyl's `quasiStatic` controls
+    at x0 (the paper's script)."""
     import crocoddyl
 
     model = hector()
@@ -208,23 +248,93 @@ def build(x0, dynamics, guess="hover"):
 
     def dam(terminal):
         return crocoddyl.DifferentialActionModelFreeFwdDynamics(
-            state, act, costs(state, nu, model, terminal))
+            state, act, quadrotor_costs(state, nu, model, terminal))
 
-    if dynamics == "explicit":
+    if args.dynamics == "explicit":
         euler = explicit_euler_classes()
-        run, ter = euler(dam(False), DT), euler(dam(True), DT)
+        run, ter = euler(dam(False), QUAD_DT), euler(dam(True), QUAD_DT)
     else:
-        run = crocoddyl.IntegratedActionModelEuler(dam(False), DT)
-        ter = crocoddyl.IntegratedActionModelEuler(dam(True), DT)
+        run = crocoddyl.IntegratedActionModelEuler(dam(False), QUAD_DT)
+        ter = crocoddyl.IntegratedActionModelEuler(dam(True), QUAD_DT)
     x0 = np.array(x0)
-    problem = crocoddyl.ShootingProblem(x0, [run] * N, ter)
+    problem = crocoddyl.ShootingProblem(x0, [run] * QUAD_N, ter)
     hover = model.inertias[1].mass * 9.81 / 4.0
-    xs0 = [x0.copy() for _ in range(N + 1)]
-    if guess == "hover":
-        us0 = [np.full(nu, hover) for _ in range(N)]
+    xs0 = [x0.copy() for _ in range(QUAD_N + 1)]
+    if args.guess == "hover":
+        us0 = [np.full(nu, hover) for _ in range(QUAD_N)]
     else:
-        us0 = [np.array(u) for u in problem.quasiStatic(xs0[:N])]
+        us0 = [np.array(u) for u in problem.quasiStatic(xs0[:QUAD_N])]
     return problem, xs0, us0
+
+
+# --- pendulum ---------------------------------------------------------------------------
+
+PENDULUM_DT = 0.01
+PENDULUM_N = 100
+
+
+def pendulum_x0s(seed, count):
+    """`profiles::family("pendulum", seed, count)`'s initial states: q0 = (U(-pi, pi), 0),
+    at rest."""
+    rng = SplitMix64(seed)
+    return [[rng.uniform(-math.pi, math.pi), 0.0, 0.0, 0.0] for _ in range(count)]
+
+
+def pendulum_goal(state, nu, hessian):
+    """crocoddyl's CostModelDoublePendulum, 1/2 |r(x)|^2_W; `hessian == "gn"`: its exact
+    Hessian replaced by the Gauss-Newton one r_x^T W r_x (gharial's
+    QuadraticResidualCost)."""
+    import crocoddyl
+    from crocoddyl.utils.pendulum import CostModelDoublePendulum
+
+    class GaussNewton(CostModelDoublePendulum):
+        def calcDiff(self, data, x, u=None):
+            CostModelDoublePendulum.calcDiff(self, data, x, u)
+            rx = data.residual.Rx
+            data.Lxx[:, :] = rx.T @ data.activation.Arr @ rx
+
+    kind = GaussNewton if hessian == "gn" else CostModelDoublePendulum
+    w = np.array([1.0] * 4 + [0.1] * 2)
+    return kind(state, crocoddyl.ActivationModelWeightedQuad(w), nu)
+
+
+def pendulum_build(x0, args):
+    """(problem, xs0, us0) of one instance, as the paper's rollout_benchmark.py builds it
+    (crocoddyl's double-pendulum example), with the cost Hessian `args.hessian`."""
+    import crocoddyl
+    import pinocchio as pin
+    from crocoddyl.utils.pendulum import ActuationModelDoublePendulum
+
+    urdf = os.path.join(robots_dir(), "double_pendulum_description", "urdf",
+                        "double_pendulum.urdf")
+    state = crocoddyl.StateMultibody(pin.buildModelFromUrdf(urdf))
+    act = ActuationModelDoublePendulum(state, actLink=1)
+    nu, dt = act.nu, PENDULUM_DT
+    goal = pendulum_goal(state, nu, args.hessian)
+    ureg = crocoddyl.CostModelResidual(state, crocoddyl.ResidualModelControl(state, nu))
+
+    def euler(terms):
+        c = crocoddyl.CostModelSum(state, nu)
+        for name, cost, weight in terms:
+            c.addCost(name, cost, weight)
+        dam = crocoddyl.DifferentialActionModelFreeFwdDynamics(state, act, c)
+        return crocoddyl.IntegratedActionModelEuler(dam, dt)
+
+    # The running weights are divided by dt: crocoddyl's Euler multiplies the cost by dt.
+    run = euler([("uReg", ureg, 1e-4 / dt), ("xGoal", goal, 1e-5 / dt)])
+    ter = euler([("xGoal", goal, 100.0)])
+    x0 = np.array(x0)
+    problem = crocoddyl.ShootingProblem(x0, [run] * PENDULUM_N, ter)
+    xs0 = [x0.copy() for _ in range(PENDULUM_N + 1)]
+    us0 = [np.array(u) for u in problem.quasiStatic(xs0[:PENDULUM_N])]
+    return problem, xs0, us0
+
+
+FAMILIES = {"quadrotor": (quadrotor_x0s, quadrotor_build),
+            "pendulum": (pendulum_x0s, pendulum_build)}
+
+
+# --- solvers ----------------------------------------------------------------------------
 
 
 def residual(solver):
@@ -303,7 +413,7 @@ def lq_step_cost(problem, xs, us, transport):
     problem.calcDiff(xs, us)
     ds, ms = list(problem.runningDatas), list(problem.runningModels)
     state = ms[0].state
-    nx, nu = state.ndx, ms[0].nu
+    nx, nu, N = state.ndx, ms[0].nu, problem.T
     nz = (N + 1) * nx + N * nu
     xi = lambda t: slice(t * nx, (t + 1) * nx)  # noqa: E731
     ui = lambda t: slice((N + 1) * nx + t * nu, (N + 1) * nx + (t + 1) * nu)  # noqa: E731
@@ -364,22 +474,49 @@ def read_gharial(path):
     return out
 
 
-def main():
+def parse():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--dynamics", choices=["explicit", "semi"], default="explicit")
-    ap.add_argument("--guess", choices=["hover", "quasistatic"], default="hover")
-    ap.add_argument("--count", type=int, default=len(X0))
+    ap.add_argument("--family", choices=sorted(FAMILIES), default="quadrotor")
+    ap.add_argument("--dynamics", choices=["explicit", "semi"], default="explicit",
+                    help="quadrotor: gharial's explicit Euler or crocoddyl's semi-implicit one")
+    ap.add_argument("--guess", choices=["hover", "quasistatic"], default="hover",
+                    help="quadrotor: hover thrusts or crocoddyl's quasiStatic controls")
+    ap.add_argument("--hessian", choices=["gn", "exact"], default="gn",
+                    help="pendulum: the goal cost's Gauss-Newton Hessian (gharial's) or "
+                         "crocoddyl's exact one (the paper's)")
+    ap.add_argument("--count", type=int, default=20)
+    ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--budget", type=int, default=100)
     ap.add_argument("--tol", type=float, default=1e-4)
     ap.add_argument("--gharial", default=None)
     ap.add_argument("--trace", type=int, default=None,
                     help="print mim SQP's first 12 iterations on this instance (reg_min 0 and 1e-9)")
     ap.add_argument("--transport-check", type=int, default=None,
-                    help="on this instance: mim's second step against the dense LQ steps of "
-                         "both gap linearisations, then exit")
+                    help="quadrotor, on this instance: mim's second step against the dense LQ "
+                         "steps of both gap linearisations, then exit")
     args = ap.parse_args()
+    if args.transport_check is not None and args.family != "quadrotor":
+        ap.error("--transport-check is for the quadrotor family")
+    return args
+
+
+def solve_instance(problem, xs0, us0, settings, args):
+    """{solver: (iterations to the profile's test, SQP: to its own test)}, None if not
+    within the budget."""
+    got = {"fddp": (fddp(problem, xs0, us0, args.tol, args.budget), None)}
+    for name, size, reg in settings:
+        own, first = sqp(problem, xs0, us0, size, reg, args.tol, args.budget)
+        got[name] = (first, own)
+    return got
+
+
+def main():
+    args = parse()
+    x0s, build = FAMILIES[args.family]
+    instances = x0s(args.seed, max(args.count, (args.trace or 0) + 1,
+                                   (args.transport_check or 0) + 1))
     if args.transport_check is not None:
-        transport_check(*build(X0[args.transport_check], args.dynamics, args.guess))
+        transport_check(*build(instances[args.transport_check], args))
         return 0
     ours = read_gharial(args.gharial) if args.gharial else {}
     big = args.budget + 1
@@ -387,44 +524,50 @@ def main():
     # (size = iteration limit), and gharial's profile settings (that filter, and the
     # regularisation starting at 0 as gharial's does).
     settings = [("mim", 1, None), ("paper", big, None), ("reg0", big, 0.0)]
+    if args.family == "pendulum" and args.hessian == "exact":
+        # mim_solvers multiplies its regularisation on a failed backward pass: from 0 it
+        # never grows, and an indefinite Q_uu (the exact Hessian's) retries forever.
+        settings.pop()
     show = lambda v: "-" if v is None else str(v)  # noqa: E731
-    print("dynamics=%s guess=%s N=%d dt=%g tol=%g budget=%d; SQP columns: profile test / own KKT test"
-          % (args.dynamics, args.guess, N, DT, args.tol, args.budget))
+    model = ("dynamics=%s guess=%s" % (args.dynamics, args.guess) if args.family == "quadrotor"
+             else "hessian=%s" % args.hessian)
+    print("family=%s %s seed=%d tol=%g budget=%d; SQP columns: profile test / own KKT test"
+          % (args.family, model, args.seed, args.tol, args.budget))
     print("  mim: mim_solvers' defaults (filter 1, reg_min 1e-9); paper: filter %d; "
           "reg0: filter %d, reg_min 0 (gharial's settings)" % (big, big))
-    header = "inst  init_cost              fddp    sqp:mim  sqp:paper   sqp:reg0"
+    header = "inst  init_cost              fddp " + "".join("%11s" % ("sqp:" + n) for n, _, _ in settings)
     if ours:
         header += "  | gharial: fddp  sqp  sqp_own  init_cost_rel_diff"
     print(header)
     names = ["fddp"] + [n for n, _, _ in settings]
-    budgets = {b: dict.fromkeys(names, 0) for b in (10, 20, 50, args.budget)}
-    for i, x0 in enumerate(X0[:args.count]):
-        problem, xs0, us0 = build(x0, args.dynamics, args.guess)
+    names_ours = ["gharial_fddp", "gharial_sqp"] if ours else []
+    budgets = {b: dict.fromkeys(names + names_ours, 0) for b in (10, 20, 50, args.budget)}
+    for i, x0 in enumerate(instances[:args.count]):
+        problem, xs0, us0 = build(x0, args)
         c0 = problem.calc(xs0, us0)
-        got = {"fddp": (fddp(problem, xs0, us0, args.tol, args.budget), None)}
-        for name, size, reg in settings:
-            own, first = sqp(problem, xs0, us0, size, reg, args.tol, args.budget)
-            got[name] = (first, own)
+        got = solve_instance(problem, xs0, us0, settings, args)
         cells = ["%4s" % show(got["fddp"][0])] + [
             "%4s/%-4s" % (show(got[n][0]), show(got[n][1])) for n, _, _ in settings]
         line = "%4d  %.15e  %s" % (i, c0, "  ".join(cells))
         if i in ours:
             g = ours[i]
             line += "  |          %4s %4s %8s  %.1e" % (g[1], g[2], g[3], abs(g[0] - c0) / abs(c0))
+            for k, v in zip(names_ours, g[1:3]):
+                got[k] = (None if v == "-" else int(v), None)
         print(line, flush=True)
         for b, row in budgets.items():
-            for n in names:
+            for n in row:
                 row[n] += got[n][0] is not None and got[n][0] <= b
-    n = min(args.count, len(X0))
-    for b, row in sorted(budgets.items()):
-        print("solved within %3d: " % b + "  ".join("%s %.2f" % (k, v / n) for k, v in row.items()))
+    for b, row in sorted(budgets.items()) if args.count else []:
+        print("solved within %3d: " % b + "  ".join(
+            "%s %.2f" % (k, v / args.count) for k, v in row.items()))
     if args.trace is not None:
-        problem, xs0, us0 = build(X0[args.trace], args.dynamics, args.guess)
+        problem, xs0, us0 = build(instances[args.trace], args)
         for reg in (0.0, None):
             print("mim SQP on instance %d, reg_min %s: iter cost gap_l1 KKT max(gaps,|Qu|)" % (
                 args.trace, "1e-9" if reg is None else reg))
             for k, r in enumerate(sqp_rows(problem, xs0, us0, 1, reg, 12)):
-                print("  %3d %.9e %.4e %.4e %.4e" % (k, *r))
+                print("  %3d %.15e %.4e %.4e %.4e" % (k, *r))
     return 0
 
 
