@@ -115,6 +115,7 @@ mod sqrt;
 mod stage;
 
 pub use parallel::ParallelRiccatiSolver;
+pub(crate) use riccati::Outputs;
 pub use riccati::{RiccatiOptions, RiccatiSolver};
 pub use solver::LqSolver;
 pub use stage::RiccatiStage;

@@ -4,7 +4,7 @@ use faer::prelude::ReborrowMut;
 use faer::{Accum, Col, Mat};
 use rayon::{ThreadPool, ThreadPoolBuilder};
 
-use super::riccati::{InitialStage, Pass, check_primal_reg, rollout, sweep};
+use super::riccati::{InitialStage, Outputs, Pass, check_primal_reg, rollout, sweep};
 use super::stage::{ExtraGains, RiccatiStage, StageScratch};
 use super::{KnotDims, LqError, LqProblem, LqSolution, LqVectors, check_regularisation, check_same_dims};
 use crate::linalg::{self, BunchKaufman, FactorError, col_of, col_of_mut, matmul, matvec, matvec_t, slice, slice_mut};
@@ -708,6 +708,7 @@ fn forward_legs(
                     nus,
                     &mut lambdas[..n - 1],
                     (slice_mut(&mut param.x_end), slice_mut(&mut param.lambda_end)),
+                    Outputs::All,
                 )
             }
             // The last leg's vector part does not depend on θ: it is the backward pass's.
@@ -720,6 +721,7 @@ fn forward_legs(
                 nus,
                 &mut lambdas[..n - 1],
                 (&mut [], &mut []),
+                Outputs::All,
             ),
         }
     })();

@@ -206,12 +206,20 @@ impl RiccatiSolver {
     /// that re-solves, many times, the problem of its last (checked) backward pass with
     /// new vectors `q, r, f, d, g0` (an ADMM's x-updates), where the checks would cost as
     /// much as the vector pass of a small knot.
-    pub(crate) fn resolve_vectors(&mut self, problem: &LqProblem, sol: &mut LqSolution) -> Result<(), LqError> {
+    /// With `outputs = Outputs::Primal` only the states and controls of `sol` are written
+    /// (its co-states and multipliers keep stale values): for iterations that use `x`, `u`
+    /// only, before a last [`forward`](Self::forward) that writes everything.
+    pub(crate) fn resolve_vectors(
+        &mut self,
+        problem: &LqProblem,
+        sol: &mut LqSolution,
+        outputs: Outputs,
+    ) -> Result<(), LqError> {
         if !self.factored || self.square_root_factored {
             return Err(LqError::NotFactored);
         }
         self.vectors_unchecked(problem)?;
-        self.forward_unchecked(problem, sol)
+        self.forward_unchecked(problem, sol, outputs)
     }
 
     fn vectors_unchecked(&mut self, problem: &LqProblem) -> Result<(), LqError> {
@@ -264,10 +272,15 @@ impl RiccatiSolver {
         }
         check_same_dims(problem, &self.dims, self.nc0)?;
         sol.check_dims(problem)?;
-        self.forward_unchecked(problem, sol)
+        self.forward_unchecked(problem, sol, Outputs::All)
     }
 
-    fn forward_unchecked(&mut self, problem: &LqProblem, sol: &mut LqSolution) -> Result<(), LqError> {
+    fn forward_unchecked(
+        &mut self,
+        problem: &LqProblem,
+        sol: &mut LqSolution,
+        outputs: Outputs,
+    ) -> Result<(), LqError> {
         self.initial.solve(
             problem,
             slice(&problem.g0),
@@ -275,7 +288,7 @@ impl RiccatiSolver {
             slice_mut(&mut sol.xs[0]),
             slice_mut(&mut sol.lambdas[0]),
         )?;
-        rollout_all(&mut self.stages, problem, sol)?;
+        rollout_all(&mut self.stages, problem, sol, outputs)?;
         if let Some(r) = self.refinement.as_mut().filter(|_| !self.square_root_factored) {
             for _ in 0..r.steps {
                 r.residual.set_kkt_residual(problem, sol)?;
@@ -296,7 +309,7 @@ impl RiccatiSolver {
                     slice_mut(&mut r.delta.xs[0]),
                     slice_mut(&mut r.delta.lambdas[0]),
                 )?;
-                rollout_all(&mut self.stages, problem, &mut r.delta)?;
+                rollout_all(&mut self.stages, problem, &mut r.delta, Outputs::All)?;
                 sol.add(&r.delta);
                 self.stages.iter_mut().for_each(RiccatiStage::add_saved_vector_part);
             }
@@ -403,6 +416,15 @@ pub(crate) fn sweep(
     Ok(())
 }
 
+/// What a rollout writes besides the states `x` and controls `u`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Outputs {
+    /// Also the co-states `λ` and the constraint multipliers `ν`.
+    All,
+    /// `x` and `u` only.
+    Primal,
+}
+
 /// Forward rollout over consecutive knots `stages[i] <-> knots[i]`, from the state already in
 /// `xs[0]`: writes `xs[1..]`, `us`, `nus` and `lambdas[i]` (the co-state after stage `i`)
 /// for all stages but the last, whose next state and co-state go to `last` (empty slices
@@ -416,6 +438,7 @@ pub(crate) fn rollout(
     nus: &mut [Col<f64>],
     lambdas: &mut [Col<f64>],
     last: (&mut [f64], &mut [f64]),
+    outputs: Outputs,
 ) -> Result<(), LqError> {
     let n = stages.len();
     let (last_x, last_lambda) = last;
@@ -440,8 +463,10 @@ pub(crate) fn rollout(
             next,
             x_next,
             lambda_next,
+            outputs,
         );
-        if !x_next.iter().chain(lambda_next.iter()).sum::<f64>().is_finite() {
+        let costates = if outputs == Outputs::All { &lambda_next[..] } else { &[] };
+        if !x_next.iter().chain(costates).sum::<f64>().is_finite() {
             return Err(LqError::NonFinite {
                 knot: st.index(),
                 field: "forward pass state",
@@ -456,6 +481,7 @@ pub(crate) fn rollout_all(
     stages: &mut [RiccatiStage],
     problem: &LqProblem,
     sol: &mut LqSolution,
+    outputs: Outputs,
 ) -> Result<(), LqError> {
     rollout(
         stages,
@@ -466,6 +492,7 @@ pub(crate) fn rollout_all(
         &mut sol.nus,
         &mut sol.lambdas[1..],
         (&mut [], &mut []),
+        outputs,
     )
 }
 

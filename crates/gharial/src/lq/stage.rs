@@ -10,6 +10,7 @@ use faer::prelude::ReborrowMut;
 use faer::{Accum, Col, Mat, MatMut, MatRef};
 
 use super::e_factor::EFactor;
+use super::riccati::Outputs;
 use super::{KnotDims, KnotVectors, LqError, LqKnot, blame};
 use crate::linalg::{
     self, BunchKaufman, FactorError, Inertia, Ldlt, Llt, Lu, col_of, col_of_mut, matmul, matmul_lower, matvec,
@@ -816,7 +817,10 @@ impl RiccatiStage {
 
     /// Forward step (50): from `x`, writes `u = k + K x`, `ν = ζ + Z x` and, at a knot with
     /// dynamics, `x_{t+1} = z - Gλ̃` and `λ_{t+1} = -E⁻ᵀλ̃` with `z = Ãx + B̃u + f̃`,
-    /// `λ̃ = P̃z + p̃` (`next` is the next value function, unused at the last knot).
+    /// `λ̃ = P̃z + p̃` (`next` is the next value function, unused at the last knot). With
+    /// `Outputs::Primal`, `ν` and `λ_{t+1}` are not written (`lambda_next` holds `λ̃` when
+    /// `x_{t+1}` needs it, `G ≠ 0`).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn forward_step(
         &mut self,
         knot: &LqKnot,
@@ -826,15 +830,19 @@ impl RiccatiStage {
         next: Option<(MatRef<'_, f64>, &[f64])>,
         x_next: &mut [f64],
         lambda_next: &mut [f64],
+        outputs: Outputs,
     ) {
         let (nx, nu, nc, ny) = (self.nx, self.nu, self.nc, self.ny);
+        let all = outputs == Outputs::All;
         if nu + nc > 0 {
             let ff = col_of(&self.gains, 0);
             let fb = self.gains.as_ref().submatrix(0, 1, nu + nc, nx);
             u.copy_from_slice(&ff[..nu]);
             matvec(u, Accum::Add, fb.subrows(0, nu), x, 1.0);
-            nu_out.copy_from_slice(&ff[nu..]);
-            matvec(nu_out, Accum::Add, fb.subrows(nu, nc), x, 1.0);
+            if all {
+                nu_out.copy_from_slice(&ff[nu..]);
+                matvec(nu_out, Accum::Add, fb.subrows(nu, nc), x, 1.0);
+            }
         }
         if ny == 0 {
             return;
@@ -845,6 +853,9 @@ impl RiccatiStage {
         x_next.copy_from_slice(slice(&self.f_tilde));
         matvec(x_next, Accum::Add, a, x, 1.0);
         matvec(x_next, Accum::Add, b, u, 1.0);
+        if !all && self.mu_dyn == 0.0 {
+            return; // x_{t+1} = z.
+        }
         // λ̃ = P̃ z + p̃ (in lambda_next).
         let (pt, pt_vec) = if self.mu_dyn > 0.0 {
             (self.ptilde.as_ref(), slice(&self.ptilde_vec))
@@ -864,7 +875,7 @@ impl RiccatiStage {
             }
         }
         // λ_{t+1} = -E⁻ᵀ λ̃.
-        if !self.e_fac.is_minus_identity() {
+        if all && !self.e_fac.is_minus_identity() {
             slice_mut(&mut self.w_y).copy_from_slice(lambda_next);
             self.e_fac.solve_transpose_in_place(self.w_y.as_mut().as_mat_mut());
             for i in 0..ny {

@@ -25,7 +25,7 @@ use faer::Accum;
 
 use crate::error::{Error, Result};
 use crate::linalg::{matvec, matvec_t, norm_inf, slice};
-use crate::lq::{LqError, LqProblem, LqSolution, RiccatiSolver};
+use crate::lq::{LqError, LqProblem, LqSolution, Outputs, RiccatiSolver};
 
 /// Options of [`AdmmQp`] (defaults of mim_solvers' CSQP where it has them).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -237,7 +237,10 @@ impl AdmmQp {
         let o = self.options;
         for it in 0..o.max_iters {
             self.iters = it + 1;
-            self.x_update(lq)?;
+            // Co-states and constraint multipliers of the QP only at the end (the last
+            // iteration, or the rollout repeated below once converged).
+            let last = self.iters == o.max_iters;
+            self.x_update(lq, if last { Outputs::All } else { Outputs::Primal })?;
             let check = self.iters.is_multiple_of(o.check_interval) || self.iters == o.max_iters;
             let update = o.rho_update_interval > 0 && self.iters.is_multiple_of(o.rho_update_interval);
             // The residuals (two products with Gᵀ per knot) only where they are used.
@@ -247,6 +250,10 @@ impl AdmmQp {
             (self.prim, self.dual) = (r.prim, r.dual);
             if check && r.prim <= o.eps_abs + o.eps_rel * r.prim_scale && r.dual <= o.eps_abs + o.eps_rel * r.dual_scale
             {
+                if !last {
+                    // The same rollout (nothing changed since `x_update`), with everything.
+                    self.riccati.forward(lq, &mut self.sol).map_err(lq_error)?;
+                }
                 return Ok(AdmmStatus::Converged);
             }
             if update && self.update_rho(&r) {
@@ -291,15 +298,18 @@ impl AdmmQp {
         self.riccati.backward(lq, 0.0).map_err(lq_error)
     }
 
-    /// `δ⁺` for the current `z`, `y` (new vectors, same factorisation), and `G δ⁺`.
-    fn x_update(&mut self, lq: &mut LqProblem) -> Result<()> {
+    /// `δ⁺` for the current `z`, `y` (new vectors, same factorisation), and `G δ⁺`; the
+    /// QP's co-states and multipliers too with `Outputs::All`.
+    fn x_update(&mut self, lq: &mut LqProblem, outputs: Outputs) -> Result<()> {
         for (t, knot) in lq.knots.iter_mut().enumerate() {
             for i in 0..knot.nc {
                 knot.d[i] = self.y[t][i] * knot.mu_c[i] - self.z[t][i];
             }
         }
         // The knots' shapes and regularisations were checked by the factorisation.
-        self.riccati.resolve_vectors(lq, &mut self.sol).map_err(lq_error)?;
+        self.riccati
+            .resolve_vectors(lq, &mut self.sol, outputs)
+            .map_err(lq_error)?;
         for (t, knot) in lq.knots.iter().enumerate() {
             let g = &mut self.gd[t];
             if self.c_zero[t] {
