@@ -23,10 +23,7 @@ use super::{Cost, CostData, DerivativesMut, HessianMut};
 use crate::error::{check_dim, check_finite};
 use crate::functions::util::{add_scaled, checked_sym, downcast};
 use crate::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary, Workspace};
-use crate::linalg::{
-    GramScratch, GramWeight, add_scaled_lower, fill_lower, gram_lower_add, is_zero, matmul, matvec_t, slice_mut,
-    symmetrize_from_lower,
-};
+use crate::linalg::{GramScratch, GramWeight, add_scaled_lower, fill_lower, matmul, slice_mut, symmetrize_from_lower};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
@@ -73,8 +70,9 @@ struct ResidualWs {
     hjx: Mat<f64>,
     /// `H r_u` (`nr x nu`).
     hju: Mat<f64>,
-    /// Scratch of the Gram products.
-    gram: GramScratch,
+    /// `r_x` and `r_u` read for their products.
+    gram_x: GramScratch,
+    gram_u: GramScratch,
 }
 
 impl ResidualWs {
@@ -86,7 +84,8 @@ impl ResidualWs {
             h: vec![0.0; nr],
             hjx: Mat::zeros(nr, ndx),
             hju: Mat::zeros(nr, nu),
-            gram: GramScratch::new(nr, ndx.max(nu)),
+            gram_x: GramScratch::new(nr, ndx),
+            gram_u: GramScratch::new(nr, nu),
         }
     }
 }
@@ -101,13 +100,14 @@ enum Curvature<'a> {
 }
 
 /// Adds `s Jᵀ g` to the gradient and, if asked, `s Jᵀ H J` and, if `exact`, `s vhp(g)`
-/// to the lower Hessian blocks, with `g` and `J` in `ws`: the chain rule of every
-/// residual cost (module documentation). The products of a zero Jacobian block (a
-/// residual of the state only, or of the control only) are skipped.
+/// to the lower Hessian blocks, with `g` and `J` in `ws` (`J` new since the last call if
+/// `fresh`): the chain rule of every residual cost (module documentation). The products
+/// of a zero Jacobian block (a residual of the state only, or of the control only) are
+/// skipped.
 fn add_chain_rule(
     f: &dyn StageFunction,
     (x, u): (&[f64], &[f64]),
-    exact: bool,
+    (exact, fresh): (bool, bool),
     ws: &mut ResidualWs,
     h: Curvature<'_>,
     s: f64,
@@ -119,15 +119,20 @@ fn add_chain_rule(
         h: hd,
         hjx,
         hju,
-        gram,
+        gram_x,
+        gram_u,
     } = ws;
     let (jx, ju) = (fd.jx.as_ref(), fd.ju.as_ref());
-    matvec_t(out.lx, Accum::Add, jx, g, s);
-    matvec_t(out.lu, Accum::Add, ju, g, s);
+    if fresh {
+        gram_x.load(jx);
+        gram_u.load(ju);
+    }
+    gram_x.matvec_t_add(out.lx, jx, g, s);
+    gram_u.matvec_t_add(out.lu, ju, g, s);
     let Some(mut out) = out.hessian else {
         return;
     };
-    let (x_zero, u_zero) = (is_zero(jx), is_zero(ju));
+    let (x_zero, u_zero) = (gram_x.is_zero(), gram_u.is_zero());
     let (wx, wu, alpha) = match h {
         Curvature::Diagonal => {
             if !(x_zero || u_zero) {
@@ -150,10 +155,10 @@ fn add_chain_rule(
         }
     };
     if !x_zero {
-        gram_lower_add(out.lxx.rb_mut(), jx, wx, gram);
+        gram_x.gram_lower_add(out.lxx.rb_mut(), jx, wx);
     }
     if !u_zero {
-        gram_lower_add(out.luu.rb_mut(), ju, wu, gram);
+        gram_u.gram_lower_add(out.luu.rb_mut(), ju, wu);
         if !x_zero {
             matmul(out.lxu.rb_mut(), Accum::Add, jx.transpose(), hju.as_ref(), alpha);
         }
@@ -268,7 +273,8 @@ impl QuadraticResidualCost {
     fn add(&self, x: &[f64], u: &[f64], ws: &mut ResidualWs, reuse: bool, s: f64, out: DerivativesMut<'_>) {
         // With a constant Hessian and `reuse`, `J` is the one of the first call and
         // `g = W r` is from `evaluate`.
-        if !(reuse && self.hessian_is_constant()) {
+        let fresh = !(reuse && self.hessian_is_constant());
+        if fresh {
             self.f.jacobians(x, u, &mut ws.fd);
             self.w.apply(ws.fd.value(), &mut ws.g);
         }
@@ -281,7 +287,7 @@ impl QuadraticResidualCost {
             }
             Metric::Full(w) => Curvature::Full(w, s),
         };
-        add_chain_rule(self.f.as_ref(), (x, u), self.exact, ws, h, s, out);
+        add_chain_rule(self.f.as_ref(), (x, u), (self.exact, fresh), ws, h, s, out);
     }
 }
 
@@ -619,7 +625,15 @@ impl LogBarrierCost {
             ws.g[i] = -w * d1;
             ws.h[i] = s * (w * d2);
         }
-        add_chain_rule(self.f.as_ref(), (x, u), self.exact, ws, Curvature::Diagonal, s, out);
+        add_chain_rule(
+            self.f.as_ref(),
+            (x, u),
+            (self.exact, true),
+            ws,
+            Curvature::Diagonal,
+            s,
+            out,
+        );
     }
 }
 

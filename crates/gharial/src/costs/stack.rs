@@ -2,12 +2,12 @@
 
 use std::sync::Arc;
 
-use faer::Mat;
+use faer::{Mat, MatMut};
 
 use super::{Cost, CostData, DerivativesMut, HessianMut};
 use crate::functions::Workspace;
-use crate::functions::util::{add_scaled, downcast};
-use crate::linalg::{add_scaled_lower, fill_lower, is_zero, slice_mut, symmetrize_from_lower};
+use crate::functions::util::downcast;
+use crate::linalg::{copy, copy_lower, fill_lower, is_zero, slice_mut, symmetrize_from_lower};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
@@ -51,6 +51,8 @@ struct StackWorkspace {
     constant_nonzero: [bool; 3],
     /// The weights `constant` was formed with (NaN: not formed yet).
     constant_weights: Vec<f64>,
+    /// Where the gradients go while `constant` is formed (`ndx + nu`).
+    gradient_scratch: Vec<f64>,
 }
 
 fn check_weight(name: &str, w: f64) -> Result<()> {
@@ -167,6 +169,7 @@ impl Cost for CostStack {
             constant: [Mat::zeros(ndx, ndx), Mat::zeros(ndx, nu), Mat::zeros(nu, nu)],
             constant_nonzero: [false; 3],
             constant_weights: vec![f64::NAN; n],
+            gradient_scratch: vec![0.0; ndx + nu],
         })
     }
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut CostData) {
@@ -185,10 +188,11 @@ impl Cost for CostStack {
         self.derivatives_reusing(x, u, data, false);
     }
     /// Every component adds its weighted derivatives straight into the stack's blocks
-    /// (lower triangles, mirrored once at the end). Components with a constant Hessian
-    /// add only their gradient once their data hold it (`reuse`); their weighted
-    /// Hessians are summed apart, kept while their weights stay the same, and added last
-    /// (so that the result is the same to the bit with or without `reuse`).
+    /// (lower triangles, mirrored once at the end), which start from the weighted sum of
+    /// the Hessians of the components with a constant Hessian. That sum is kept while
+    /// their weights stay the same and their data hold their constant blocks (`reuse`),
+    /// and these components then add only their gradient; the result is the same to the
+    /// bit with or without `reuse`.
     fn derivatives_reusing(&self, x: &[f64], u: &[f64], data: &mut CostData, reuse: bool) {
         let CostData {
             lx,
@@ -205,53 +209,84 @@ impl Cost for CostStack {
             || (0..self.costs.len())
                 .any(|k| self.costs[k].hessian_is_constant() && ws.constant_weights[k] != self.weights.get(k));
         if rebuild {
-            ws.constant.iter_mut().for_each(|m| m.fill(0.0));
+            self.form_constant_hessian(x, u, ws, reuse);
         }
         lx.fill(0.0);
         lu.fill(0.0);
-        fill_lower(lxx.as_mut(), 0.0);
-        lxu.fill(0.0);
-        fill_lower(luu.as_mut(), 0.0);
-        let [cxx, cxu, cuu] = &mut ws.constant;
+        let ([cxx, cxu, cuu], [nxx, nxu, nuu]) = (&ws.constant, ws.constant_nonzero);
+        start_from(lxx.as_mut(), cxx, nxx, true);
+        start_from(lxu.as_mut(), cxu, nxu, false);
+        start_from(luu.as_mut(), cuu, nuu, true);
         for (k, (c, d)) in self.costs.iter().zip(ws.datas.iter_mut()).enumerate() {
             let w = self.weights.get(k);
-            let is_constant = c.hessian_is_constant();
-            if rebuild && is_constant {
-                ws.constant_weights[k] = w;
-            }
             if w == 0.0 {
                 continue;
             }
-            let hessian = if !is_constant {
-                Some([lxx.as_mut(), lxu.as_mut(), luu.as_mut()])
-            } else if rebuild {
-                Some([cxx.as_mut(), cxu.as_mut(), cuu.as_mut()])
-            } else {
-                None
-            };
+            let is_constant = c.hessian_is_constant();
             let out = DerivativesMut {
                 lx: slice_mut(lx),
                 lu: slice_mut(lu),
-                hessian: hessian.map(|[lxx, lxu, luu]| HessianMut { lxx, lxu, luu }),
+                hessian: (!is_constant).then(|| HessianMut {
+                    lxx: lxx.as_mut(),
+                    lxu: lxu.as_mut(),
+                    luu: luu.as_mut(),
+                }),
+            };
+            // Just formed, the constant blocks are there to reuse.
+            let reuse_k = ws.written[k] && (reuse || (rebuild && is_constant));
+            c.add_derivatives(x, u, d, reuse_k, w, out);
+            ws.written[k] = true;
+        }
+        symmetrize_from_lower(lxx.as_mut());
+        symmetrize_from_lower(luu.as_mut());
+    }
+}
+
+impl CostStack {
+    /// Forms `Σ w_k ∇²ℓ_k` over the components with a constant Hessian (their gradients
+    /// go to scratch), with the weights of now.
+    fn form_constant_hessian(&self, x: &[f64], u: &[f64], ws: &mut StackWorkspace, reuse: bool) {
+        let [cxx, cxu, cuu] = &mut ws.constant;
+        cxx.fill(0.0);
+        cxu.fill(0.0);
+        cuu.fill(0.0);
+        for (k, (c, d)) in self.costs.iter().zip(ws.datas.iter_mut()).enumerate() {
+            if !c.hessian_is_constant() {
+                continue;
+            }
+            let w = self.weights.get(k);
+            ws.constant_weights[k] = w;
+            if w == 0.0 {
+                continue;
+            }
+            let (lx, lu) = ws.gradient_scratch.split_at_mut(self.ndx);
+            let out = DerivativesMut {
+                lx,
+                lu,
+                hessian: Some(HessianMut {
+                    lxx: cxx.as_mut(),
+                    lxu: cxu.as_mut(),
+                    luu: cuu.as_mut(),
+                }),
             };
             c.add_derivatives(x, u, d, reuse && ws.written[k], w, out);
             ws.written[k] = true;
         }
-        if rebuild {
-            ws.constant_nonzero = [!is_zero(cxx.as_ref()), !is_zero(cxu.as_ref()), !is_zero(cuu.as_ref())];
+        ws.constant_nonzero = [!is_zero(cxx.as_ref()), !is_zero(cxu.as_ref()), !is_zero(cuu.as_ref())];
+    }
+}
+
+/// Starts a block of the stack's derivatives from its block of the constant Hessian sum
+/// (`nonzero`) or from zero: its lower triangle if `lower`, all of it otherwise.
+fn start_from(dst: MatMut<'_, f64>, constant: &Mat<f64>, nonzero: bool, lower: bool) {
+    match (nonzero, lower) {
+        (true, true) => copy_lower(dst, constant.as_ref()),
+        (true, false) => copy(dst, constant.as_ref()),
+        (false, true) => fill_lower(dst, 0.0),
+        (false, false) => {
+            let mut dst = dst;
+            dst.fill(0.0);
         }
-        let [nxx, nxu, nuu] = ws.constant_nonzero;
-        if nxx {
-            add_scaled_lower(lxx.as_mut(), 1.0, cxx.as_ref());
-        }
-        if nxu {
-            add_scaled(lxu.as_mut(), 1.0, cxu.as_ref());
-        }
-        if nuu {
-            add_scaled_lower(luu.as_mut(), 1.0, cuu.as_ref());
-        }
-        symmetrize_from_lower(lxx.as_mut());
-        symmetrize_from_lower(luu.as_mut());
     }
 }
 

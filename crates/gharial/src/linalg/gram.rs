@@ -1,12 +1,13 @@
-//! Gram products `aᵀ W a` of residual Jacobians ([`gram_lower_add`]): the lower
-//! triangle, added to the destination, with a diagonal weight folded into the rows or a
-//! full one given as the product `b = W a`.
+//! Products with a residual Jacobian `a` (`nr × n`, unit row stride): the Gram product
+//! `aᵀ W a` (lower triangle, added to the destination) with a diagonal weight folded into
+//! the rows or a full one given as the product `b = W a`, and `aᵀ g`.
 //!
 //! Residual Jacobians are often sparse by rows (a state error's identity part, a foot's
-//! leg, a frame position that depends on the configuration only): such products run as
-//! rank-one updates over the columns where each row can be nonzero. Dense Jacobians with
-//! enough rows (stacked contact forces) go to faer's lower-triangular product, whose
-//! vectorised kernels win there.
+//! leg, a frame position that depends on the configuration only): [`GramScratch::load`]
+//! finds the span of columns where each row can be nonzero and copies those rows, and
+//! the products run as axpys over the spans. Dense Jacobians with enough rows (stacked
+//! contact forces) go to faer's lower-triangular product, whose vectorised kernels win
+//! there, and to the matrix-vector product.
 
 use std::ops::Range;
 
@@ -14,6 +15,7 @@ use faer::prelude::ReborrowMut;
 use faer::{Accum, Mat, MatMut, MatRef};
 
 use super::matmul::matmul_lower;
+use super::matvec::matvec_t;
 
 /// The weight `W` of a Gram product `aᵀ W a`.
 #[derive(Debug, Clone, Copy)]
@@ -24,94 +26,157 @@ pub(crate) enum GramWeight<'a> {
     Product(MatRef<'a, f64>, f64),
 }
 
-/// Sparse-kernel multiply-adds below which faer's product is never used (its fixed cost
-/// per call and the full diagonal blocks it computes dominate there).
+/// Least rows of a Jacobian for faer's product: with fewer, its kernels run short
+/// (measured: a dense `2 × 36` takes the same time both ways, a `3 × 36` half in faer).
+const DENSE_MIN_ROWS: usize = 3;
+
+/// Least multiply-adds of the rank-one kernel for faer's product (below, its fixed cost
+/// per call and the full diagonal blocks it computes dominate; measured: a dense
+/// `6 × 12`, 468 multiply-adds, is faster in the loops, a `12 × 12`, 936, three times
+/// faster in faer).
 const DENSE_MIN_WORK: usize = 768;
 
-/// Scratch of [`gram_lower_add`] for products of `nr × n` matrices.
+/// The rows of a loaded Jacobian: the span of each, and their entries (copied only when
+/// the rank-one kernels will read them).
+#[derive(Debug, Clone)]
+struct Rows {
+    /// Row `r`'s entries over its span, at `r * n + c` (`nr × n`, row-major).
+    at: Vec<f64>,
+    /// Per row, the columns from its first to its last nonzero (or non-finite) entry.
+    span: Vec<Range<usize>>,
+    /// Whether `at` holds the rows (the Jacobian was sparse).
+    copied: bool,
+    /// The loaded shape.
+    nr: usize,
+    n: usize,
+}
+
+impl Rows {
+    fn new(nr: usize, n: usize) -> Self {
+        Self {
+            at: vec![0.0; nr * n],
+            span: vec![0..0; nr],
+            copied: false,
+            nr: 0,
+            n: 0,
+        }
+    }
+
+    /// Reads the spans of the rows of `a`, and copies the rows when `copy(work)` says so
+    /// for the rank-one kernel's `work` (multiply-adds of `aᵀ a`).
+    fn load(&mut self, a: MatRef<'_, f64>, copy: impl FnOnce(usize) -> bool) {
+        let (nr, n) = (a.nrows(), a.ncols());
+        (self.nr, self.n) = (nr, n);
+        let span = &mut self.span[..nr];
+        span.iter_mut().for_each(|s| *s = usize::MAX..0);
+        for c in 0..n {
+            for (s, &v) in span.iter_mut().zip(contiguous(a, c)) {
+                if v != 0.0 {
+                    s.start = s.start.min(c);
+                    s.end = c + 1;
+                }
+            }
+        }
+        for s in span.iter_mut() {
+            if s.start == usize::MAX {
+                *s = 0..0;
+            }
+        }
+        self.copied = copy(span.iter().map(|s| triangle(s.len())).sum());
+        if self.copied {
+            for (r, s) in span.iter().enumerate() {
+                for c in s.clone() {
+                    self.at[r * n + c] = a[(r, c)];
+                }
+            }
+        }
+    }
+
+    /// Row `r` (meaningful over its span).
+    fn row(&self, r: usize) -> &[f64] {
+        &self.at[r * self.n..(r + 1) * self.n]
+    }
+}
+
+/// A residual Jacobian read for its products, and their scratch memory.
 #[derive(Debug, Clone)]
 pub(crate) struct GramScratch {
-    /// The rows of `a`, contiguous (`nr × n`, row-major).
-    at: Vec<f64>,
-    /// The rows of `b` (of a [`GramWeight::Product`]), contiguous.
-    bt: Vec<f64>,
-    /// Per row of `a`, the columns from its first to its last nonzero entry.
-    a_span: Vec<Range<usize>>,
-    /// The same for `b`.
-    b_span: Vec<Range<usize>>,
-    /// `diag(s) a` for the dense kernel.
-    b: Mat<f64>,
+    /// The loaded Jacobian `a`.
+    a: Rows,
+    /// The rows of `b` (of a sparse [`GramWeight::Product`]).
+    b: Rows,
+    /// `diag(s) a` for faer's product.
+    sa: Mat<f64>,
 }
 
 impl GramScratch {
-    /// Scratch for `a` of at most `nr` rows and `n` columns.
+    /// Scratch for Jacobians of at most `nr` rows and `n` columns.
     pub(crate) fn new(nr: usize, n: usize) -> Self {
         Self {
-            at: vec![0.0; nr * n],
-            bt: vec![0.0; nr * n],
-            a_span: vec![0..0; nr],
-            b_span: vec![0..0; nr],
-            b: Mat::zeros(nr, n),
+            a: Rows::new(nr, n),
+            b: Rows::new(nr, n),
+            sa: Mat::zeros(nr, n),
         }
     }
-}
 
-/// Lower triangle (diagonal included) of `dst += aᵀ W a` for `a` of shape `nr × n` with
-/// unit row stride and `dst` column-major `n × n`; the strict upper triangle is not
-/// touched. Zero rows (or rows of zero weight), and the zero columns at either end of
-/// each row, cost nothing; a NaN in `W` or in a row of nonzero weight reaches `dst`.
-pub(crate) fn gram_lower_add(
-    dst: MatMut<'_, f64>,
-    a: MatRef<'_, f64>,
-    weight: GramWeight<'_>,
-    scratch: &mut GramScratch,
-) {
-    let (nr, n) = (a.nrows(), a.ncols());
-    debug_assert_eq!((dst.nrows(), dst.ncols()), (n, n));
-    let at = &mut scratch.at[..nr * n];
-    rows_of(a, at, &mut scratch.a_span[..nr]);
-    match weight {
-        GramWeight::Diagonal(s) => {
-            debug_assert_eq!(s.len(), nr);
-            let work: usize = (0..nr)
-                .filter(|&r| s[r] != 0.0)
-                .map(|r| triangle(scratch.a_span[r].len()))
-                .sum();
-            if is_dense(work, nr, n) {
-                let mut b = scratch.b.as_mut().submatrix_mut(0, 0, nr, n);
+    /// Reads the Jacobian `a` (`nr × n`, unit row stride) for the products below, which
+    /// take the same `a` (its values may not change in between).
+    pub(crate) fn load(&mut self, a: MatRef<'_, f64>) {
+        let (nr, n) = (a.nrows(), a.ncols());
+        self.a.load(a, |work| !is_dense(work, nr, n));
+    }
+
+    /// Whether the loaded Jacobian is zero.
+    pub(crate) fn is_zero(&self) -> bool {
+        self.a.span[..self.a.nr].iter().all(|s| s.is_empty())
+    }
+
+    /// `y += alpha aᵀ g` for the loaded `a`.
+    pub(crate) fn matvec_t_add(&self, y: &mut [f64], a: MatRef<'_, f64>, g: &[f64], alpha: f64) {
+        if !self.a.copied {
+            return matvec_t(y, Accum::Add, a, g, alpha);
+        }
+        for (r, s) in self.a.span[..self.a.nr].iter().enumerate() {
+            let h = alpha * g[r];
+            for (yc, v) in y[s.clone()].iter_mut().zip(&self.a.row(r)[s.clone()]) {
+                *yc += h * v;
+            }
+        }
+    }
+
+    /// Lower triangle (diagonal included) of `dst += aᵀ W a` for the loaded `a` and a
+    /// column-major `n × n` `dst`, whose strict upper triangle is not touched. Zero rows
+    /// (or rows of zero weight) and the zero columns at either end of each row cost
+    /// nothing; a NaN in `W` or in a row of nonzero weight reaches `dst`.
+    pub(crate) fn gram_lower_add(&mut self, dst: MatMut<'_, f64>, a: MatRef<'_, f64>, weight: GramWeight<'_>) {
+        let (nr, n) = (a.nrows(), a.ncols());
+        debug_assert_eq!((self.a.nr, self.a.n, dst.nrows(), dst.ncols()), (nr, n, n, n));
+        match (weight, self.a.copied) {
+            (GramWeight::Diagonal(s), false) => {
+                let mut sa = self.sa.as_mut().submatrix_mut(0, 0, nr, n);
                 for c in 0..n {
-                    let bc = b.rb_mut().col_mut(c).try_as_col_major_mut().expect("owned");
-                    for ((d, &v), &w) in bc.as_slice_mut().iter_mut().zip(contiguous(a, c)).zip(s) {
+                    let col = sa.rb_mut().col_mut(c).try_as_col_major_mut().expect("owned");
+                    for ((d, &v), &w) in col.as_slice_mut().iter_mut().zip(contiguous(a, c)).zip(s) {
                         *d = w * v;
                     }
                 }
-                matmul_lower(dst, Accum::Add, a.transpose(), b.as_ref(), 1.0);
-            } else {
-                let rows = (0..nr).map(|r| (r, s[r]));
-                rank_one_updates(dst, at, n, &scratch.a_span, None, rows);
+                matmul_lower(dst, Accum::Add, a.transpose(), sa.as_ref(), 1.0);
             }
-        }
-        GramWeight::Product(b, alpha) => {
-            debug_assert_eq!((b.nrows(), b.ncols()), (nr, n));
-            let bt = &mut scratch.bt[..nr * n];
-            rows_of(b, bt, &mut scratch.b_span[..nr]);
-            let work: usize = (0..nr)
-                .map(|r| scratch.a_span[r].len() * scratch.b_span[r].len() / 2)
-                .sum();
-            if is_dense(work, nr, n) {
-                matmul_lower(dst, Accum::Add, a.transpose(), b, alpha);
-            } else {
-                let b_rows = Some((&*bt, &scratch.b_span[..]));
-                rank_one_updates(dst, at, n, &scratch.a_span, b_rows, (0..nr).map(|r| (r, alpha)));
+            (GramWeight::Product(b, alpha), false) => matmul_lower(dst, Accum::Add, a.transpose(), b, alpha),
+            (GramWeight::Diagonal(s), true) => rank_one_updates(dst, &self.a, None, |r| s[r]),
+            (GramWeight::Product(b, alpha), true) => {
+                self.b.load(b, |_| true);
+                rank_one_updates(dst, &self.a, Some(&self.b), |_| alpha);
             }
         }
     }
 }
 
-/// Whether `work` multiply-adds of the sparse kernel are better left to faer's dense
-/// product: enough of them, and at least half of a dense product's.
+/// Whether the rank-one kernel's `work` multiply-adds on an `nr × n` Jacobian are
+/// better left to faer's dense product: enough rows, enough work, and at least half of
+/// a dense product's.
 fn is_dense(work: usize, nr: usize, n: usize) -> bool {
-    work >= DENSE_MIN_WORK && 4 * work >= nr * n * n
+    nr >= DENSE_MIN_ROWS && work >= DENSE_MIN_WORK && 2 * work >= nr * triangle(n)
 }
 
 /// `k (k + 1) / 2`: entries of a `k × k` lower triangle.
@@ -119,61 +184,31 @@ fn triangle(k: usize) -> usize {
     k * (k + 1) / 2
 }
 
-/// Copies the rows of `m` (unit row stride) into `rows` (row-major) and writes the
-/// nonzero span of each.
-fn rows_of(m: MatRef<'_, f64>, rows: &mut [f64], span: &mut [Range<usize>]) {
-    let n = m.ncols();
-    for c in 0..n {
-        for (r, &v) in contiguous(m, c).iter().enumerate() {
-            rows[r * n + c] = v;
-        }
-    }
-    for (r, s) in span.iter_mut().enumerate() {
-        *s = nonzero_span(&rows[r * n..(r + 1) * n]);
-    }
-}
-
 /// Column `c` of a matrix with unit row stride.
 fn contiguous(m: MatRef<'_, f64>, c: usize) -> &[f64] {
     m.col(c).try_as_col_major().expect("unit row stride").as_slice()
 }
 
-/// The entries from the first to the last nonzero (or non-finite) one of `v`.
-fn nonzero_span(v: &[f64]) -> Range<usize> {
-    let start = v.iter().position(|&x| x != 0.0).unwrap_or(v.len());
-    let end = v.iter().rposition(|&x| x != 0.0).map_or(start, |p| p + 1);
-    start..end
-}
-
-/// `dst[c.., c] += Σ_r alpha_r b[r, c] a[r, c..]ᵀ` over the rows `(r, alpha_r)`, with
-/// `b = a` when `b_rows` is `None`: one contiguous axpy per nonzero `b[r, c]` over the
-/// span of row `r` of `a` (rows in order, so every entry sums its terms by increasing `r`).
-fn rank_one_updates(
-    mut dst: MatMut<'_, f64>,
-    at: &[f64],
-    n: usize,
-    a_span: &[Range<usize>],
-    b_rows: Option<(&[f64], &[Range<usize>])>,
-    rows: impl Iterator<Item = (usize, f64)>,
-) {
-    for (r, alpha) in rows {
-        let (lo, hi) = (a_span[r].start, a_span[r].end);
-        let (b, b_span) = match b_rows {
-            Some((bt, span)) => (&bt[r * n..(r + 1) * n], span[r].clone()),
-            None => (&at[r * n..(r + 1) * n], a_span[r].clone()),
-        };
+/// `dst[c.., c] += Σ_r alpha_r b[r, c] a[r, c..]ᵀ` over the rows of `a`, with `b = a`
+/// when `b` is `None`: one contiguous axpy per nonzero `b[r, c]` over the span of row `r`
+/// of `a` (rows in order, so every entry sums its terms by increasing `r`).
+fn rank_one_updates(mut dst: MatMut<'_, f64>, a: &Rows, b: Option<&Rows>, alpha: impl Fn(usize) -> f64) {
+    let b = b.unwrap_or(a);
+    for r in 0..a.nr {
+        let (alpha, span) = (alpha(r), &a.span[r]);
+        let (lo, hi) = (span.start, span.end);
         if alpha == 0.0 || lo >= hi {
             continue;
         }
-        let a = &at[r * n..(r + 1) * n];
-        for c in b_span.start..b_span.end.min(hi) {
-            let h = alpha * b[c];
+        let (ar, br) = (a.row(r), b.row(r));
+        for c in b.span[r].start..b.span[r].end.min(hi) {
+            let h = alpha * br[c];
             let from = c.max(lo);
-            if h == 0.0 || from >= hi {
+            if h == 0.0 {
                 continue;
             }
             let col = dst.rb_mut().col_mut(c).try_as_col_major_mut().expect("unit row stride");
-            for (d, v) in col.as_slice_mut()[from..hi].iter_mut().zip(&a[from..hi]) {
+            for (d, v) in col.as_slice_mut()[from..hi].iter_mut().zip(&ar[from..hi]) {
                 *d += h * v;
             }
         }

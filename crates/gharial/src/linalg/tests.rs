@@ -210,7 +210,7 @@ fn bunch_kaufman_inertia_of_sparse_kkt_matrices() {
 /// diagonal weights with zeros: the skipped zeros change nothing.
 #[test]
 fn gram_lower_add_matches_the_naive_product() {
-    use super::{GramScratch, GramWeight, gram_lower_add};
+    use super::{GramScratch, GramWeight};
     for (case, (nr, n)) in [(1, 1), (1, 7), (3, 12), (12, 12), (12, 36), (36, 36), (12, 40), (5, 3)]
         .into_iter()
         .enumerate()
@@ -246,7 +246,22 @@ fn gram_lower_add_matches_the_naive_product() {
                 };
                 let init = filled(n, n, 9 + case);
                 let mut dst = init.clone();
-                gram_lower_add(dst.as_mut(), a.as_ref(), weight, &mut scratch);
+                scratch.load(a.as_ref());
+                scratch.gram_lower_add(dst.as_mut(), a.as_ref(), weight);
+                // And the matrix-vector product of the loaded `a`.
+                let gv: Vec<f64> = (0..nr).map(|r| 0.5 - r as f64 / 7.0).collect();
+                let mut y: Vec<f64> = (0..n).map(|c| c as f64).collect();
+                scratch.matvec_t_add(&mut y, a.as_ref(), &gv, -1.5);
+                for c in 0..n {
+                    let expected = c as f64 - 1.5 * (0..nr).map(|r| a[(r, c)] * gv[r]).sum::<f64>();
+                    assert!(
+                        (y[c] - expected).abs() <= 1e-12 * (1.0 + expected.abs()),
+                        "aᵀg {nr}x{n}"
+                    );
+                }
+                let zero = (0..n).all(|c| (0..nr).all(|r| a[(r, c)] == 0.0));
+                assert_eq!(scratch.is_zero(), zero, "{nr}x{n} pattern {pattern}");
+                assert!(zero || pattern != 4);
                 let reference = naive(a.transpose(), naive(w.as_ref(), a.as_ref()).as_ref());
                 for c in 0..n {
                     for r in 0..n {
