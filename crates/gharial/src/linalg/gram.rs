@@ -68,7 +68,12 @@ impl Rows {
         let (nr, n) = (a.nrows(), a.ncols());
         (self.nr, self.n) = (nr, n);
         let span = &mut self.span[..nr];
-        span.iter_mut().for_each(|s| *s = usize::MAX..0);
+        // Start past every column: the first nonzero lowers it.
+        let none = Range {
+            start: usize::MAX,
+            end: 0,
+        };
+        span.iter_mut().for_each(|s| *s = none.clone());
         for c in 0..n {
             for (s, &v) in span.iter_mut().zip(contiguous(a, c)) {
                 if v != 0.0 {
