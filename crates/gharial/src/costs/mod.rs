@@ -3,9 +3,12 @@
 //! Derivatives with respect to the state are tangent (`ndx`), like every other model of
 //! the library.
 
-use faer::{Col, Mat};
+use faer::prelude::ReborrowMut;
+use faer::{Col, Mat, MatMut};
 
+use crate::functions::util::add_scaled;
 use crate::functions::{Workspace, no_workspace};
+use crate::linalg::{add_scaled_lower, as_mat, as_mat_mut};
 
 mod quadratic;
 mod residual;
@@ -69,6 +72,42 @@ impl CostData {
     }
 }
 
+/// The Hessian blocks that [`Cost::add_derivatives`] adds to: the lower triangles
+/// (diagonal included) of `lxx` and `luu`, whose strict upper triangles are left as they
+/// are, and all of `lxu`.
+#[derive(Debug)]
+pub struct HessianMut<'a> {
+    /// `d²ℓ/dx²` (`ndx x ndx`), lower triangle.
+    pub lxx: MatMut<'a, f64>,
+    /// `d²ℓ/dxdu` (`ndx x nu`).
+    pub lxu: MatMut<'a, f64>,
+    /// `d²ℓ/du²` (`nu x nu`), lower triangle.
+    pub luu: MatMut<'a, f64>,
+}
+
+impl HessianMut<'_> {
+    /// A shorter-lived view of the same blocks.
+    pub fn rb_mut(&mut self) -> HessianMut<'_> {
+        HessianMut {
+            lxx: self.lxx.rb_mut(),
+            lxu: self.lxu.rb_mut(),
+            luu: self.luu.rb_mut(),
+        }
+    }
+}
+
+/// Where [`Cost::add_derivatives`] adds its scaled derivatives (the sums of a
+/// [`CostStack`]).
+#[derive(Debug)]
+pub struct DerivativesMut<'a> {
+    /// `dℓ/dx` (`ndx`).
+    pub lx: &'a mut [f64],
+    /// `dℓ/du` (`nu`).
+    pub lu: &'a mut [f64],
+    /// The Hessian blocks, or `None` for the gradient only.
+    pub hessian: Option<HessianMut<'a>>,
+}
+
 /// A twice-differentiable cost `ℓ(x, u)`.
 pub trait Cost: Send + Sync {
     /// Representation size of the state.
@@ -120,6 +159,32 @@ pub trait Cost: Send + Sync {
             self.gradient(x, u, data);
         } else {
             self.derivatives(x, u, data);
+        }
+    }
+
+    /// Adds `scale` times the gradient, and the Hessian when `out.hessian` is given, to
+    /// `out` (the lower triangles of the symmetric blocks only), with the blocks this cost
+    /// declares constant reused as in [`Cost::derivatives_reusing`] (`reuse`: `data` was
+    /// passed to an earlier call of this method). `data`'s own derivative blocks may be
+    /// left as they are. Default: `derivatives_reusing` into
+    /// `data`, then the scaled sums; costs built on a residual override it to add their
+    /// chain-rule products straight into `out`.
+    fn add_derivatives(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        data: &mut CostData,
+        reuse: bool,
+        scale: f64,
+        out: DerivativesMut<'_>,
+    ) {
+        self.derivatives_reusing(x, u, data, reuse);
+        add_scaled(as_mat_mut(out.lx), scale, as_mat(data.lx()));
+        add_scaled(as_mat_mut(out.lu), scale, as_mat(data.lu()));
+        if let Some(h) = out.hessian {
+            add_scaled_lower(h.lxx, scale, data.lxx.as_ref());
+            add_scaled(h.lxu, scale, data.lxu.as_ref());
+            add_scaled_lower(h.luu, scale, data.luu.as_ref());
         }
     }
 }

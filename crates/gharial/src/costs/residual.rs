@@ -16,17 +16,17 @@
 
 use std::sync::Arc;
 
+use faer::reborrow::ReborrowMut;
 use faer::{Accum, Mat, MatMut, MatRef};
 
-use super::{Cost, CostData};
+use super::{Cost, CostData, DerivativesMut, HessianMut};
 use crate::error::{check_dim, check_finite};
 use crate::functions::util::{add_scaled, checked_sym, downcast};
 use crate::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary, Workspace};
-use crate::linalg::{GramScratch, gram_lower, matmul, matvec_t, norm_max, slice_mut, symmetrize_from_lower};
+use crate::linalg::{GramScratch, GramWeight, add_scaled_lower, fill_lower, matmul, slice_mut, symmetrize_from_lower};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
-use faer::reborrow::ReborrowMut;
 
 /// The weight `W` of a quadratic residual cost: diagonal or a full symmetric matrix.
 #[derive(Debug, Clone)]
@@ -57,20 +57,6 @@ impl Metric {
             Metric::Full(w) => crate::linalg::matvec(out, Accum::Replace, w.as_ref(), r, 1.0),
         }
     }
-
-    /// `out = W j`.
-    fn apply_mat(&self, j: MatRef<'_, f64>, mut out: MatMut<'_, f64>) {
-        match self {
-            Metric::Diagonal(w) => {
-                for c in 0..j.ncols() {
-                    for i in 0..j.nrows() {
-                        out[(i, c)] = w[i] * j[(i, c)];
-                    }
-                }
-            }
-            Metric::Full(w) => matmul(out, Accum::Replace, w.as_ref(), j, 1.0),
-        }
-    }
 }
 
 /// Scratch memory of the residual costs.
@@ -78,14 +64,15 @@ struct ResidualWs {
     fd: StageFunctionData,
     /// `g = φ'(r)` (`nr`).
     g: Vec<f64>,
-    /// `H = φ''(r)` when diagonal (`nr`).
+    /// The scaled curvature `s φ''(r)` when diagonal (`nr`).
     h: Vec<f64>,
-    /// `H r_x` (`nr x ndx`).
+    /// `W r_x` (`nr x ndx`), for a full `W`.
     hjx: Mat<f64>,
     /// `H r_u` (`nr x nu`).
     hju: Mat<f64>,
-    /// Scratch of the Gram products.
-    gram: GramScratch,
+    /// `r_x` and `r_u` read for their products.
+    gram_x: GramScratch,
+    gram_u: GramScratch,
 }
 
 impl ResidualWs {
@@ -97,22 +84,106 @@ impl ResidualWs {
             h: vec![0.0; nr],
             hjx: Mat::zeros(nr, ndx),
             hju: Mat::zeros(nr, nu),
-            gram: GramScratch::new(nr, ndx.max(nu)),
+            gram_x: GramScratch::new(nr, ndx),
+            gram_u: GramScratch::new(nr, nu),
         }
     }
 }
 
-/// The derivative blocks of a [`CostData`], borrowed apart from its workspace.
-struct Blocks<'a> {
-    lx: &'a mut faer::Col<f64>,
-    lu: &'a mut faer::Col<f64>,
-    lxx: &'a mut Mat<f64>,
-    lxu: &'a mut Mat<f64>,
-    luu: &'a mut Mat<f64>,
+/// The Gauss-Newton curvature `H = φ''(r)` of a residual cost, times the scale `s` of
+/// [`Cost::add_derivatives`].
+enum Curvature<'a> {
+    /// Diagonal: `s H` is in the workspace's `h`.
+    Diagonal,
+    /// The full weight `W` and the scale `s`.
+    Full(&'a Mat<f64>, f64),
 }
 
-/// Splits a cost data into its derivative blocks and its (downcast) workspace.
-fn split(data: &mut CostData) -> (Blocks<'_>, &mut ResidualWs) {
+/// Adds `s Jᵀ g` to the gradient and, if asked, `s Jᵀ H J` and, if `exact`, `s vhp(g)`
+/// to the lower Hessian blocks, with `g` and `J` in `ws` (`J` new since the last call if
+/// `fresh`): the chain rule of every residual cost (module documentation). The products
+/// of a zero Jacobian block (a residual of the state only, or of the control only) are
+/// skipped.
+fn add_chain_rule(
+    f: &dyn StageFunction,
+    (x, u): (&[f64], &[f64]),
+    (exact, fresh): (bool, bool),
+    ws: &mut ResidualWs,
+    h: Curvature<'_>,
+    s: f64,
+    out: DerivativesMut<'_>,
+) {
+    let ResidualWs {
+        fd,
+        g,
+        h: hd,
+        hjx,
+        hju,
+        gram_x,
+        gram_u,
+    } = ws;
+    let (jx, ju) = (fd.jx.as_ref(), fd.ju.as_ref());
+    if fresh {
+        gram_x.load(jx);
+        gram_u.load(ju);
+    }
+    gram_x.matvec_t_add(out.lx, jx, g, s);
+    gram_u.matvec_t_add(out.lu, ju, g, s);
+    let Some(mut out) = out.hessian else {
+        return;
+    };
+    let (x_zero, u_zero) = (gram_x.is_zero(), gram_u.is_zero());
+    let (wx, wu, alpha) = match h {
+        Curvature::Diagonal => {
+            if !(x_zero || u_zero) {
+                scale_rows(hju.as_mut(), hd, ju);
+            }
+            (GramWeight::Diagonal(hd), GramWeight::Diagonal(hd), 1.0)
+        }
+        Curvature::Full(w, s) => {
+            if !x_zero {
+                matmul(hjx.as_mut(), Accum::Replace, w.as_ref(), jx, 1.0);
+            }
+            if !u_zero {
+                matmul(hju.as_mut(), Accum::Replace, w.as_ref(), ju, 1.0);
+            }
+            (
+                GramWeight::Product(hjx.as_ref(), s),
+                GramWeight::Product(hju.as_ref(), s),
+                s,
+            )
+        }
+    };
+    if !x_zero {
+        gram_x.gram_lower_add(out.lxx.rb_mut(), jx, wx);
+    }
+    if !u_zero {
+        gram_u.gram_lower_add(out.luu.rb_mut(), ju, wu);
+        if !x_zero {
+            matmul(out.lxu.rb_mut(), Accum::Add, jx.transpose(), hju.as_ref(), alpha);
+        }
+    }
+    if exact && f.has_vhp() {
+        f.vhp(x, u, g, fd);
+        add_scaled_lower(out.lxx, s, fd.vhp_xx.as_ref());
+        add_scaled(out.lxu, s, fd.vhp_xu.as_ref());
+        add_scaled_lower(out.luu, s, fd.vhp_uu.as_ref());
+    }
+}
+
+/// `dst = diag(h) j`.
+fn scale_rows(mut dst: MatMut<'_, f64>, h: &[f64], j: MatRef<'_, f64>) {
+    for c in 0..j.ncols() {
+        for i in 0..j.nrows() {
+            dst[(i, c)] = h[i] * j[(i, c)];
+        }
+    }
+}
+
+/// Writes the derivatives of a residual cost into `data`'s own blocks by its
+/// `add_derivatives` (`add`, scale 1), the Hessian too if `hessian`, and mirrors the
+/// symmetric blocks.
+fn write_own(data: &mut CostData, hessian: bool, add: impl FnOnce(&mut ResidualWs, DerivativesMut<'_>)) {
     let CostData {
         lx,
         lu,
@@ -122,47 +193,26 @@ fn split(data: &mut CostData) -> (Blocks<'_>, &mut ResidualWs) {
         ws,
         ..
     } = data;
-    (Blocks { lx, lu, lxx, lxu, luu }, downcast(ws))
-}
-
-/// Writes `∇ℓ = Jᵀ g` and `Jᵀ H J` (with `H J` already in `ws.hjx`, `ws.hju`) into
-/// `out`, then adds `vhp(g)` if `exact`. The symmetric blocks are computed by their
-/// lower triangles, and the products of a zero Jacobian block (a residual of the state
-/// only, or of the control only) are skipped.
-fn assemble(f: &dyn StageFunction, x: &[f64], u: &[f64], exact: bool, ws: &mut ResidualWs, out: Blocks<'_>) {
-    let (jx, ju) = (ws.fd.jx.as_ref(), ws.fd.ju.as_ref());
-    let (x_zero, u_zero) = (norm_max(jx) == 0.0, norm_max(ju) == 0.0);
-    matvec_t(slice_mut(out.lx), Accum::Replace, jx, &ws.g, 1.0);
-    matvec_t(slice_mut(out.lu), Accum::Replace, ju, &ws.g, 1.0);
-    symmetric_product(out.lxx.as_mut(), jx, ws.hjx.as_ref(), x_zero, &mut ws.gram);
-    if x_zero || u_zero {
-        out.lxu.fill(0.0);
-    } else {
-        matmul(out.lxu.as_mut(), Accum::Replace, jx.transpose(), ws.hju.as_ref(), 1.0);
+    lx.fill(0.0);
+    lu.fill(0.0);
+    if hessian {
+        fill_lower(lxx.as_mut(), 0.0);
+        lxu.fill(0.0);
+        fill_lower(luu.as_mut(), 0.0);
     }
-    symmetric_product(out.luu.as_mut(), ju, ws.hju.as_ref(), u_zero, &mut ws.gram);
-    if exact && f.has_vhp() {
-        f.vhp(x, u, &ws.g, &mut ws.fd);
-        add_scaled(out.lxx.as_mut(), 1.0, ws.fd.vhp_xx.as_ref());
-        add_scaled(out.lxu.as_mut(), 1.0, ws.fd.vhp_xu.as_ref());
-        add_scaled(out.luu.as_mut(), 1.0, ws.fd.vhp_uu.as_ref());
-    }
-}
-
-/// `dst = jᵀ (h j)` for a symmetric `h` (its lower triangle, mirrored), or zero when
-/// `j` is.
-fn symmetric_product(
-    mut dst: MatMut<'_, f64>,
-    j: MatRef<'_, f64>,
-    hj: MatRef<'_, f64>,
-    j_zero: bool,
-    scratch: &mut GramScratch,
-) {
-    if j_zero {
-        dst.fill(0.0);
-    } else {
-        gram_lower(dst.rb_mut(), j, hj, scratch);
-        symmetrize_from_lower(dst);
+    let out = DerivativesMut {
+        lx: slice_mut(lx),
+        lu: slice_mut(lu),
+        hessian: hessian.then(|| HessianMut {
+            lxx: lxx.as_mut(),
+            lxu: lxu.as_mut(),
+            luu: luu.as_mut(),
+        }),
+    };
+    add(downcast(ws), out);
+    if hessian {
+        symmetrize_from_lower(lxx.as_mut());
+        symmetrize_from_lower(luu.as_mut());
     }
 }
 
@@ -218,6 +268,29 @@ impl QuadraticResidualCost {
     }
 }
 
+impl QuadraticResidualCost {
+    /// [`Cost::add_derivatives`] with the workspace apart.
+    fn add(&self, x: &[f64], u: &[f64], ws: &mut ResidualWs, reuse: bool, s: f64, out: DerivativesMut<'_>) {
+        // With a constant Hessian and `reuse`, `J` is the one of the first call and
+        // `g = W r` is from `evaluate`.
+        let fresh = !(reuse && self.hessian_is_constant());
+        if fresh {
+            self.f.jacobians(x, u, &mut ws.fd);
+            self.w.apply(ws.fd.value(), &mut ws.g);
+        }
+        let h = match &self.w {
+            Metric::Diagonal(w) => {
+                for (hi, wi) in ws.h.iter_mut().zip(w) {
+                    *hi = s * wi;
+                }
+                Curvature::Diagonal
+            }
+            Metric::Full(w) => Curvature::Full(w, s),
+        };
+        add_chain_rule(self.f.as_ref(), (x, u), (self.exact, fresh), ws, h, s, out);
+    }
+}
+
 impl Cost for QuadraticResidualCost {
     fn nx(&self) -> usize {
         self.f.nx()
@@ -238,12 +311,7 @@ impl Cost for QuadraticResidualCost {
         data.value = 0.5 * ws.fd.value().iter().zip(&ws.g).map(|(r, g)| r * g).sum::<f64>();
     }
     fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-        let (out, ws) = split(data);
-        self.f.jacobians(x, u, &mut ws.fd);
-        self.w.apply(ws.fd.value(), &mut ws.g);
-        self.w.apply_mat(ws.fd.jx.as_ref(), ws.hjx.as_mut());
-        self.w.apply_mat(ws.fd.ju.as_ref(), ws.hju.as_mut());
-        assemble(self.f.as_ref(), x, u, self.exact, ws, out);
+        write_own(data, true, |ws, out| self.add(x, u, ws, false, 1.0, out));
     }
     /// `Jᵀ W J` is constant when the Jacobians are (`W` is fixed at construction) and
     /// no second-order term `vhp(W r)` is added.
@@ -254,10 +322,10 @@ impl Cost for QuadraticResidualCost {
         if !self.hessian_is_constant() {
             return self.derivatives(x, u, data);
         }
-        // `J` is the one of the first `derivatives` call; `g = W r` is from `evaluate`.
-        let (out, ws) = split(data);
-        matvec_t(slice_mut(out.lx), Accum::Replace, ws.fd.jx.as_ref(), &ws.g, 1.0);
-        matvec_t(slice_mut(out.lu), Accum::Replace, ws.fd.ju.as_ref(), &ws.g, 1.0);
+        write_own(data, false, |ws, out| self.add(x, u, ws, true, 1.0, out));
+    }
+    fn add_derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData, reuse: bool, s: f64, out: DerivativesMut<'_>) {
+        self.add(x, u, downcast(&mut data.ws), reuse, s, out);
     }
 }
 
@@ -395,6 +463,17 @@ macro_rules! delegate_cost {
             fn gradient(&self, x: &[f64], u: &[f64], data: &mut CostData) {
                 self.inner.gradient(x, u, data)
             }
+            fn add_derivatives(
+                &self,
+                x: &[f64],
+                u: &[f64],
+                data: &mut CostData,
+                reuse: bool,
+                s: f64,
+                out: DerivativesMut<'_>,
+            ) {
+                self.inner.add_derivatives(x, u, data, reuse, s, out)
+            }
         }
     };
 }
@@ -521,24 +600,40 @@ impl Cost for LogBarrierCost {
             .sum::<f64>();
     }
     fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-        let (out, ws) = split(data);
+        write_own(data, true, |ws, out| self.add(x, u, ws, 1.0, out));
+    }
+    fn add_derivatives(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        data: &mut CostData,
+        _reuse: bool,
+        s: f64,
+        out: DerivativesMut<'_>,
+    ) {
+        self.add(x, u, downcast(&mut data.ws), s, out);
+    }
+}
+
+impl LogBarrierCost {
+    /// [`Cost::add_derivatives`] with the workspace apart.
+    fn add(&self, x: &[f64], u: &[f64], ws: &mut ResidualWs, s: f64, out: DerivativesMut<'_>) {
         self.f.jacobians(x, u, &mut ws.fd);
         let w = self.weight.get(0);
         for (i, &r) in ws.fd.value().iter().enumerate() {
             let (_, d1, d2) = relaxed_log(-r, self.delta);
             ws.g[i] = -w * d1;
-            ws.h[i] = w * d2;
+            ws.h[i] = s * (w * d2);
         }
-        let (nr, ndx, nu) = (self.f.nr(), self.f.ndx(), self.f.nu());
-        for i in 0..nr {
-            for c in 0..ndx {
-                ws.hjx[(i, c)] = ws.h[i] * ws.fd.jx[(i, c)];
-            }
-            for c in 0..nu {
-                ws.hju[(i, c)] = ws.h[i] * ws.fd.ju[(i, c)];
-            }
-        }
-        assemble(self.f.as_ref(), x, u, self.exact, ws, out);
+        add_chain_rule(
+            self.f.as_ref(),
+            (x, u),
+            (self.exact, true),
+            ws,
+            Curvature::Diagonal,
+            s,
+            out,
+        );
     }
 }
 
@@ -546,12 +641,13 @@ impl Cost for LogBarrierCost {
 mod tests {
     use super::*;
     use crate::check::{CheckOptions, check_cost};
-    use crate::functions::LinearComposition;
     use crate::functions::testing::{
         TestFunction, assert_close, dual_check_cost, dual_jacobian, random_mat, random_vec, rng, test_fn,
     };
+    use crate::functions::{LinearComposition, LinearFunction};
     use crate::spaces::VectorSpace;
     use num_dual::DualNum;
+    use rand::Rng;
 
     fn points(seed: u64, n: usize) -> Vec<(Vec<f64>, Vec<f64>)> {
         let mut g = rng(seed);
@@ -615,6 +711,132 @@ mod tests {
         assert!(err.to_string().contains("QuadraticResidualCost weights w"), "{err}");
         let err = QuadraticResidualCost::new(f, w.as_ref().submatrix(0, 0, 3, 2)).unwrap_err();
         assert!(err.to_string().contains("QuadraticResidualCost W columns"), "{err}");
+    }
+
+    /// `init + s M` on the lower triangle of a square `m`, `init` above it.
+    fn lower_plus(init: &Mat<f64>, s: f64, m: &Mat<f64>) -> Mat<f64> {
+        Mat::from_fn(init.nrows(), init.ncols(), |i, j| {
+            if i >= j {
+                init[(i, j)] + s * m[(i, j)]
+            } else {
+                init[(i, j)]
+            }
+        })
+    }
+
+    /// A Jacobian of the shape of a residual family: dense, sparse by rows (an identity
+    /// with a dense leading block, like a state error on a Lie group), or zero.
+    fn jacobian(g: &mut rand::rngs::SmallRng, nr: usize, n: usize, kind: usize) -> Mat<f64> {
+        let m = random_mat(g, nr, n, 1.0);
+        match kind {
+            0 => m,
+            1 => Mat::from_fn(nr, n, |r, c| if r == c || (r < 3 && c < 3) { m[(r, c)] } else { 0.0 }),
+            _ => Mat::zeros(nr, n),
+        }
+    }
+
+    /// `add_derivatives` adds `s Jᵀ W r`, the lower triangles of `s Jᵀ W J` and all of
+    /// `s J_xᵀ W J_u` to whatever the blocks hold, against the dense products, for dense
+    /// (faer's product from a size on), row-sparse and zero Jacobian blocks, diagonal
+    /// (with a zero entry) and full weights, with and without `reuse`; and the barrier
+    /// adds `s` times the derivatives it writes on its own.
+    #[test]
+    fn add_derivatives_adds_the_scaled_products_to_the_blocks() {
+        let mut g = rng(46);
+        let shapes = [
+            (12, 36, 12, 0, 0),
+            (36, 36, 12, 1, 2),
+            (3, 12, 6, 1, 2),
+            (4, 5, 3, 2, 0),
+            (12, 12, 12, 0, 1),
+        ];
+        for (nr, ndx, nu, kx, ku) in shapes {
+            let (jx, ju) = (jacobian(&mut g, nr, ndx, kx), jacobian(&mut g, nr, nu, ku));
+            let f: Arc<dyn StageFunction> =
+                Arc::new(LinearFunction::new(jx.as_ref(), ju.as_ref(), &random_vec(&mut g, nr, 1.0)).unwrap());
+            let wd: Vec<f64> = (0..nr).map(|i| if i == 1 { 0.0 } else { 0.5 + i as f64 }).collect();
+            let a = random_mat(&mut g, nr, nr, 1.0);
+            let wf = &a * a.transpose();
+            let costs = [
+                (
+                    QuadraticResidualCost::diagonal(f.clone(), &wd).unwrap(),
+                    Mat::from_fn(nr, nr, |i, j| if i == j { wd[i] } else { 0.0 }),
+                ),
+                (QuadraticResidualCost::new(f.clone(), wf.as_ref()).unwrap(), wf.clone()),
+            ];
+            for (cost, w) in &costs {
+                let mut d = cost.create_data();
+                for reuse in [false, true] {
+                    let (x, u) = (random_vec(&mut g, ndx, 1.0), random_vec(&mut g, nu, 1.0));
+                    let s = 0.3 + g.random::<f64>();
+                    cost.evaluate(&x, &u, &mut d);
+                    let mut fd = f.create_data();
+                    f.evaluate(&x, &u, &mut fd);
+                    let wr = w * Mat::from_fn(nr, 1, |i, _| fd.value()[i]);
+                    let (init_x, init_u) = (random_mat(&mut g, ndx, 1, 1.0), random_mat(&mut g, nu, 1, 1.0));
+                    let (hxx, hxu, huu) = (
+                        random_mat(&mut g, ndx, ndx, 1.0),
+                        random_mat(&mut g, ndx, nu, 1.0),
+                        random_mat(&mut g, nu, nu, 1.0),
+                    );
+                    let (mut lx, mut lu) = (init_x.clone(), init_u.clone());
+                    let (mut lxx, mut lxu, mut luu) = (hxx.clone(), hxu.clone(), huu.clone());
+                    let out = DerivativesMut {
+                        lx: crate::linalg::col_of_mut(&mut lx, 0),
+                        lu: crate::linalg::col_of_mut(&mut lu, 0),
+                        hessian: Some(HessianMut {
+                            lxx: lxx.as_mut(),
+                            lxu: lxu.as_mut(),
+                            luu: luu.as_mut(),
+                        }),
+                    };
+                    cost.add_derivatives(&x, &u, &mut d, reuse, s, out);
+                    let tol = 1e-12;
+                    assert_close("lx", &lx, &(&init_x + s * (jx.transpose() * &wr)), tol);
+                    assert_close("lu", &lu, &(&init_u + s * (ju.transpose() * &wr)), tol);
+                    assert_close("lxx", &lxx, &lower_plus(&hxx, s, &(jx.transpose() * (w * &jx))), tol);
+                    assert_close("lxu", &lxu, &(&hxu + s * (jx.transpose() * (w * &ju))), tol);
+                    assert_close("luu", &luu, &lower_plus(&huu, s, &(ju.transpose() * (w * &ju))), tol);
+                }
+            }
+            // The barrier on the same residual: `s` times the blocks it writes itself.
+            let barrier = LogBarrierCost::new(f.clone(), 0.7, 0.5).unwrap();
+            let (x, u) = (random_vec(&mut g, ndx, 1.0), random_vec(&mut g, nu, 1.0));
+            let (mut own, mut d) = (barrier.create_data(), barrier.create_data());
+            barrier.evaluate(&x, &u, &mut own);
+            barrier.derivatives(&x, &u, &mut own);
+            barrier.evaluate(&x, &u, &mut d);
+            let (mut lx, mut lu) = (Mat::zeros(ndx, 1), Mat::zeros(nu, 1));
+            let (mut lxx, mut lxu, mut luu) = (Mat::zeros(ndx, ndx), Mat::zeros(ndx, nu), Mat::zeros(nu, nu));
+            let out = DerivativesMut {
+                lx: crate::linalg::col_of_mut(&mut lx, 0),
+                lu: crate::linalg::col_of_mut(&mut lu, 0),
+                hessian: Some(HessianMut {
+                    lxx: lxx.as_mut(),
+                    lxu: lxu.as_mut(),
+                    luu: luu.as_mut(),
+                }),
+            };
+            barrier.add_derivatives(&x, &u, &mut d, false, 2.5, out);
+            let zero_upper =
+                |m: &Mat<f64>| Mat::from_fn(m.nrows(), m.ncols(), |i, j| if i >= j { m[(i, j)] } else { 0.0 });
+            assert_close("barrier lx", &lx, &(2.5 * own.lx.as_mat().to_owned()), 1e-12);
+            assert_close("barrier lu", &lu, &(2.5 * own.lu.as_mat().to_owned()), 1e-12);
+            assert_close("barrier lxx", &lxx, &(2.5 * zero_upper(&own.lxx)), 1e-12);
+            assert_close("barrier lxu", &lxu, &(2.5 * &own.lxu), 1e-12);
+            assert_close("barrier luu", &luu, &(2.5 * zero_upper(&own.luu)), 1e-12);
+            // The barrier's Hessian itself: Jᵀ diag(w β''(-r)) J.
+            let mut fd = f.create_data();
+            f.evaluate(&x, &u, &mut fd);
+            let h = Mat::from_fn(nr, nr, |i, j| {
+                if i == j {
+                    0.7 * relaxed_log(-fd.value()[i], 0.5).2
+                } else {
+                    0.0
+                }
+            });
+            assert_close("barrier GN", &own.lxx, &(jx.transpose() * (&h * &jx)), 1e-12);
+        }
     }
 
     fn state_ref<D: DualNum<Primitive = f64> + Copy>(z: &[D], x_ref: &[f64], w: &Mat<f64>) -> D {

@@ -2,12 +2,12 @@
 
 use std::sync::Arc;
 
-use faer::MatMut;
-use faer::prelude::ReborrowMut;
+use faer::{Mat, MatMut};
 
-use super::{Cost, CostData};
+use super::{Cost, CostData, DerivativesMut, HessianMut};
 use crate::functions::Workspace;
-use crate::functions::util::{add_scaled, downcast};
+use crate::functions::util::downcast;
+use crate::linalg::{copy, copy_lower, fill_lower, is_zero, slice_mut, symmetrize_from_lower};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
@@ -38,30 +38,21 @@ impl std::fmt::Debug for CostStack {
 }
 
 /// The stack's workspace: the components' data, and the weighted sum of the Hessians of
-/// its leading components with constant Hessians.
+/// its components with constant Hessians.
 struct StackWorkspace {
     datas: Vec<CostData>,
-    prefix: CostData,
-    /// The weights the prefix sum was formed with (NaN: not formed yet).
-    prefix_weights: Vec<f64>,
-}
-
-impl CostStack {
-    /// `(lxx, lxu, luu) += Σ w_k ∇²ℓ_k` over the components `range` (in order; weight 0
-    /// skipped).
-    fn add_hessians(&self, datas: &[CostData], range: std::ops::Range<usize>, out: [MatMut<'_, f64>; 3]) {
-        let [mut lxx, mut lxu, mut luu] = out;
-        for k in range {
-            let w = self.weights.get(k);
-            if w == 0.0 {
-                continue;
-            }
-            let d = &datas[k];
-            add_scaled(lxx.rb_mut(), w, d.lxx.as_ref());
-            add_scaled(lxu.rb_mut(), w, d.lxu.as_ref());
-            add_scaled(luu.rb_mut(), w, d.luu.as_ref());
-        }
-    }
+    /// Whether each component's data has been through a derivatives call (so that its
+    /// constant blocks may be reused: a component of weight 0 is skipped).
+    written: Vec<bool>,
+    /// `Σ w_k ∇²ℓ_k` over the components with a constant Hessian: `lxx`, `lxu`, `luu`
+    /// (lower triangles of the symmetric ones).
+    constant: [Mat<f64>; 3],
+    /// Which of the blocks of `constant` are nonzero.
+    constant_nonzero: [bool; 3],
+    /// The weights `constant` was formed with (NaN: not formed yet).
+    constant_weights: Vec<f64>,
+    /// Where the gradients go while `constant` is formed (`ndx + nu`).
+    gradient_scratch: Vec<f64>,
 }
 
 fn check_weight(name: &str, w: f64) -> Result<()> {
@@ -171,12 +162,14 @@ impl Cost for CostStack {
         self.nu
     }
     fn create_workspace(&self) -> Workspace {
-        let datas: Vec<CostData> = self.costs.iter().map(|c| c.create_data()).collect();
-        let prefix = CostData::new(self.ndx, self.nu, crate::functions::no_workspace());
+        let (ndx, nu, n) = (self.ndx, self.nu, self.costs.len());
         Box::new(StackWorkspace {
-            datas,
-            prefix,
-            prefix_weights: vec![f64::NAN; self.costs.len()],
+            datas: self.costs.iter().map(|c| c.create_data()).collect(),
+            written: vec![false; n],
+            constant: [Mat::zeros(ndx, ndx), Mat::zeros(ndx, nu), Mat::zeros(nu, nu)],
+            constant_nonzero: [false; 3],
+            constant_weights: vec![f64::NAN; n],
+            gradient_scratch: vec![0.0; ndx + nu],
         })
     }
     fn evaluate(&self, x: &[f64], u: &[f64], data: &mut CostData) {
@@ -194,46 +187,106 @@ impl Cost for CostStack {
     fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
         self.derivatives_reusing(x, u, data, false);
     }
-    /// Components with a constant Hessian compute only their gradient once their data
-    /// hold it (`reuse`), and the weighted sum of the Hessians of the leading such
-    /// components is kept from the first call while their weights stay the same (formed
-    /// in the same order, so the result is the same to the bit); the Hessians of the other
-    /// components are added at every call.
+    /// Every component adds its weighted derivatives straight into the stack's blocks
+    /// (lower triangles, mirrored once at the end), which start from the weighted sum of
+    /// the Hessians of the components with a constant Hessian. That sum is kept while
+    /// their weights stay the same and their data hold their constant blocks (`reuse`),
+    /// and these components then add only their gradient; the result is the same to the
+    /// bit with or without `reuse`.
     fn derivatives_reusing(&self, x: &[f64], u: &[f64], data: &mut CostData, reuse: bool) {
-        let ws = downcast::<StackWorkspace>(&mut data.ws);
-        let constant_prefix = self.costs.iter().take_while(|c| c.hessian_is_constant()).count();
-        data.lx.fill(0.0);
-        data.lu.fill(0.0);
+        let CostData {
+            lx,
+            lu,
+            lxx,
+            lxu,
+            luu,
+            ws,
+            ..
+        } = data;
+        let ws = downcast::<StackWorkspace>(ws);
+        // Weights may change between calls (through `&self`): the sum is formed again then.
+        let rebuild = !reuse
+            || (0..self.costs.len())
+                .any(|k| self.costs[k].hessian_is_constant() && ws.constant_weights[k] != self.weights.get(k));
+        if rebuild {
+            self.form_constant_hessian(x, u, ws, reuse);
+        }
+        lx.fill(0.0);
+        lu.fill(0.0);
+        let ([cxx, cxu, cuu], [nxx, nxu, nuu]) = (&ws.constant, ws.constant_nonzero);
+        start_from(lxx.as_mut(), cxx, nxx, true);
+        start_from(lxu.as_mut(), cxu, nxu, false);
+        start_from(luu.as_mut(), cuu, nuu, true);
         for (k, (c, d)) in self.costs.iter().zip(ws.datas.iter_mut()).enumerate() {
             let w = self.weights.get(k);
             if w == 0.0 {
                 continue;
             }
-            c.derivatives_reusing(x, u, d, reuse);
-            add_scaled(data.lx.as_mat_mut(), w, d.lx.as_mat());
-            add_scaled(data.lu.as_mat_mut(), w, d.lu.as_mat());
+            let is_constant = c.hessian_is_constant();
+            let out = DerivativesMut {
+                lx: slice_mut(lx),
+                lu: slice_mut(lu),
+                hessian: (!is_constant).then(|| HessianMut {
+                    lxx: lxx.as_mut(),
+                    lxu: lxu.as_mut(),
+                    luu: luu.as_mut(),
+                }),
+            };
+            // Just formed, the constant blocks are there to reuse.
+            let reuse_k = ws.written[k] && (reuse || (rebuild && is_constant));
+            c.add_derivatives(x, u, d, reuse_k, w, out);
+            ws.written[k] = true;
         }
-        // Weights may change between calls (through `&self`): the sum is formed again then.
-        let same_weights = (0..constant_prefix).all(|k| ws.prefix_weights[k] == self.weights.get(k));
-        if !(reuse && same_weights) {
-            let p = &mut ws.prefix;
-            p.lxx.fill(0.0);
-            p.lxu.fill(0.0);
-            p.luu.fill(0.0);
-            self.add_hessians(
-                &ws.datas,
-                0..constant_prefix,
-                [p.lxx.as_mut(), p.lxu.as_mut(), p.luu.as_mut()],
-            );
-            for k in 0..constant_prefix {
-                ws.prefix_weights[k] = self.weights.get(k);
+        symmetrize_from_lower(lxx.as_mut());
+        symmetrize_from_lower(luu.as_mut());
+    }
+}
+
+impl CostStack {
+    /// Forms `Σ w_k ∇²ℓ_k` over the components with a constant Hessian (their gradients
+    /// go to scratch), with the weights of now.
+    fn form_constant_hessian(&self, x: &[f64], u: &[f64], ws: &mut StackWorkspace, reuse: bool) {
+        let [cxx, cxu, cuu] = &mut ws.constant;
+        cxx.fill(0.0);
+        cxu.fill(0.0);
+        cuu.fill(0.0);
+        for (k, (c, d)) in self.costs.iter().zip(ws.datas.iter_mut()).enumerate() {
+            if !c.hessian_is_constant() {
+                continue;
             }
+            let w = self.weights.get(k);
+            ws.constant_weights[k] = w;
+            if w == 0.0 {
+                continue;
+            }
+            let (lx, lu) = ws.gradient_scratch.split_at_mut(self.ndx);
+            let out = DerivativesMut {
+                lx,
+                lu,
+                hessian: Some(HessianMut {
+                    lxx: cxx.as_mut(),
+                    lxu: cxu.as_mut(),
+                    luu: cuu.as_mut(),
+                }),
+            };
+            c.add_derivatives(x, u, d, reuse && ws.written[k], w, out);
+            ws.written[k] = true;
         }
-        crate::linalg::copy(data.lxx.as_mut(), ws.prefix.lxx.as_ref());
-        crate::linalg::copy(data.lxu.as_mut(), ws.prefix.lxu.as_ref());
-        crate::linalg::copy(data.luu.as_mut(), ws.prefix.luu.as_ref());
-        let out = [data.lxx.as_mut(), data.lxu.as_mut(), data.luu.as_mut()];
-        self.add_hessians(&ws.datas, constant_prefix..self.costs.len(), out);
+        ws.constant_nonzero = [!is_zero(cxx.as_ref()), !is_zero(cxu.as_ref()), !is_zero(cuu.as_ref())];
+    }
+}
+
+/// Starts a block of the stack's derivatives from its block of the constant Hessian sum
+/// (`nonzero`) or from zero: its lower triangle if `lower`, all of it otherwise.
+fn start_from(dst: MatMut<'_, f64>, constant: &Mat<f64>, nonzero: bool, lower: bool) {
+    match (nonzero, lower) {
+        (true, true) => copy_lower(dst, constant.as_ref()),
+        (true, false) => copy(dst, constant.as_ref()),
+        (false, true) => fill_lower(dst, 0.0),
+        (false, false) => {
+            let mut dst = dst;
+            dst.fill(0.0);
+        }
     }
 }
 
@@ -322,5 +375,102 @@ mod tests {
         let empty = CostStack::new(space.as_ref(), 0);
         assert!(empty.is_empty());
         check_cost(&empty, space.as_ref(), &x, &[], CheckOptions::default()).assert_ok();
+    }
+
+    /// A stack of every kind of component (constant and varying Hessians, the residual
+    /// costs that add into the stack's blocks and costs on the default path, a nested
+    /// stack), weights changing between calls and a component switched on after the
+    /// first call: its derivatives with `reuse` equal the weighted sum of the components'
+    /// own derivatives, written fresh each time.
+    #[test]
+    fn mixed_stack_equals_the_weighted_sum_of_fresh_component_derivatives() {
+        use crate::costs::{LogBarrierCost, QuadraticCost, QuadraticResidualCost};
+        use crate::functions::testing::{TestFunction, assert_close, random_mat};
+        use crate::functions::{LinearFunction, StageFunction};
+        let mut g = rng(51);
+        let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(3));
+        let f: Arc<dyn StageFunction> = Arc::new(TestFunction);
+        let w = random_mat(&mut g, 3, 3, 1.0);
+        let lin: Arc<dyn StageFunction> = Arc::new(
+            LinearFunction::new(
+                random_mat(&mut g, 4, 3, 1.0).as_ref(),
+                random_mat(&mut g, 4, 2, 1.0).as_ref(),
+                &[0.1; 4],
+            )
+            .unwrap(),
+        );
+        let q = random_mat(&mut g, 3, 3, 1.0);
+        let r = random_mat(&mut g, 2, 2, 1.0);
+        let (q, r) = (&q * q.transpose(), &r * r.transpose());
+        let quad = QuadraticCost::new(
+            q.as_ref(),
+            random_mat(&mut g, 3, 2, 0.3).as_ref(),
+            r.as_ref(),
+            &[0.2; 3],
+            &[0.1; 2],
+        );
+        let control = QuadraticControlCost::diagonal(space.as_ref(), &[0.3, -0.2], &[0.5, 2.0]).unwrap();
+        let nested = CostStack::new(space.as_ref(), 2)
+            .with("control", Arc::new(control), 0.7)
+            .unwrap();
+        let components: Vec<(&str, Arc<dyn Cost>, f64)> = vec![
+            (
+                "nonlinear",
+                Arc::new(
+                    QuadraticResidualCost::new(f.clone(), w.as_ref())
+                        .unwrap()
+                        .exact_hessian(true),
+                ),
+                1.3,
+            ),
+            (
+                "linear",
+                Arc::new(QuadraticResidualCost::diagonal(lin, &[1.0, 0.0, 2.0, 0.5]).unwrap()),
+                0.0,
+            ),
+            (
+                "state",
+                Arc::new(QuadraticStateCost::diagonal(space.clone(), &[0.1, 0.2, 0.3], &[1.0, 2.0, 3.0], 2).unwrap()),
+                2.0,
+            ),
+            ("barrier", Arc::new(LogBarrierCost::new(f, 0.4, 0.5).unwrap()), 0.6),
+            ("quadratic", Arc::new(quad.unwrap()), 0.9),
+            ("nested", Arc::new(nested), 1.1),
+        ];
+        assert!(components[1].1.hessian_is_constant() && !components[0].1.hessian_is_constant());
+        let mut stack = CostStack::new(space.as_ref(), 2);
+        for (name, c, w) in &components {
+            stack = stack.with(*name, c.clone(), *w).unwrap();
+        }
+        let mut d = stack.create_data();
+        let mut own: Vec<CostData> = components.iter().map(|(_, c, _)| c.create_data()).collect();
+        for step in 0..6 {
+            match step {
+                2 => stack.set_weight("linear", 0.8).unwrap(),
+                4 => stack.set_weight("state", 0.25).unwrap(),
+                _ => {}
+            }
+            let (x, u) = (random_vec(&mut g, 3, 1.0), random_vec(&mut g, 2, 1.0));
+            stack.evaluate(&x, &u, &mut d);
+            stack.derivatives_reusing(&x, &u, &mut d, step > 0);
+            let mut sum = CostData::new(3, 2, crate::functions::no_workspace());
+            for ((name, c, _), o) in components.iter().zip(own.iter_mut()) {
+                let wk = stack.weight(name).unwrap();
+                c.evaluate(&x, &u, o);
+                c.derivatives(&x, &u, o);
+                sum.lx += wk * &o.lx;
+                sum.lu += wk * &o.lu;
+                sum.lxx += wk * &o.lxx;
+                sum.lxu += wk * &o.lxu;
+                sum.luu += wk * &o.luu;
+            }
+            let tol = 1e-13;
+            assert_close("lx", &d.lx.as_mat().to_owned(), &sum.lx.as_mat().to_owned(), tol);
+            assert_close("lu", &d.lu.as_mat().to_owned(), &sum.lu.as_mat().to_owned(), tol);
+            assert_close("lxx", &d.lxx, &sum.lxx, tol);
+            assert_close("lxu", &d.lxu, &sum.lxu, tol);
+            assert_close("luu", &d.luu, &sum.luu, tol);
+            assert!(d.lxx == d.lxx.transpose().to_owned() && d.luu == d.luu.transpose().to_owned());
+        }
     }
 }

@@ -72,7 +72,7 @@ pub(crate) fn copy_transposed(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
 
 /// Copies the lower triangle (diagonal included) of `src` into `dst`.
 #[inline]
-pub(super) fn copy_lower(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
+pub(crate) fn copy_lower(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
     let n = src.nrows();
     for j in 0..n {
         let pair = (

@@ -1,7 +1,5 @@
-//! Matrix products: [`matmul`], its lower-triangle variants [`matmul_lower`] and
-//! [`matmul_tn_lower`], and the loop kernels that replace faer's call for small products.
-
-use std::ops::Range;
+//! Matrix products: [`matmul`], its lower-triangle variant [`matmul_lower`], and the loop
+//! kernels that replace faer's call for small products.
 
 use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::prelude::ReborrowMut;
@@ -86,76 +84,6 @@ pub(crate) fn matmul_identity_block(mut dst: MatMut<'_, f64>, m: MatRef<'_, f64>
             1.0,
         );
     }
-}
-
-/// Scratch of [`gram_lower`] for products of `nr × n` matrices.
-#[derive(Debug, Clone)]
-pub(crate) struct GramScratch {
-    /// `aᵀ` (`n × nr`, column-major: row `r` of `a` contiguous).
-    at: Vec<f64>,
-    /// Per row of `a`, the columns from its first to its last nonzero entry.
-    support: Vec<Range<usize>>,
-}
-
-impl GramScratch {
-    /// Scratch for `a` of at most `nr` rows and `n` columns.
-    pub(crate) fn new(nr: usize, n: usize) -> Self {
-        Self {
-            at: vec![0.0; nr * n],
-            support: vec![0..0; nr],
-        }
-    }
-}
-
-/// Lower triangle (diagonal included) of `dst = aᵀ b` for `a`, `b` of the same shape
-/// `nr × n`, all with unit row stride (a Gram product `Jᵀ (W J)` of a residual Jacobian): column `c` of `dst` is
-/// `Σ_r b[r, c] a[r, :]ᵀ`, one contiguous axpy per nonzero `b[r, c]` over the columns
-/// where row `r` of `a` can be nonzero. Residual Jacobians often read a few coordinates
-/// (the identity part of a state error's, a foot's leg), and rows are few: this skips
-/// their zeros and vectorises over `n`.
-pub(crate) fn gram_lower(mut dst: MatMut<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>, scratch: &mut GramScratch) {
-    let (nr, n) = (a.nrows(), a.ncols());
-    debug_assert_eq!((dst.nrows(), dst.ncols()), (n, n));
-    debug_assert_eq!((b.nrows(), b.ncols()), (nr, n));
-    let at = &mut scratch.at[..nr * n];
-    for c in 0..n {
-        for (r, &v) in contiguous(a, c).iter().enumerate() {
-            at[r * n + c] = v;
-        }
-    }
-    for r in 0..nr {
-        scratch.support[r] = nonzero_span(&at[r * n..(r + 1) * n]);
-    }
-    for c in 0..n {
-        let col = dst.rb_mut().col_mut(c).try_as_col_major_mut().expect("unit row stride");
-        let col = &mut col.as_slice_mut()[c..];
-        col.fill(0.0);
-        let bc = contiguous(b, c);
-        for r in nonzero_span(bc) {
-            let s = &scratch.support[r];
-            let (lo, hi) = (s.start.max(c), s.end);
-            if lo >= hi {
-                continue;
-            }
-            let h = bc[r];
-            let row = &at[r * n + lo..r * n + hi];
-            for (d, v) in col[lo - c..hi - c].iter_mut().zip(row) {
-                *d += h * v;
-            }
-        }
-    }
-}
-
-/// Column `c` of a matrix with unit row stride.
-fn contiguous(m: MatRef<'_, f64>, c: usize) -> &[f64] {
-    m.col(c).try_as_col_major().expect("unit row stride").as_slice()
-}
-
-/// The entries from the first to the last nonzero (or non-finite) one of `v`.
-fn nonzero_span(v: &[f64]) -> Range<usize> {
-    let start = v.iter().position(|&x| x != 0.0).unwrap_or(v.len());
-    let end = v.iter().rposition(|&x| x != 0.0).map_or(start, |p| p + 1);
-    start..end
 }
 
 /// Largest inner dimension of the product loop kernels (their slices are gathered in a

@@ -5,7 +5,8 @@
 //! below n = 8) touches this module only. Factorization objects allocate their storage and
 //! scratch memory in `new` and never allocate afterwards.
 //!
-//! One operation family per file: products (`matmul`), matrix-vector products (`matvec`),
+//! One operation family per file: products (`matmul`), Gram products of residual
+//! Jacobians (`gram`), matrix-vector products (`matvec`),
 //! reductions (`reduce`), copies (`copy`), symmetrization (`symmetric`), the square root
 //! of a small positive semidefinite matrix (`psd_sqrt`), views of owned
 //! storage (`views`), and the factorizations LLᵀ (`llt`), LDLᵀ (`ldlt`), Bunch-Kaufman
@@ -66,6 +67,7 @@ macro_rules! with_small_dim {
 
 mod bunch_kaufman;
 mod copy;
+mod gram;
 mod ldlt;
 mod llt;
 mod lu;
@@ -88,16 +90,19 @@ pub use matvec::matvec;
 pub use views::{slice, slice_mut};
 
 pub(crate) use bunch_kaufman::BunchKaufman;
-pub(crate) use copy::copy_transposed;
+pub(crate) use copy::{copy_lower, copy_transposed};
+pub(crate) use gram::{GramScratch, GramWeight};
 pub(crate) use ldlt::Ldlt;
 pub(crate) use llt::Llt;
-pub(crate) use matmul::{GramScratch, gram_lower, identity_block, matmul_identity_block, matmul_lower};
+pub(crate) use matmul::{identity_block, matmul_identity_block, matmul_lower};
 pub(crate) use matvec::matvec_t;
 pub(crate) use psd_sqrt::psd_sqrt;
 pub(crate) use qr::{householder_r, semidefinite_cholesky_upper, upper_solve, upper_t_solve};
-pub(crate) use reduce::{all_finite, dot, norm_inf, norm_l1, norm_max, sum_is_finite};
+pub(crate) use reduce::{all_finite, dot, is_zero, norm_inf, norm_l1, norm_max, sum_is_finite};
 pub(crate) use sparse::{SparseLdlt, SymmetricCsc, amd_order};
-pub(crate) use symmetric::{identity_plus_scaled_lower, symmetrize, symmetrize_from_lower};
+pub(crate) use symmetric::{
+    add_scaled_lower, fill_lower, identity_plus_scaled_lower, symmetrize, symmetrize_from_lower,
+};
 #[cfg(test)]
 pub(crate) use views::col;
 pub(crate) use views::{as_mat, as_mat_mut, col_of, col_of_mut};

@@ -68,6 +68,14 @@ pub(crate) fn norm_max(m: MatRef<'_, f64>) -> f64 {
     r
 }
 
+/// Whether every entry of a matrix is zero (NaN is not): stops at the first other entry.
+pub(crate) fn is_zero(m: MatRef<'_, f64>) -> bool {
+    (0..m.ncols()).all(|j| match m.col(j).try_as_col_major() {
+        Some(c) => c.as_slice().iter().all(|&v| v == 0.0),
+        None => (0..m.nrows()).all(|i| m[(i, j)] == 0.0),
+    })
+}
+
 /// Whether every entry of a matrix is finite.
 pub(crate) fn all_finite(m: MatRef<'_, f64>) -> bool {
     (0..m.ncols()).all(|j| (0..m.nrows()).all(|i| m[(i, j)].is_finite()))

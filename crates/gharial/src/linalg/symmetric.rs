@@ -1,6 +1,7 @@
-//! In-place symmetrization of square matrices ([`symmetrize`], [`symmetrize_from_lower`])
-//! and the shifted lower triangle [`identity_plus_scaled_lower`], with fixed-size kernels
-//! for column-major matrices up to 16 x 16.
+//! In-place symmetrization of square matrices ([`symmetrize`], [`symmetrize_from_lower`]),
+//! the shifted lower triangle [`identity_plus_scaled_lower`], with fixed-size kernels
+//! for column-major matrices up to 16 x 16, and the lower-triangle updates
+//! [`add_scaled_lower`] and [`fill_lower`].
 
 use faer::prelude::ReborrowMut;
 use faer::{MatMut, MatRef};
@@ -19,6 +20,37 @@ pub(crate) fn symmetrize_from_lower(mut m: MatMut<'_, f64>) {
             let v = m[(i, j)];
             m[(j, i)] = v;
         }
+    }
+}
+
+/// Lower triangle (diagonal included) of `dst += alpha * src` for square matrices; the
+/// strict upper triangle of `dst` is not touched.
+pub(crate) fn add_scaled_lower(mut dst: MatMut<'_, f64>, alpha: f64, src: MatRef<'_, f64>) {
+    let n = dst.nrows();
+    debug_assert_eq!((src.nrows(), src.ncols(), dst.ncols()), (n, n, n));
+    for j in 0..n {
+        let pair = (
+            src.col(j).try_as_col_major(),
+            dst.rb_mut().col_mut(j).try_as_col_major_mut(),
+        );
+        if let (Some(s), Some(d)) = pair {
+            for (di, si) in d.as_slice_mut()[j..].iter_mut().zip(&s.as_slice()[j..]) {
+                *di += alpha * si;
+            }
+        } else {
+            for i in j..n {
+                dst[(i, j)] += alpha * src[(i, j)];
+            }
+        }
+    }
+}
+
+/// Sets the lower triangle (diagonal included) of a square matrix to `v`; the strict
+/// upper triangle is not touched.
+pub(crate) fn fill_lower(mut m: MatMut<'_, f64>, v: f64) {
+    let n = m.nrows();
+    for j in 0..m.ncols() {
+        m.rb_mut().col_mut(j).subrows_mut(j, n - j).fill(v);
     }
 }
 

@@ -204,18 +204,19 @@ fn bunch_kaufman_inertia_of_sparse_kkt_matrices() {
     }
 }
 
-/// The Gram kernel equals the entry-by-entry `aᵀb` on its lower triangle, for dense
-/// matrices, matrices with zero rows, zero columns and identity-like sparsity, and one
-/// row: the skipped zeros change nothing.
+/// The Gram kernel adds `aᵀ W a` to the lower triangle and leaves the upper one alone,
+/// equal to the entry-by-entry product, for dense matrices (faer's product from a size
+/// on), matrices with zero rows, zero columns and identity-like sparsity, one row, and
+/// diagonal weights with zeros: the skipped zeros change nothing.
 #[test]
-fn gram_lower_matches_the_naive_product() {
-    use super::{GramScratch, gram_lower};
-    let mut scratch = GramScratch::new(12, 40);
-    for (case, (nr, n)) in [(1, 1), (1, 7), (3, 12), (12, 36), (36, 36), (12, 40), (5, 3)]
+fn gram_lower_add_matches_the_naive_product() {
+    use super::{GramScratch, GramWeight};
+    for (case, (nr, n)) in [(1, 1), (1, 7), (3, 12), (12, 12), (12, 36), (36, 36), (12, 40), (5, 3)]
         .into_iter()
         .enumerate()
     {
-        for pattern in 0..4 {
+        let mut scratch = GramScratch::new(nr, n);
+        for pattern in 0..5 {
             let mut a = filled(nr, n, case + pattern);
             match pattern {
                 1 => a.as_mut().row_mut(nr / 2).fill(0.0),
@@ -225,23 +226,55 @@ fn gram_lower_matches_the_naive_product() {
                     }
                 }
                 3 => a = Mat::from_fn(nr, n, |r, c| if r == c || (r < 3 && c < 3) { a[(r, c)] } else { 0.0 }),
+                4 => a.fill(0.0),
                 _ => {}
             }
-            // b = diag(w) a, as for a diagonal weight, and a full-weight b.
-            let diag = Mat::from_fn(nr, n, |r, c| (1.0 + r as f64) * a[(r, c)]);
-            for b in [diag, filled(nr, n, 5 + case)] {
-                if nr > 12 {
-                    scratch = GramScratch::new(nr, n);
-                }
-                let mut dst = Mat::from_fn(n, n, |_, _| f64::NAN);
-                gram_lower(dst.as_mut(), a.as_ref(), b.as_ref(), &mut scratch);
-                let reference = naive(a.transpose(), b.as_ref());
+            // A diagonal weight with a zero entry, and a full symmetric one.
+            let s: Vec<f64> = (0..nr).map(|r| if r % 4 == 3 { 0.0 } else { 0.5 + r as f64 }).collect();
+            let wd = Mat::from_fn(nr, nr, |i, j| if i == j { s[i] } else { 0.0 });
+            let f = filled(nr, nr, case);
+            let wf = Mat::from_fn(nr, nr, |i, j| f[(i, j)] + f[(j, i)]);
+            let b = naive(wf.as_ref(), a.as_ref());
+            for (w, weight) in [
+                (&wd, GramWeight::Diagonal(&s)),
+                (&wf, GramWeight::Product(b.as_ref(), -0.75)),
+            ] {
+                let alpha = if matches!(weight, GramWeight::Product(..)) {
+                    -0.75
+                } else {
+                    1.0
+                };
+                let init = filled(n, n, 9 + case);
+                let mut dst = init.clone();
+                scratch.load(a.as_ref());
+                scratch.gram_lower_add(dst.as_mut(), a.as_ref(), weight);
+                // And the matrix-vector product of the loaded `a`.
+                let gv: Vec<f64> = (0..nr).map(|r| 0.5 - r as f64 / 7.0).collect();
+                let mut y: Vec<f64> = (0..n).map(|c| c as f64).collect();
+                scratch.matvec_t_add(&mut y, a.as_ref(), &gv, -1.5);
                 for c in 0..n {
-                    for r in c..n {
-                        let err = (dst[(r, c)] - reference[(r, c)]).abs();
+                    let expected = c as f64 - 1.5 * (0..nr).map(|r| a[(r, c)] * gv[r]).sum::<f64>();
+                    assert!(
+                        (y[c] - expected).abs() <= 1e-12 * (1.0 + expected.abs()),
+                        "aᵀg {nr}x{n}"
+                    );
+                }
+                let zero = (0..n).all(|c| (0..nr).all(|r| a[(r, c)] == 0.0));
+                assert_eq!(scratch.is_zero(), zero, "{nr}x{n} pattern {pattern}");
+                assert!(zero || pattern != 4);
+                let reference = naive(a.transpose(), naive(w.as_ref(), a.as_ref()).as_ref());
+                for c in 0..n {
+                    for r in 0..n {
+                        let expected = if r >= c {
+                            init[(r, c)] + alpha * reference[(r, c)]
+                        } else {
+                            init[(r, c)]
+                        };
+                        let err = (dst[(r, c)] - expected).abs();
                         assert!(
-                            err <= 1e-12 * (1.0 + reference[(r, c)].abs()),
-                            "{nr}x{n} pattern {pattern}: ({r}, {c})"
+                            err <= 1e-12 * (1.0 + expected.abs()),
+                            "{nr}x{n} pattern {pattern}: ({r}, {c}) {} vs {expected}",
+                            dst[(r, c)]
                         );
                     }
                 }

@@ -1,0 +1,221 @@
+//! Products with a residual Jacobian `a` (`nr × n`, unit row stride): the Gram product
+//! `aᵀ W a` (lower triangle, added to the destination) with a diagonal weight folded into
+//! the rows or a full one given as the product `b = W a`, and `aᵀ g`.
+//!
+//! Residual Jacobians are often sparse by rows (a state error's identity part, a foot's
+//! leg, a frame position that depends on the configuration only): [`GramScratch::load`]
+//! finds the span of columns where each row can be nonzero and copies those rows, and
+//! the products run as axpys over the spans. Dense Jacobians with enough rows (stacked
+//! contact forces) go to faer's lower-triangular product, whose vectorised kernels win
+//! there, and to the matrix-vector product.
+
+use std::ops::Range;
+
+use faer::prelude::ReborrowMut;
+use faer::{Accum, Mat, MatMut, MatRef};
+
+use super::matmul::matmul_lower;
+use super::matvec::matvec_t;
+
+/// The weight `W` of a Gram product `aᵀ W a`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) enum GramWeight<'a> {
+    /// `W = diag(s)` (`nr` entries): `Σ_r s_r a_rᵀ a_r`.
+    Diagonal(&'a [f64]),
+    /// `alpha aᵀ b`, with `b = W a` (`nr × n`, unit row stride) given.
+    Product(MatRef<'a, f64>, f64),
+}
+
+/// Least rows of a Jacobian for faer's product: with fewer, its kernels run short
+/// (measured: a dense `2 × 36` takes the same time both ways, a `3 × 36` half in faer).
+const DENSE_MIN_ROWS: usize = 3;
+
+/// Least multiply-adds of the rank-one kernel for faer's product (below, its fixed cost
+/// per call and the full diagonal blocks it computes dominate; measured: a dense
+/// `6 × 12`, 468 multiply-adds, is faster in the loops, a `12 × 12`, 936, three times
+/// faster in faer).
+const DENSE_MIN_WORK: usize = 768;
+
+/// The rows of a loaded Jacobian: the span of each, and their entries (copied only when
+/// the rank-one kernels will read them).
+#[derive(Debug, Clone)]
+struct Rows {
+    /// Row `r`'s entries over its span, at `r * n + c` (`nr × n`, row-major).
+    at: Vec<f64>,
+    /// Per row, the columns from its first to its last nonzero (or non-finite) entry.
+    span: Vec<Range<usize>>,
+    /// Whether `at` holds the rows (the Jacobian was sparse).
+    copied: bool,
+    /// The loaded shape.
+    nr: usize,
+    n: usize,
+}
+
+impl Rows {
+    fn new(nr: usize, n: usize) -> Self {
+        Self {
+            at: vec![0.0; nr * n],
+            span: vec![0..0; nr],
+            copied: false,
+            nr: 0,
+            n: 0,
+        }
+    }
+
+    /// Reads the spans of the rows of `a`, and copies the rows when `copy(work)` says so
+    /// for the rank-one kernel's `work` (multiply-adds of `aᵀ a`).
+    fn load(&mut self, a: MatRef<'_, f64>, copy: impl FnOnce(usize) -> bool) {
+        let (nr, n) = (a.nrows(), a.ncols());
+        (self.nr, self.n) = (nr, n);
+        let span = &mut self.span[..nr];
+        // Start past every column: the first nonzero lowers it.
+        let none = Range {
+            start: usize::MAX,
+            end: 0,
+        };
+        span.iter_mut().for_each(|s| *s = none.clone());
+        for c in 0..n {
+            for (s, &v) in span.iter_mut().zip(contiguous(a, c)) {
+                if v != 0.0 {
+                    s.start = s.start.min(c);
+                    s.end = c + 1;
+                }
+            }
+        }
+        for s in span.iter_mut() {
+            if s.start == usize::MAX {
+                *s = 0..0;
+            }
+        }
+        self.copied = copy(span.iter().map(|s| triangle(s.len())).sum());
+        if self.copied {
+            for (r, s) in span.iter().enumerate() {
+                for c in s.clone() {
+                    self.at[r * n + c] = a[(r, c)];
+                }
+            }
+        }
+    }
+
+    /// Row `r` (meaningful over its span).
+    fn row(&self, r: usize) -> &[f64] {
+        &self.at[r * self.n..(r + 1) * self.n]
+    }
+}
+
+/// A residual Jacobian read for its products, and their scratch memory.
+#[derive(Debug, Clone)]
+pub(crate) struct GramScratch {
+    /// The loaded Jacobian `a`.
+    a: Rows,
+    /// The rows of `b` (of a sparse [`GramWeight::Product`]).
+    b: Rows,
+    /// `diag(s) a` for faer's product.
+    sa: Mat<f64>,
+}
+
+impl GramScratch {
+    /// Scratch for Jacobians of at most `nr` rows and `n` columns.
+    pub(crate) fn new(nr: usize, n: usize) -> Self {
+        Self {
+            a: Rows::new(nr, n),
+            b: Rows::new(nr, n),
+            sa: Mat::zeros(nr, n),
+        }
+    }
+
+    /// Reads the Jacobian `a` (`nr × n`, unit row stride) for the products below, which
+    /// take the same `a` (its values may not change in between).
+    pub(crate) fn load(&mut self, a: MatRef<'_, f64>) {
+        let (nr, n) = (a.nrows(), a.ncols());
+        self.a.load(a, |work| !is_dense(work, nr, n));
+    }
+
+    /// Whether the loaded Jacobian is zero.
+    pub(crate) fn is_zero(&self) -> bool {
+        self.a.span[..self.a.nr].iter().all(|s| s.is_empty())
+    }
+
+    /// `y += alpha aᵀ g` for the loaded `a`.
+    pub(crate) fn matvec_t_add(&self, y: &mut [f64], a: MatRef<'_, f64>, g: &[f64], alpha: f64) {
+        if !self.a.copied {
+            return matvec_t(y, Accum::Add, a, g, alpha);
+        }
+        for (r, s) in self.a.span[..self.a.nr].iter().enumerate() {
+            let h = alpha * g[r];
+            for (yc, v) in y[s.clone()].iter_mut().zip(&self.a.row(r)[s.clone()]) {
+                *yc += h * v;
+            }
+        }
+    }
+
+    /// Lower triangle (diagonal included) of `dst += aᵀ W a` for the loaded `a` and a
+    /// column-major `n × n` `dst`, whose strict upper triangle is not touched. Zero rows
+    /// (or rows of zero weight) and the zero columns at either end of each row cost
+    /// nothing; a NaN in `W` or in a row of nonzero weight reaches `dst`.
+    pub(crate) fn gram_lower_add(&mut self, dst: MatMut<'_, f64>, a: MatRef<'_, f64>, weight: GramWeight<'_>) {
+        let (nr, n) = (a.nrows(), a.ncols());
+        debug_assert_eq!((self.a.nr, self.a.n, dst.nrows(), dst.ncols()), (nr, n, n, n));
+        match (weight, self.a.copied) {
+            (GramWeight::Diagonal(s), false) => {
+                let mut sa = self.sa.as_mut().submatrix_mut(0, 0, nr, n);
+                for c in 0..n {
+                    let col = sa.rb_mut().col_mut(c).try_as_col_major_mut().expect("owned");
+                    for ((d, &v), &w) in col.as_slice_mut().iter_mut().zip(contiguous(a, c)).zip(s) {
+                        *d = w * v;
+                    }
+                }
+                matmul_lower(dst, Accum::Add, a.transpose(), sa.as_ref(), 1.0);
+            }
+            (GramWeight::Product(b, alpha), false) => matmul_lower(dst, Accum::Add, a.transpose(), b, alpha),
+            (GramWeight::Diagonal(s), true) => rank_one_updates(dst, &self.a, None, |r| s[r]),
+            (GramWeight::Product(b, alpha), true) => {
+                self.b.load(b, |_| true);
+                rank_one_updates(dst, &self.a, Some(&self.b), |_| alpha);
+            }
+        }
+    }
+}
+
+/// Whether the rank-one kernel's `work` multiply-adds on an `nr × n` Jacobian are
+/// better left to faer's dense product: enough rows, enough work, and at least half of
+/// a dense product's.
+fn is_dense(work: usize, nr: usize, n: usize) -> bool {
+    nr >= DENSE_MIN_ROWS && work >= DENSE_MIN_WORK && 2 * work >= nr * triangle(n)
+}
+
+/// `k (k + 1) / 2`: entries of a `k × k` lower triangle.
+fn triangle(k: usize) -> usize {
+    k * (k + 1) / 2
+}
+
+/// Column `c` of a matrix with unit row stride.
+fn contiguous(m: MatRef<'_, f64>, c: usize) -> &[f64] {
+    m.col(c).try_as_col_major().expect("unit row stride").as_slice()
+}
+
+/// `dst[c.., c] += Σ_r alpha_r b[r, c] a[r, c..]ᵀ` over the rows of `a`, with `b = a`
+/// when `b` is `None`: one contiguous axpy per nonzero `b[r, c]` over the span of row `r`
+/// of `a` (rows in order, so every entry sums its terms by increasing `r`).
+fn rank_one_updates(mut dst: MatMut<'_, f64>, a: &Rows, b: Option<&Rows>, alpha: impl Fn(usize) -> f64) {
+    let b = b.unwrap_or(a);
+    for r in 0..a.nr {
+        let (alpha, span) = (alpha(r), &a.span[r]);
+        let (lo, hi) = (span.start, span.end);
+        if alpha == 0.0 || lo >= hi {
+            continue;
+        }
+        let (ar, br) = (a.row(r), b.row(r));
+        for c in b.span[r].start..b.span[r].end.min(hi) {
+            let h = alpha * br[c];
+            let from = c.max(lo);
+            if h == 0.0 {
+                continue;
+            }
+            let col = dst.rb_mut().col_mut(c).try_as_col_major_mut().expect("unit row stride");
+            for (d, v) in col.as_slice_mut()[from..hi].iter_mut().zip(&ar[from..hi]) {
+                *d += h * v;
+            }
+        }
+    }
+}
