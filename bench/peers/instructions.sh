@@ -38,7 +38,7 @@ collected() {
   local total openmp
   total=$(sed -n 's/^==[0-9]*== Collected : //p' "$TMP/err")
   openmp=$(callgrind_annotate --threshold=100 "$TMP/cg.out" 2>/dev/null \
-    | awk '/libgomp/ { gsub(",", "", $1); s += $1 } END { print s + 0 }')
+    | awk '/libgomp/ { gsub(",", "", $1); s += $1 } END { printf "%.0f\n", s }')
   echo $((total - openmp))
 }
 
