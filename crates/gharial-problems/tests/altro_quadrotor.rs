@@ -37,8 +37,10 @@ fn quadrotor_line_reaches_its_goal() {
     let kkt = kkt_residuals(&ex.problem, &a.xs, &a.us, &a.lambdas, &a.nus).unwrap();
     eprintln!("ALTRO's KKT residuals {kkt:?}");
     assert!(kkt.max() < 1e-4, "{kkt:?}");
-    // ProxDDP from the same guess: feasible to 1e-10 at the same cost (measured: its dual
-    // residual stalls above 1e-8, 611 iterations, cost 2e-5 below ALTRO's).
+    // ProxDDP from the same guess ends feasible at a stationary point, ALTRO's or a costlier
+    // local optimum: which one depends on rounding (measured, release: `mu_init` 0.1 and
+    // 0.0999 give cost 2.27858 after 609-625 iterations, 0.1000001 gives 2.24540, 2e-5
+    // below ALTRO's, after 636; its dual residual stalls above 1e-8 in both).
     let mut p = ProxDdp::new(ex.proxddp.clone());
     p.setup(&ex.problem).unwrap();
     let p = p.solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0)).unwrap();
@@ -47,7 +49,15 @@ fn quadrotor_line_reaches_its_goal() {
         p.status, p.iterations, p.cost, p.prim_err
     );
     assert!(p.prim_err < 1e-10);
-    assert!((p.cost - a.cost).abs() < 1e-4 * a.cost, "{} vs {}", p.cost, a.cost);
+    let kkt_p = kkt_residuals(&ex.problem, &p.xs, &p.us, &p.lambdas, &p.nus).unwrap();
+    eprintln!("ProxDDP's KKT residuals {kkt_p:?}");
+    assert!(kkt_p.max() < 1e-6, "{kkt_p:?}");
+    assert!(
+        p.cost > a.cost * (1.0 - 1e-4) && p.cost < 1.02 * a.cost,
+        "{} vs {}",
+        p.cost,
+        a.cost
+    );
     // The infeasible start (slack controls in SE(3)'s tangent space) from states
     // interpolated from x0 to the goal, which violate the dynamics: the same optimum.
     let n = ex.xs0.len() - 1;
