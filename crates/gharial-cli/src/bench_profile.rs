@@ -28,9 +28,9 @@ use std::io::Write;
 use clap::ValueEnum;
 use gharial::error::Num;
 use gharial::solvers::ddp::DdpVariant;
-use gharial::solvers::{Callback, InitialGuess, IterationRecord, SolverOptions};
+use gharial::solvers::{Callback, InitialGuess, SolverOptions};
 use gharial_problems::Example;
-use gharial_problems::profiles::{self, MAX_COUNT};
+use gharial_problems::profiles::{self, FirstKkt, MAX_COUNT};
 
 use crate::count;
 use crate::positive_real;
@@ -83,22 +83,6 @@ impl ProfileSolver {
             }
         }
         config
-    }
-}
-
-/// Watches the rows of a solve for the first one whose KKT residual is at most `tol`,
-/// and then stops the solve.
-struct FirstKkt {
-    tol: f64,
-    first: Option<usize>,
-}
-
-impl Callback for FirstKkt {
-    fn on_iteration(&mut self, record: &IterationRecord) -> bool {
-        if record.prim_err.max(record.dual_err) <= self.tol {
-            self.first = Some(record.iter);
-        }
-        self.first.is_none()
     }
 }
 
@@ -171,31 +155,29 @@ fn run_solver(solver: ProfileSolver, instances: &[Example], args: &ProfileArgs) 
         let mut s = solver.config(ex, args).options.build();
         s.setup(&ex.problem)
             .map_err(|e| format!("{} refuses {} instance {i}: {e}", solver.name(), args.family))?;
-        let mut watch = FirstKkt {
-            tol: args.tol,
-            first: None,
-        };
+        let mut watch = FirstKkt::new(args.tol);
         let callback: Option<&mut dyn Callback> = match args.criterion {
             Criterion::Kkt => Some(&mut watch),
             Criterion::Own => None,
         };
-        let own = match s.solve_with(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0), callback) {
+        let solved = match s.solve_with(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0), callback) {
             Ok(sol) => {
                 outcome.seconds += sol.solve_time.as_secs_f64();
-                // The final point is not shown to the callback when the solve stops
-                // before stepping from it (a stall at round-off): it counts if it passes.
-                let last = (args.criterion == Criterion::Kkt && sol.prim_err.max(sol.dual_err) <= args.tol)
-                    .then_some(sol.iterations);
-                sol.status.converged().then_some(sol.iterations).or(last)
+                let own = sol.status.converged().then_some(sol.iterations);
+                let kkt = if args.criterion == Criterion::Kkt {
+                    watch.solved_at(sol)
+                } else {
+                    None
+                };
+                match (kkt, own) {
+                    (Some(a), Some(b)) => Some(a.min(b)),
+                    (a, b) => a.or(b),
+                }
             }
             Err(e) => {
                 eprintln!("gharial bench profile: {} on instance {i}: {e}", solver.name());
                 None
             }
-        };
-        let solved = match (watch.first, own) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
         };
         outcome.iterations.push(solved);
     }

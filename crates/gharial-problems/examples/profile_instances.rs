@@ -17,25 +17,11 @@
 
 use gharial::solvers::ddp::{DdpOptions, DdpVariant};
 use gharial::solvers::log::LogSink;
-use gharial::solvers::{Callback, InitialGuess, IterationRecord, Solver, SolverOptions};
+use gharial::solvers::{Callback, InitialGuess, Solver, SolverOptions};
 use gharial_problems::Example;
 use gharial_problems::profiles;
 
-/// The first iteration whose starting point passes the profile's test.
-struct FirstKkt {
-    tol: f64,
-    first: Option<usize>,
-}
-
-impl Callback for FirstKkt {
-    fn on_iteration(&mut self, record: &IterationRecord) -> bool {
-        if record.prim_err.max(record.dual_err) <= self.tol {
-            self.first = Some(record.iter);
-        }
-        self.first.is_none()
-    }
-}
-
+/// The command-line options.
 struct Args {
     family: String,
     count: usize,
@@ -95,10 +81,7 @@ fn options(variant: DdpVariant, args: &Args, own: bool, log: bool) -> DdpOptions
 
 /// Iterations to the profile's test (`own`: to the solver's own convergence).
 fn iterations(ex: &Example, opts: DdpOptions, own: bool) -> Option<usize> {
-    let mut watch = FirstKkt {
-        tol: opts.tol,
-        first: None,
-    };
+    let mut watch = profiles::FirstKkt::new(opts.tol);
     let mut s = SolverOptions::Ddp(opts).build();
     s.setup(&ex.problem).expect("setup");
     let callback: Option<&mut dyn Callback> = if own { None } else { Some(&mut watch) };
@@ -108,7 +91,7 @@ fn iterations(ex: &Example, opts: DdpOptions, own: bool) -> Option<usize> {
     if own {
         sol.status.converged().then_some(sol.iterations)
     } else {
-        watch.first
+        watch.solved_at(sol)
     }
 }
 

@@ -42,6 +42,7 @@ use gharial::dynamics::{Dynamics, ExplicitRungeKutta};
 use gharial::lq::random::SplitMix64;
 use gharial::problem::{Problem, StageModel};
 use gharial::solvers::proxddp::{ProxDdpOptions, Rollout};
+use gharial::solvers::{Callback, IterationRecord, Solution};
 use gharial::{Error, Result};
 
 use gharial::autodiff::{AutoUnaryFn, ManifoldScalar};
@@ -115,6 +116,38 @@ pub fn family(name: &str, seed: u64, count: usize) -> Result<Vec<Example>> {
     };
     let mut rng = SplitMix64::new(seed);
     (0..count).map(|_| build(&mut rng)).collect()
+}
+
+/// The profile's test as a solver callback: remembers the first iteration whose KKT
+/// residual `max(prim_err, dual_err)` is at most `tol`, and stops the solve there.
+#[derive(Debug, Clone, Copy)]
+pub struct FirstKkt {
+    tol: f64,
+    first: Option<usize>,
+}
+
+impl FirstKkt {
+    /// A watch for the test at `tol`.
+    pub fn new(tol: f64) -> Self {
+        Self { tol, first: None }
+    }
+
+    /// The iteration at which the solve that ended in `sol` passed the test: the first
+    /// watched row that did, else its final point if it does (a solve can stop before
+    /// stepping from a point, e.g. a stall at round-off, and the callback never sees it).
+    pub fn solved_at(&self, sol: &Solution) -> Option<usize> {
+        self.first
+            .or_else(|| (sol.prim_err.max(sol.dual_err) <= self.tol).then_some(sol.iterations))
+    }
+}
+
+impl Callback for FirstKkt {
+    fn on_iteration(&mut self, record: &IterationRecord) -> bool {
+        if record.prim_err.max(record.dual_err) <= self.tol {
+            self.first = Some(record.iter);
+        }
+        self.first.is_none()
+    }
 }
 
 /// The paper's warm start: the constant state guess `x_t = x0`.

@@ -25,7 +25,14 @@ pub(crate) fn symmetrize_from_lower(mut m: MatMut<'_, f64>) {
 
 /// Lower triangle (diagonal included) of `dst += alpha * src` for square matrices; the
 /// strict upper triangle of `dst` is not touched.
-pub(crate) fn add_scaled_lower(mut dst: MatMut<'_, f64>, alpha: f64, src: MatRef<'_, f64>) {
+pub(crate) fn add_scaled_lower(dst: MatMut<'_, f64>, alpha: f64, src: MatRef<'_, f64>) {
+    zip_lower(dst, src, |d, s| *d += alpha * s);
+}
+
+/// `f(dst[i, j], src[i, j])` on the lower triangle (diagonal included) of square
+/// matrices, column by column, on slices where both columns are contiguous.
+#[inline]
+fn zip_lower(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>, mut f: impl FnMut(&mut f64, f64)) {
     let n = dst.nrows();
     debug_assert_eq!((src.nrows(), src.ncols(), dst.ncols()), (n, n, n));
     for j in 0..n {
@@ -34,12 +41,12 @@ pub(crate) fn add_scaled_lower(mut dst: MatMut<'_, f64>, alpha: f64, src: MatRef
             dst.rb_mut().col_mut(j).try_as_col_major_mut(),
         );
         if let (Some(s), Some(d)) = pair {
-            for (di, si) in d.as_slice_mut()[j..].iter_mut().zip(&s.as_slice()[j..]) {
-                *di += alpha * si;
+            for (di, &si) in d.as_slice_mut()[j..].iter_mut().zip(&s.as_slice()[j..]) {
+                f(di, si);
             }
         } else {
             for i in j..n {
-                dst[(i, j)] += alpha * src[(i, j)];
+                f(&mut dst[(i, j)], src[(i, j)]);
             }
         }
     }
@@ -108,20 +115,8 @@ pub(crate) fn identity_plus_scaled_lower(mut dst: MatMut<'_, f64>, src: MatRef<'
     {
         return;
     }
+    zip_lower(dst.rb_mut(), src, |d, s| *d = alpha * s);
     for j in 0..n {
-        let pair = (
-            src.col(j).try_as_col_major(),
-            dst.rb_mut().col_mut(j).try_as_col_major_mut(),
-        );
-        if let (Some(s), Some(d)) = pair {
-            for (di, si) in d.as_slice_mut()[j..].iter_mut().zip(&s.as_slice()[j..]) {
-                *di = alpha * si;
-            }
-        } else {
-            for i in j..n {
-                dst[(i, j)] = alpha * src[(i, j)];
-            }
-        }
         dst[(j, j)] += 1.0;
     }
 }
