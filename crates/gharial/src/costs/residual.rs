@@ -17,13 +17,15 @@
 use std::sync::Arc;
 
 use faer::reborrow::ReborrowMut;
-use faer::{Accum, Mat, MatMut, MatRef};
+use faer::{Accum, Mat, MatRef};
 
 use super::{Cost, CostData, DerivativesMut, HessianMut};
 use crate::error::{check_dim, check_finite};
 use crate::functions::util::{add_scaled, checked_sym, downcast};
 use crate::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary, Workspace};
-use crate::linalg::{GramScratch, GramWeight, add_scaled_lower, fill_lower, matmul, slice_mut, symmetrize_from_lower};
+use crate::linalg::{
+    GramScratch, GramWeight, add_scaled_lower, fill_lower, matmul, scale_rows, slice_mut, symmetrize_from_lower,
+};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
@@ -168,15 +170,6 @@ fn add_chain_rule(
         add_scaled_lower(out.lxx, s, fd.vhp_xx.as_ref());
         add_scaled(out.lxu, s, fd.vhp_xu.as_ref());
         add_scaled_lower(out.luu, s, fd.vhp_uu.as_ref());
-    }
-}
-
-/// `dst = diag(h) j`.
-fn scale_rows(mut dst: MatMut<'_, f64>, h: &[f64], j: MatRef<'_, f64>) {
-    for c in 0..j.ncols() {
-        for i in 0..j.nrows() {
-            dst[(i, c)] = h[i] * j[(i, c)];
-        }
     }
 }
 

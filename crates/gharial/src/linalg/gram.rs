@@ -159,12 +159,7 @@ impl GramScratch {
         match (weight, self.a.copied) {
             (GramWeight::Diagonal(s), false) => {
                 let mut sa = self.sa.as_mut().submatrix_mut(0, 0, nr, n);
-                for c in 0..n {
-                    let col = sa.rb_mut().col_mut(c).try_as_col_major_mut().expect("owned");
-                    for ((d, &v), &w) in col.as_slice_mut().iter_mut().zip(contiguous(a, c)).zip(s) {
-                        *d = w * v;
-                    }
-                }
+                scale_rows(sa.rb_mut(), s, a);
                 matmul_lower(dst, Accum::Add, a.transpose(), sa.as_ref(), 1.0);
             }
             (GramWeight::Product(b, alpha), false) => matmul_lower(dst, Accum::Add, a.transpose(), b, alpha),
@@ -172,6 +167,26 @@ impl GramScratch {
             (GramWeight::Product(b, alpha), true) => {
                 self.b.load(b, |_| true);
                 rank_one_updates(dst, &self.a, Some(&self.b), |_| alpha);
+            }
+        }
+    }
+}
+
+/// `dst = diag(s) a` (`s`: one weight per row of `a`).
+pub(crate) fn scale_rows(mut dst: MatMut<'_, f64>, s: &[f64], a: MatRef<'_, f64>) {
+    debug_assert_eq!((dst.nrows(), dst.ncols(), s.len()), (a.nrows(), a.ncols(), a.nrows()));
+    for c in 0..a.ncols() {
+        let pair = (
+            dst.rb_mut().col_mut(c).try_as_col_major_mut(),
+            a.col(c).try_as_col_major(),
+        );
+        if let (Some(d), Some(col)) = pair {
+            for ((d, &v), &w) in d.as_slice_mut().iter_mut().zip(col.as_slice()).zip(s) {
+                *d = w * v;
+            }
+        } else {
+            for (i, &w) in s.iter().enumerate() {
+                dst[(i, c)] = w * a[(i, c)];
             }
         }
     }
