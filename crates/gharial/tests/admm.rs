@@ -174,6 +174,37 @@ fn the_reported_residuals_are_those_of_the_last_iteration() {
     }
 }
 
+/// The x-updates roll out states and controls only; the solution returned, converged or
+/// at the iteration limit, is nevertheless the whole solution of the last x-update's LQ
+/// (its knots hold that LQ's vectors): states, controls, co-states and the LQ's
+/// constraint multipliers equal a dense KKT solve of it.
+#[test]
+fn the_returned_solution_solves_the_last_lq_whole() {
+    use gharial::lq::dense;
+    let case = &qp_reference_cases()[1];
+    let (mut lq, lo, hi) = qp(case);
+    for (max_iters, expected) in [(1000, AdmmStatus::Converged), (37, AdmmStatus::MaxIterations)] {
+        let mut admm = AdmmQp::new(&lq, AdmmOptions::default().with(|o| o.max_iters = max_iters)).unwrap();
+        assert_eq!(admm.solve(&mut lq, &lo, &hi, false).unwrap(), expected);
+        let reference = dense::solve(&lq).unwrap();
+        let sol = admm.solution();
+        let blocks = [
+            (&sol.xs, &reference.xs, "x"),
+            (&sol.us, &reference.us, "u"),
+            (&sol.lambdas, &reference.lambdas, "lambda"),
+            (&sol.nus, &reference.nus, "nu"),
+        ];
+        for (got, want, what) in blocks {
+            let scale = want.iter().flat_map(|c| c.iter()).fold(1.0_f64, |m, v| m.max(v.abs()));
+            for (t, (g, w)) in got.iter().zip(want).enumerate() {
+                for (a, b) in g.iter().zip(w.iter()) {
+                    assert!((a - b).abs() <= 1e-8 * scale, "{max_iters}: {what}[{t}] {a} vs {b}");
+                }
+            }
+        }
+    }
+}
+
 /// An infeasible QP (a terminal target out of reach of the bounded controls) ends at the
 /// iteration limit with a large primal residual, not in a hang.
 #[test]
