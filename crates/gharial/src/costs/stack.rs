@@ -278,15 +278,12 @@ impl CostStack {
 
 /// Starts a block of the stack's derivatives from its block of the constant Hessian sum
 /// (`nonzero`) or from zero: its lower triangle if `lower`, all of it otherwise.
-fn start_from(dst: MatMut<'_, f64>, constant: &Mat<f64>, nonzero: bool, lower: bool) {
+fn start_from(mut dst: MatMut<'_, f64>, constant: &Mat<f64>, nonzero: bool, lower: bool) {
     match (nonzero, lower) {
         (true, true) => copy_lower(dst, constant.as_ref()),
         (true, false) => copy(dst, constant.as_ref()),
         (false, true) => fill_lower(dst, 0.0),
-        (false, false) => {
-            let mut dst = dst;
-            dst.fill(0.0);
-        }
+        (false, false) => dst.fill(0.0),
     }
 }
 
