@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use gharial::mpc::Record;
-use gharial_problems::mpc::{Metric, MpcScenario};
+use gharial_problems::mpc::{Metric, Mismatch, MpcScenario};
 use serde_json::json;
 
 use crate::solver_choice::SolverArgs;
@@ -25,6 +25,14 @@ pub struct SimulateArgs {
     /// Solo-12 walking only: the forward base velocity command in m/s (at most 1).
     #[arg(long, value_parser = speed, allow_negative_numbers = true)]
     pub speed: Option<f64>,
+    /// Mass in kg of a payload the plant carries and the controller does not model: on the
+    /// Solo-12's base at its centre of mass, at the UR5's tool frame (at most 100).
+    #[arg(long, value_parser = payload, allow_negative_numbers = true)]
+    pub payload: Option<f64>,
+    /// Floating-base robots only: a push at time T (s) changing the base's linear
+    /// velocity by (VX, VY, VZ) m/s in the base frame, as `T,VX,VY,VZ` (repeatable).
+    #[arg(long, value_parser = push, allow_negative_numbers = true)]
+    pub push: Vec<(f64, [f64; 3])>,
     /// Wall-time budget of each MPC cycle in milliseconds (default: none; the iteration
     /// budget is `--max-iters`, default the scenario's).
     #[arg(long, value_parser = crate::positive_real)]
@@ -57,6 +65,31 @@ fn speed(s: &str) -> Result<f64, String> {
     bounded(s, 1.0, "m/s")
 }
 
+/// A payload in kg: finite, in [0, 100].
+fn payload(s: &str) -> Result<f64, String> {
+    let v = crate::nonnegative_real(s)?;
+    if v <= 100.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be at most 100 kg, got {v}"))
+    }
+}
+
+/// A push `T,VX,VY,VZ`: a time in seconds (finite, at least 0) and a velocity change in
+/// m/s (finite, each at most 10 in magnitude).
+fn push(s: &str) -> Result<(f64, [f64; 3]), String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let [t, vx, vy, vz] = parts[..] else {
+        return Err(format!("expected T,VX,VY,VZ (four numbers), got `{s}`"));
+    };
+    let v = [
+        bounded(vx, 10.0, "m/s")?,
+        bounded(vy, 10.0, "m/s")?,
+        bounded(vz, 10.0, "m/s")?,
+    ];
+    Ok((crate::nonnegative_real(t)?, v))
+}
+
 fn bounded(s: &str, max: f64, unit: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(v) if v.is_finite() && v.abs() <= max => Ok(v),
@@ -65,24 +98,31 @@ fn bounded(s: &str, max: f64, unit: &str) -> Result<f64, String> {
     }
 }
 
-/// The scenario of the command line: by name, with the walking parameters if given.
+/// The scenario of the command line: by name, with the walking parameters, the model
+/// mismatch and the pushes if given.
 fn build_scenario(args: &SimulateArgs) -> gharial::Result<MpcScenario> {
-    if args.slope.is_none() && args.speed.is_none() {
-        return gharial_problems::mpc::scenario(&args.scenario);
-    }
-    use gharial_problems::solo_walk::{COMMAND, SLOPE};
-    let default_slope = match args.scenario.as_str() {
-        "solo-walk-mpc" => 0.0,
-        "solo-walk-mpc-slope" => SLOPE,
-        _ => {
-            return Err(gharial::Error::InvalidModel(format!(
-                "--slope and --speed are parameters of solo-walk-mpc, not of {}",
-                args.scenario
-            )));
-        }
+    let mismatch = Mismatch::payload(args.payload.unwrap_or(0.0));
+    let mut sc = if args.slope.is_none() && args.speed.is_none() {
+        gharial_problems::mpc::scenario_with(&args.scenario, mismatch)?
+    } else {
+        use gharial_problems::solo_walk::{COMMAND, SLOPE};
+        let default_slope = match args.scenario.as_str() {
+            "solo-walk-mpc" => 0.0,
+            "solo-walk-mpc-slope" => SLOPE,
+            _ => {
+                return Err(gharial::Error::InvalidModel(format!(
+                    "--slope and --speed are parameters of solo-walk-mpc, not of {}",
+                    args.scenario
+                )));
+            }
+        };
+        let command = [args.speed.unwrap_or(COMMAND[0]), COMMAND[1]];
+        gharial_problems::solo_walk::scenario_with(args.slope.unwrap_or(default_slope), command, mismatch)?
     };
-    let command = [args.speed.unwrap_or(COMMAND[0]), COMMAND[1]];
-    gharial_problems::solo_walk::scenario(args.slope.unwrap_or(default_slope), command)
+    for &(t, dv) in &args.push {
+        sc.push_base(t, dv)?;
+    }
+    Ok(sc)
 }
 
 /// Runs `gharial simulate`; returns the process exit code (0: every cycle returned a

@@ -646,6 +646,14 @@ fn simulate_writes_a_closed_loop_that_the_plant_replays() {
             vec!["simulate", "ur5-circle-mpc", "--solver", "fddp", "--mu-init", "0.1"],
             "does not take",
         ),
+        (vec!["simulate", "ur5-circle-mpc", "--payload", "-1"], "payload"),
+        (vec!["simulate", "ur5-circle-mpc", "--payload", "1e3"], "at most 100 kg"),
+        (vec!["simulate", "solo-walk-mpc", "--push", "1,0.3"], "T,VX,VY,VZ"),
+        (vec!["simulate", "solo-walk-mpc", "--push", "1,nan,0,0"], "finite"),
+        (
+            vec!["simulate", "ur5-circle-mpc", "--push", "0.1,0,0.3,0"],
+            "no floating base",
+        ),
     ] {
         let o = gharial(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}");
@@ -692,4 +700,24 @@ fn simulate_walks_solo_on_a_slope_given_on_the_command_line() {
     let text = stdout(&o);
     assert!(text.contains("cycles    10 (120 plant steps)"), "{text}");
     assert!(text.contains("max friction-cone violation"), "{text}");
+    // A payload and a push on the command line reach the plant: the closed loop differs.
+    let args = ["simulate", "solo-walk-mpc", "--duration", "0.06", "--output"];
+    let dir = std::env::temp_dir();
+    let run = |extra: &[&str], file: &str| -> Vec<Vec<f64>> {
+        let path = dir.join(format!("gharial-cli-{}-{file}", std::process::id()));
+        let mut all: Vec<&str> = args.to_vec();
+        all.push(path.to_str().unwrap());
+        all.extend_from_slice(extra);
+        let o = gharial(&all);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        std::fs::remove_file(&path).ok();
+        serde_json::from_value(v["xs"].clone()).unwrap()
+    };
+    let plain = run(&[], "plain.json");
+    let pushed = run(&["--push", "0.03,0,0.25,0"], "push.json");
+    let loaded = run(&["--payload", "0.5"], "payload.json");
+    let vy = plain[30].len() - 18 + 1;
+    assert!((pushed[30][vy] - plain[30][vy] - 0.25).abs() < 1e-12);
+    assert!((loaded[50][2] - plain[50][2]).abs() > 1e-4);
 }

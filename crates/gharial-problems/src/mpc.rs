@@ -6,13 +6,60 @@
 //! |---|---|---|---|
 //! | `ur5-circle-mpc`, `ur5-circle-mpc-joint-bound`, `ur5-circle-mpc-half-space` | [`crate::ur5_circle`] | UR5 ABA, semi-implicit Euler at 1 ms | 50 ms (one node) |
 //! | `solo-walk-mpc`, `solo-walk-mpc-slope` | [`crate::solo_walk`] | Solo-12 contact dynamics of the gait's stance feet, semi-implicit Euler at 1 ms | 12 ms (one node) |
+//!
+//! **Model mismatch** ([`Mismatch`], [`scenario_with`]): the plant may carry a payload
+//! the controller does not know of, a point mass on the Solo-12's base at its centre of
+//! mass or at the UR5's tool frame. **Pushes** ([`MpcScenario::push_base`]): a change
+//! of a floating base's linear velocity at a given time.
 
-use gharial::mpc::{ClosedLoop, Mpc, MpcOptions, Plant, Record, simulate};
+use gharial::mpc::{ClosedLoop, Mpc, MpcOptions, Plant, Push, Record, simulate};
 use gharial::problem::StageModel;
 use gharial::solvers::{InitialGuess, Solver};
 use gharial::{Error, Result};
 
+use gharial_multibody::Model;
+use gharial_multibody::spatial::{Inertia, Mat3, Vec3};
+
 use crate::Example;
+
+/// Differences between the plant and the controller's model (module documentation).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[non_exhaustive]
+pub struct Mismatch {
+    /// Mass (kg) of a payload the plant carries and the controller does not model: on the
+    /// Solo-12's base at its centre of mass, at the UR5's tool frame.
+    pub payload: f64,
+}
+
+impl Mismatch {
+    /// A payload of `mass` kg.
+    pub fn payload(mass: f64) -> Self {
+        Self { payload: mass }
+    }
+
+    /// Fails unless the payload is finite and non-negative.
+    pub(crate) fn check(&self) -> Result<()> {
+        if self.payload.is_finite() && self.payload >= 0.0 {
+            Ok(())
+        } else {
+            Err(Error::option(
+                "payload",
+                format!("must be finite and non-negative (kg), got {}", self.payload),
+            ))
+        }
+    }
+}
+
+/// `model` with a point mass `mass` added to the body of `joint` at `at` (joint frame).
+pub(crate) fn with_point_mass(model: &Model, joint: usize, at: Vec3, mass: f64) -> Result<Model> {
+    let mut model = model.clone();
+    let mut body = model.inertias()[joint];
+    body += Inertia::from_com(mass, at, Mat3::zeros());
+    model
+        .set_inertia(joint, body)
+        .map_err(|e| Error::InvalidModel(format!("payload: {e}")))?;
+    Ok(model)
+}
 
 /// A named quantity of a closed loop.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,6 +99,11 @@ pub struct MpcScenario {
     pub on_shift: OnShift,
     /// The metrics of a closed loop.
     pub metrics: Metrics,
+    /// Index in the plant's tangent space of the floating base's linear velocity (`None`
+    /// for a fixed base): where [`MpcScenario::push_base`] kicks.
+    pub base_velocity: Option<usize>,
+    /// Kicks of the plant's state during [`MpcScenario::run`].
+    pub pushes: Vec<Push>,
 }
 
 impl std::fmt::Debug for MpcScenario {
@@ -95,8 +147,36 @@ impl MpcScenario {
             .ok_or_else(|| Error::InvalidModel("a scenario needs a fixed initial state".into()))?
             .to_vec();
         let steps = (duration / self.plant_dt).round() as usize;
-        let settings = ClosedLoop::new(steps, self.steps_per_cycle);
+        let mut settings = ClosedLoop::new(steps, self.steps_per_cycle);
+        settings.pushes.clone_from(&self.pushes);
         simulate(mpc, self.plant.as_mut(), &x0, &settings, &mut self.on_shift)
+    }
+
+    /// Adds a push at time `time` (s) that changes the floating base's linear velocity by
+    /// `dv` (m/s, in the base frame, as the state's velocity).
+    ///
+    /// # Errors
+    /// If the plant has no floating base, or `time` or `dv` is not finite (or `time`
+    /// negative).
+    pub fn push_base(&mut self, time: f64, dv: [f64; 3]) -> Result<()> {
+        let i = self.base_velocity.ok_or_else(|| {
+            Error::InvalidModel(format!(
+                "scenario {}: the robot has no floating base to push",
+                self.name
+            ))
+        })?;
+        if !(time.is_finite() && time >= 0.0) {
+            return Err(Error::option(
+                "push time",
+                format!("must be finite and non-negative, got {time}"),
+            ));
+        }
+        gharial::error::check_finite("push velocity", &dv)?;
+        let mut dx = vec![0.0; self.plant.space().ndx()];
+        dx[i..i + 3].copy_from_slice(&dv);
+        let step = (time / self.plant_dt).round() as usize;
+        self.pushes.push(Push { step, dx });
+        Ok(())
     }
 
     /// The scenario's metrics of a closed loop it ran.
@@ -137,16 +217,75 @@ pub static SCENARIOS: &[(&str, &str)] = &[
 /// # Errors
 /// If the name is unknown (the message lists the known ones).
 pub fn scenario(name: &str) -> Result<MpcScenario> {
-    use crate::ur5_circle::{CircleVariant, scenario as circle};
+    scenario_with(name, Mismatch::default())
+}
+
+/// The scenario called `name` with a plant that differs from the controller's model by
+/// `mismatch`.
+///
+/// # Errors
+/// If the name is unknown (the message lists the known ones) or the mismatch invalid.
+pub fn scenario_with(name: &str, mismatch: Mismatch) -> Result<MpcScenario> {
+    use crate::solo_walk::{COMMAND, SLOPE, scenario_with as walk};
+    use crate::ur5_circle::{CircleVariant, scenario_with as circle};
     match name {
-        "ur5-circle-mpc" => circle(CircleVariant::Free),
-        "ur5-circle-mpc-joint-bound" => circle(CircleVariant::JointBound),
-        "ur5-circle-mpc-half-space" => circle(CircleVariant::HalfSpace),
-        "solo-walk-mpc" => crate::solo_walk::scenario(0.0, crate::solo_walk::COMMAND),
-        "solo-walk-mpc-slope" => crate::solo_walk::scenario(crate::solo_walk::SLOPE, crate::solo_walk::COMMAND),
+        "ur5-circle-mpc" => circle(CircleVariant::Free, mismatch),
+        "ur5-circle-mpc-joint-bound" => circle(CircleVariant::JointBound, mismatch),
+        "ur5-circle-mpc-half-space" => circle(CircleVariant::HalfSpace, mismatch),
+        "solo-walk-mpc" => walk(0.0, COMMAND, mismatch),
+        "solo-walk-mpc-slope" => walk(SLOPE, COMMAND, mismatch),
         _ => Err(Error::InvalidModel(format!(
             "unknown MPC scenario `{name}` (known: {})",
             SCENARIOS.iter().map(|s| s.0).collect::<Vec<_>>().join(", ")
         ))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use gharial_multibody::{Model, RootJoint, center_of_mass, forward_kinematics_placements, update_frame_placements};
+
+    use super::{Mismatch, with_point_mass};
+    use crate::robots::UR5_URDF;
+
+    /// A payload at the UR5's tool frame adds its mass and moves the centre of mass to
+    /// the mass-weighted mean of the arm's and the tool frame's positions (forward
+    /// kinematics), at any configuration.
+    #[test]
+    fn a_point_mass_moves_the_centre_of_mass_to_the_weighted_mean() {
+        let model = Model::from_urdf_str(UR5_URDF, RootJoint::Fixed).unwrap();
+        let tool_id = model.frame_id("tool0").unwrap();
+        let tool = &model.frames()[tool_id];
+        let (joint, at) = (tool.parent_joint, tool.placement.translation);
+        let m = 1.7;
+        let loaded = with_point_mass(&model, joint, at, m).unwrap();
+        // The moving bodies' mass (the centre of mass leaves out the bodies fixed to the
+        // world, as Pinocchio's).
+        let mass = |md: &Model| md.inertias()[1..].iter().map(|y| y.mass).sum::<f64>();
+        assert!((mass(&loaded) - mass(&model) - m).abs() < 1e-12);
+        let zero = vec![0.0; model.nv()];
+        for q in [[0.0; 6], [0.3, -1.1, 0.7, 2.0, -0.4, 1.3]] {
+            let mut data = model.create_data();
+            let c = *center_of_mass(&model, &mut data, &q, &zero, &zero).unwrap();
+            forward_kinematics_placements(&model, &mut data, &q).unwrap();
+            update_frame_placements(&model, &mut data).unwrap();
+            let p = data.frame_placement(tool_id).translation;
+            let expected = (c * mass(&model) + p * m) / (mass(&model) + m);
+            let mut data = loaded.create_data();
+            let c_loaded = *center_of_mass(&loaded, &mut data, &q, &zero, &zero).unwrap();
+            assert!(
+                (c_loaded - expected).norm() < 1e-12,
+                "{q:?}: {c_loaded:?} vs {expected:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_negative_or_non_finite_payload_is_an_error() {
+        for m in [-1.0, f64::NAN, f64::INFINITY] {
+            let e = Mismatch::payload(m).check().unwrap_err().to_string();
+            assert!(e.contains("payload"), "{e}");
+        }
+        assert!(Mismatch::payload(0.0).check().is_ok());
     }
 }

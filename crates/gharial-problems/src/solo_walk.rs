@@ -120,7 +120,7 @@ use gharial_robotics::residuals::{
 use gharial_robotics::{Actuation, ContactSpec, MultibodyConstraintFwdDynamics, MultibodyPhaseSpace};
 
 use crate::Example;
-use crate::mpc::{Metric, MpcScenario};
+use crate::mpc::{Metric, Mismatch, MpcScenario, with_point_mass};
 use crate::robots::{SOLO_SRDF, SOLO_URDF};
 
 /// The standing posture of the SRDF (lowered onto the ground).
@@ -667,7 +667,16 @@ impl WalkTask {
     /// # Errors
     /// Never for the task's models (constructors are fallible in general).
     pub fn plant(&self, ground: Ground) -> Result<WalkPlant> {
-        WalkPlant::new(&self.solo, self.gait, ground)
+        self.plant_with(ground, Mismatch::default())
+    }
+
+    /// The plant on `ground` that differs from the controller's model by `mismatch` (a
+    /// payload on the base at its centre of mass).
+    ///
+    /// # Errors
+    /// If the mismatch is invalid.
+    pub fn plant_with(&self, ground: Ground, mismatch: Mismatch) -> Result<WalkPlant> {
+        WalkPlant::new(&self.solo, self.gait, ground, mismatch)
     }
 
     /// Standing base height (m).
@@ -830,25 +839,33 @@ fn steps_per_node() -> usize {
 }
 
 impl WalkPlant {
-    fn new(solo: &Solo, gait: Gait, ground: Ground) -> Result<Self> {
+    fn new(solo: &Solo, gait: Gait, ground: Ground, mismatch: Mismatch) -> Result<Self> {
+        mismatch.check()?;
+        let model = if mismatch.payload > 0.0 {
+            let base = solo.model.joint_id("root_joint").map_err(model_error)?;
+            let com = solo.model.inertias()[base].lever();
+            Arc::new(with_point_mass(&solo.model, base, com, mismatch.payload)?)
+        } else {
+            solo.model.clone()
+        };
         let contacts: Vec<Vec<ContactModel>> = Phase::ALL
             .iter()
             .map(|&p| solo.contacts(p, PLANT_KP, PLANT_KD))
             .collect::<Result<_>>()?;
         let cdata = contacts
             .iter()
-            .map(|c| ContactData::new(&solo.model, c).map_err(model_error))
+            .map(|c| ContactData::new(&model, c).map_err(model_error))
             .collect::<Result<_>>()?;
         let nv = solo.model.nv();
         Ok(Self {
-            model: solo.model.clone(),
+            data: model.create_data(),
+            model,
             space: solo.space.clone(),
             gait,
             ground,
             feet: solo.feet,
             contacts,
             cdata,
-            data: solo.model.create_data(),
             references: [Vec3::zeros(); 4],
             tau: vec![0.0; nv],
             dq: vec![0.0; nv],
@@ -957,6 +974,15 @@ pub fn proxddp_options() -> ProxDdpOptions {
 /// If `slope` is not finite or not below 0.5 rad in magnitude, the command is not
 /// finite, or the first OCP does not converge.
 pub fn scenario(slope: f64, command: [f64; 2]) -> Result<MpcScenario> {
+    scenario_with(slope, command, Mismatch::default())
+}
+
+/// [`scenario`] with a plant that differs from the controller's model by `mismatch` (a
+/// payload on the base at its centre of mass).
+///
+/// # Errors
+/// As [`scenario`], or if the mismatch is invalid.
+pub fn scenario_with(slope: f64, command: [f64; 2], mismatch: Mismatch) -> Result<MpcScenario> {
     if !(slope.is_finite() && slope.abs() < 0.5) {
         return Err(Error::option(
             "solo_walk: slope",
@@ -965,7 +991,7 @@ pub fn scenario(slope: f64, command: [f64; 2]) -> Result<MpcScenario> {
     }
     let task = Arc::new(WalkTask::new(Gait::default(), command)?);
     let ground = Ground { slope };
-    let plant = Box::new(WalkPlant::new(&task.solo, task.gait, ground)?);
+    let plant = Box::new(task.plant_with(ground, mismatch)?);
     let (problem, queue) = task.horizon()?;
     let FirstPlan { xs: xs0, us: us0, .. } = task.first_plan(FIRST_PLAN_ITERS)?;
     let name = if slope == 0.0 {
@@ -999,7 +1025,9 @@ pub fn scenario(slope: f64, command: [f64; 2]) -> Result<MpcScenario> {
             o.final_residuals = false;
         }),
         on_shift: Box::new(move |cycle, _, x| shifted.follow_terrain(cycle, x)),
-        metrics: Box::new(move |rec| walk_metrics(&measured, ground, rec)),
+        metrics: Box::new(move |rec| walk_metrics(&measured, ground, mismatch, rec)),
+        base_velocity: Some(task.solo.model.nv()),
+        pushes: Vec::new(),
     })
 }
 
@@ -1007,7 +1035,7 @@ pub fn scenario(slope: f64, command: [f64; 2]) -> Result<MpcScenario> {
 ///
 /// # Errors
 /// If the record is empty or the plant's contact dynamics fail at a recorded state.
-pub fn walk_metrics(task: &WalkTask, ground: Ground, rec: &Record) -> Result<Vec<Metric>> {
+pub fn walk_metrics(task: &WalkTask, ground: Ground, mismatch: Mismatch, rec: &Record) -> Result<Vec<Metric>> {
     if rec.us.is_empty() {
         return Err(Error::InvalidModel("solo_walk metrics: empty record".into()));
     }
@@ -1024,7 +1052,7 @@ pub fn walk_metrics(task: &WalkTask, ground: Ground, rec: &Record) -> Result<Vec
     let v = [(b[0] - a[0]) / t, (b[1] - a[1]) / t];
     let c = task.command;
     let err = ((v[0] - c[0]).powi(2) + (v[1] - c[1]).powi(2)).sqrt() / (c[0].hypot(c[1])).max(1e-12);
-    let cone = friction_violation(task, ground, rec)?;
+    let cone = friction_violation(task, ground, mismatch, rec)?;
     let metric = |name, value, unit| Metric { name, value, unit };
     Ok(vec![
         metric("min base height / nominal", h_min, "1"),
@@ -1039,8 +1067,8 @@ pub fn walk_metrics(task: &WalkTask, ground: Ground, rec: &Record) -> Result<Vec
 /// The largest `‖f_t‖ − μ f_n` of the plant's stance forces at the recorded states and
 /// controls (negative: every force strictly inside its cone), replaying the contact
 /// references from step 0.
-fn friction_violation(task: &WalkTask, ground: Ground, rec: &Record) -> Result<f64> {
-    let mut plant = WalkPlant::new(&task.solo, task.gait, ground)?;
+fn friction_violation(task: &WalkTask, ground: Ground, mismatch: Mismatch, rec: &Record) -> Result<f64> {
+    let mut plant = task.plant_with(ground, mismatch)?;
     let mut worst = f64::NEG_INFINITY;
     for (k, (x, u)) in rec.xs.iter().zip(&rec.us).enumerate() {
         let (_, f) = plant.forces(k, x, u)?;

@@ -200,8 +200,26 @@ struct Ur5 {
 
 impl Ur5 {
     fn load() -> Result<Self> {
-        let model = Model::from_urdf_str(UR5_URDF, RootJoint::Fixed)
-            .map_err(|e| Error::InvalidModel(format!("ur5_circle: UR5 model: {e}")))?;
+        Self::from_model(Self::model()?)
+    }
+
+    /// The UR5 of the URDF.
+    fn model() -> Result<Model> {
+        Model::from_urdf_str(UR5_URDF, RootJoint::Fixed)
+            .map_err(|e| Error::InvalidModel(format!("ur5_circle: UR5 model: {e}")))
+    }
+
+    /// The UR5 carrying a point mass of `payload` kg at its tool frame.
+    fn with_payload(payload: f64) -> Result<Self> {
+        let model = Self::model()?;
+        let tool = &model.frames()[model
+            .frame_id(FRAME)
+            .map_err(|e| Error::InvalidModel(format!("ur5_circle: {e}")))?];
+        let (joint, at) = (tool.parent_joint, tool.placement.translation);
+        Self::from_model(crate::mpc::with_point_mass(&model, joint, at, payload)?)
+    }
+
+    fn from_model(model: Model) -> Result<Self> {
         let model = Arc::new(model);
         let space = Arc::new(MultibodyPhaseSpace::new(model.clone()));
         let actuation = Arc::new(Actuation::full(&model));
@@ -498,9 +516,24 @@ pub const PLANT_DT: f64 = 1e-3;
 /// # Errors
 /// Never for these fixed numbers (constructors are fallible in general).
 pub fn scenario(variant: CircleVariant) -> Result<crate::mpc::MpcScenario> {
+    scenario_with(variant, crate::mpc::Mismatch::default())
+}
+
+/// [`scenario`] with a plant that differs from the controller's model by `mismatch` (a
+/// payload at the tool frame).
+///
+/// # Errors
+/// If the mismatch is invalid.
+pub fn scenario_with(variant: CircleVariant, mismatch: crate::mpc::Mismatch) -> Result<crate::mpc::MpcScenario> {
+    mismatch.check()?;
     let task = Arc::new(CircleTask::new(variant)?);
     let robot = Ur5::load()?;
-    let plant = Box::new(gharial::mpc::DiscretePlant::new(Arc::new(robot.step(PLANT_DT)?)));
+    let plant_robot = if mismatch.payload > 0.0 {
+        Ur5::with_payload(mismatch.payload)?
+    } else {
+        Ur5::load()?
+    };
+    let plant = Box::new(gharial::mpc::DiscretePlant::new(Arc::new(plant_robot.step(PLANT_DT)?)));
     let name = match variant {
         CircleVariant::Free => "ur5-circle-mpc",
         CircleVariant::JointBound => "ur5-circle-mpc-joint-bound",
@@ -523,6 +556,8 @@ pub fn scenario(variant: CircleVariant) -> Result<crate::mpc::MpcScenario> {
             shifted.set_terminal_target(t0 + n as f64 * DT)
         }),
         metrics: Box::new(move |rec| closed_loop_metrics(&measured, &robot, rec)),
+        base_velocity: None,
+        pushes: Vec::new(),
     })
 }
 

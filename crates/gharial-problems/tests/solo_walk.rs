@@ -226,3 +226,37 @@ fn bad_input_is_an_error() {
     assert!(e.contains("stage object 40"), "{e}");
     assert!(task.set_stage_target(39, 0.5).is_ok());
 }
+
+/// A push changes the base's linear velocity in the record by exactly the push at its
+/// step and leaves the states before it unchanged; a payload changes the plant's motion;
+/// the UR5 has no floating base to push.
+#[test]
+fn pushes_and_payloads_reach_the_plant() {
+    use gharial_problems::mpc::{Mismatch, scenario_with};
+    let run = |payload: f64, push: Option<[f64; 3]>| {
+        let mut sc = scenario_with("solo-walk-mpc", Mismatch::payload(payload)).unwrap();
+        if let Some(dv) = push {
+            sc.push_base(0.03, dv).unwrap();
+        }
+        let mut mpc = sc.controller(ProxDdp::new(sc.example.proxddp.clone())).unwrap();
+        sc.run(&mut mpc, 0.05).unwrap()
+    };
+    let plain = run(0.0, None);
+    let dv = [0.05, -0.3, 0.02];
+    let pushed = run(0.0, Some(dv));
+    let k = 30;
+    assert_eq!(plain.xs[..k], pushed.xs[..k]);
+    let nv = (plain.xs[k].len() - 1) / 2;
+    let base_v = plain.xs[k].len() - nv;
+    for i in 0..3 {
+        let jump = pushed.xs[k][base_v + i] - plain.xs[k][base_v + i];
+        assert!((jump - dv[i]).abs() < 1e-12, "{i}: {jump}");
+    }
+    let loaded = run(0.5, None);
+    assert_eq!(plain.xs[0], loaded.xs[0]);
+    let dz = (loaded.xs[50][2] - plain.xs[50][2]).abs();
+    assert!(dz > 1e-4, "a 0.5 kg payload moved the base by {dz} m in 50 ms");
+    let mut ur5 = scenario_with("ur5-circle-mpc", Mismatch::payload(1.0)).unwrap();
+    let e = ur5.push_base(0.1, dv).unwrap_err().to_string();
+    assert!(e.contains("no floating base"), "{e}");
+}
