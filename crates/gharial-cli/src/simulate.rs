@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::time::Duration;
 
 use gharial::mpc::Record;
-use gharial_problems::mpc::{Metric, Mismatch, MpcScenario};
+use gharial_problems::mpc::{Metric, Mismatch, MpcScenario, ScenarioSettings};
 use serde_json::json;
 
 use crate::solver_choice::SolverArgs;
@@ -101,24 +101,11 @@ fn bounded(s: &str, max: f64, unit: &str) -> Result<f64, String> {
 /// The scenario of the command line: by name, with the walking parameters, the model
 /// mismatch and the pushes if given.
 fn build_scenario(args: &SimulateArgs) -> gharial::Result<MpcScenario> {
-    let mismatch = Mismatch::payload(args.payload.unwrap_or(0.0));
-    let mut sc = if args.slope.is_none() && args.speed.is_none() {
-        gharial_problems::mpc::scenario_with(&args.scenario, mismatch)?
-    } else {
-        use gharial_problems::solo_walk::{COMMAND, SLOPE};
-        let default_slope = match args.scenario.as_str() {
-            "solo-walk-mpc" => 0.0,
-            "solo-walk-mpc-slope" => SLOPE,
-            _ => {
-                return Err(gharial::Error::InvalidModel(format!(
-                    "--slope and --speed are parameters of solo-walk-mpc, not of {}",
-                    args.scenario
-                )));
-            }
-        };
-        let command = [args.speed.unwrap_or(COMMAND[0]), COMMAND[1]];
-        gharial_problems::solo_walk::scenario_with(args.slope.unwrap_or(default_slope), command, mismatch)?
-    };
+    let mut settings = ScenarioSettings::default();
+    settings.slope = args.slope;
+    settings.speed = args.speed;
+    settings.mismatch = Mismatch::payload(args.payload.unwrap_or(0.0));
+    let mut sc = gharial_problems::mpc::scenario_with(&args.scenario, &settings)?;
     for &(t, dv) in &args.push {
         sc.push_base(t, dv)?;
     }

@@ -7,7 +7,8 @@
 //! | `ur5-circle-mpc`, `ur5-circle-mpc-joint-bound`, `ur5-circle-mpc-half-space` | [`crate::ur5_circle`] | UR5 ABA, semi-implicit Euler at 1 ms | 50 ms (one node) |
 //! | `solo-walk-mpc`, `solo-walk-mpc-slope` | [`crate::solo_walk`] | Solo-12 contact dynamics of the gait's stance feet, semi-implicit Euler at 1 ms | 12 ms (one node) |
 //!
-//! **Model mismatch** ([`Mismatch`], [`scenario_with`]): the plant may carry a payload
+//! **Settings** ([`ScenarioSettings`], [`scenario_with`]): the walking scenarios' slope and
+//! speed; **model mismatch** ([`Mismatch`]): the plant may carry a payload
 //! the controller does not know of, a point mass on the Solo-12's base at its centre of
 //! mass or at the UR5's tool frame. **Pushes** ([`MpcScenario::push_base`]): a change
 //! of a floating base's linear velocity at a given time.
@@ -217,23 +218,51 @@ pub static SCENARIOS: &[(&str, &str)] = &[
 /// # Errors
 /// If the name is unknown (the message lists the known ones).
 pub fn scenario(name: &str) -> Result<MpcScenario> {
-    scenario_with(name, Mismatch::default())
+    scenario_with(name, &ScenarioSettings::default())
 }
 
-/// The scenario called `name` with a plant that differs from the controller's model by
-/// `mismatch`.
+/// The parameters of a scenario beyond its name.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[non_exhaustive]
+pub struct ScenarioSettings {
+    /// Solo-12 walking only: the ground's tilt about y (rad; default: the scenario's).
+    pub slope: Option<f64>,
+    /// Solo-12 walking only: the forward velocity command (m/s; default the scenario's).
+    pub speed: Option<f64>,
+    /// How the plant differs from the controller's model.
+    pub mismatch: Mismatch,
+}
+
+/// The scenario called `name` with `settings`.
 ///
 /// # Errors
-/// If the name is unknown (the message lists the known ones) or the mismatch invalid.
-pub fn scenario_with(name: &str, mismatch: Mismatch) -> Result<MpcScenario> {
+/// If the name is unknown (the message lists the known ones), a walking parameter is
+/// given for another scenario, or a setting is invalid.
+pub fn scenario_with(name: &str, settings: &ScenarioSettings) -> Result<MpcScenario> {
     use crate::solo_walk::{COMMAND, SLOPE, scenario_with as walk};
     use crate::ur5_circle::{CircleVariant, scenario_with as circle};
+    let mismatch = settings.mismatch;
+    let walking = |default_slope: f64| {
+        let command = [settings.speed.unwrap_or(COMMAND[0]), COMMAND[1]];
+        walk(settings.slope.unwrap_or(default_slope), command, mismatch)
+    };
+    let circle_variant = match name {
+        "ur5-circle-mpc" => Some(CircleVariant::Free),
+        "ur5-circle-mpc-joint-bound" => Some(CircleVariant::JointBound),
+        "ur5-circle-mpc-half-space" => Some(CircleVariant::HalfSpace),
+        _ => None,
+    };
+    if let Some(variant) = circle_variant {
+        if settings.slope.is_some() || settings.speed.is_some() {
+            return Err(Error::InvalidModel(format!(
+                "slope and speed are parameters of solo-walk-mpc, not of {name}"
+            )));
+        }
+        return circle(variant, mismatch);
+    }
     match name {
-        "ur5-circle-mpc" => circle(CircleVariant::Free, mismatch),
-        "ur5-circle-mpc-joint-bound" => circle(CircleVariant::JointBound, mismatch),
-        "ur5-circle-mpc-half-space" => circle(CircleVariant::HalfSpace, mismatch),
-        "solo-walk-mpc" => walk(0.0, COMMAND, mismatch),
-        "solo-walk-mpc-slope" => walk(SLOPE, COMMAND, mismatch),
+        "solo-walk-mpc" => walking(0.0),
+        "solo-walk-mpc-slope" => walking(SLOPE),
         _ => Err(Error::InvalidModel(format!(
             "unknown MPC scenario `{name}` (known: {})",
             SCENARIOS.iter().map(|s| s.0).collect::<Vec<_>>().join(", ")

@@ -232,9 +232,14 @@ fn bad_input_is_an_error() {
 /// the UR5 has no floating base to push.
 #[test]
 fn pushes_and_payloads_reach_the_plant() {
-    use gharial_problems::mpc::{Mismatch, scenario_with};
+    use gharial_problems::mpc::{Mismatch, ScenarioSettings, scenario_with};
+    let settings = |payload: f64| {
+        let mut s = ScenarioSettings::default();
+        s.mismatch = Mismatch::payload(payload);
+        s
+    };
     let run = |payload: f64, push: Option<[f64; 3]>| {
-        let mut sc = scenario_with("solo-walk-mpc", Mismatch::payload(payload)).unwrap();
+        let mut sc = scenario_with("solo-walk-mpc", &settings(payload)).unwrap();
         if let Some(dv) = push {
             sc.push_base(0.03, dv).unwrap();
         }
@@ -256,7 +261,7 @@ fn pushes_and_payloads_reach_the_plant() {
     assert_eq!(plain.xs[0], loaded.xs[0]);
     let dz = (loaded.xs[50][2] - plain.xs[50][2]).abs();
     assert!(dz > 1e-4, "a 0.5 kg payload moved the base by {dz} m in 50 ms");
-    let mut ur5 = scenario_with("ur5-circle-mpc", Mismatch::payload(1.0)).unwrap();
+    let mut ur5 = scenario_with("ur5-circle-mpc", &settings(1.0)).unwrap();
     let e = ur5.push_base(0.1, dv).unwrap_err().to_string();
     assert!(e.contains("no floating base"), "{e}");
 }

@@ -96,6 +96,11 @@ impl PySolver {
         Ok(())
     }
 
+    /// A new Rust solver with these options (not set up).
+    pub fn build(&self) -> Box<dyn Solver> {
+        self.effective_options().build()
+    }
+
     /// The Rust options with the log sink that `verbose` asks for.
     fn effective_options(&self) -> SolverOptions {
         let mut o = self.options.clone();

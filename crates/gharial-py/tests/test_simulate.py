@@ -1,0 +1,72 @@
+"""Closed-loop scenarios from Python: the same closed loops as the command-line tool bit
+for bit, pushes and payloads reaching the plant, and bad input as errors."""
+
+import json
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+import gharial
+from gharial.problems import scenarios, simulate
+
+
+def cli_simulate(args, tmp_path):
+    exe = os.environ.get("GHARIAL_CLI")
+    if not exe:
+        pytest.skip("GHARIAL_CLI (the gharial binary) is not set; tools/test sets it")
+    out = tmp_path / "cli.json"
+    p = subprocess.run([exe, "simulate", *args, "--output", str(out)], check=False, capture_output=True)
+    assert p.returncode == 0, p.stderr
+    return json.loads(out.read_text())
+
+
+def test_the_scenarios_are_listed():
+    names = [n for n, _ in scenarios()]
+    assert "ur5-circle-mpc" in names and "solo-walk-mpc" in names
+
+
+@pytest.mark.parametrize(
+    "name,extra,py",
+    [
+        ("ur5-circle-mpc", ["--payload", "1.5"], {"payload": 1.5}),
+        ("ur5-circle-mpc-joint-bound", ["--solver", "csqp", "--max-iters", "3"], {"solver": "csqp", "max_iters": 3}),
+        ("solo-walk-mpc", ["--push", "0.03,0,0.25,0", "--slope", "0.05"], {"pushes": [(0.03, (0, 0.25, 0))], "slope": 0.05}),
+    ],
+)
+def test_closed_loops_equal_the_command_line_bit_for_bit(name, extra, py, tmp_path):
+    ref = cli_simulate([name, "--duration", "0.1", *extra], tmp_path)
+    rec = simulate(name, duration=0.1, **py)
+    assert rec["scenario"] == ref["scenario"]
+    assert rec["xs"].shape == (101, len(ref["xs"][0])) and rec["us"].shape[0] == 100
+    assert np.array_equal(rec["xs"], np.array(ref["xs"]))
+    assert np.array_equal(rec["us"], np.array(ref["us"]))
+    assert [c["iterations"] for c in rec["cycles"]] == [c["iterations"] for c in ref["cycles"]]
+    for metric, (value, _) in rec["metrics"].items():
+        assert value == ref["metrics"][metric]["value"], metric
+
+
+def test_a_push_changes_the_base_velocity_by_the_push():
+    plain = simulate("solo-walk-mpc", duration=0.05)
+    pushed = simulate("solo-walk-mpc", duration=0.05, pushes=[(0.03, (0.05, -0.3, 0.02))])
+    k = 30
+    assert np.array_equal(plain["xs"][:k], pushed["xs"][:k])
+    base_v = 19  # nq = 19: the base's linear velocity starts the velocity part
+    np.testing.assert_allclose(pushed["xs"][k, base_v:base_v + 3] - plain["xs"][k, base_v:base_v + 3],
+                               [0.05, -0.3, 0.02], atol=1e-12)
+
+
+def test_bad_input_is_an_error():
+    with pytest.raises(gharial.GharialError, match="unknown MPC scenario"):
+        simulate("nope")
+    with pytest.raises(gharial.GharialError, match="no floating base"):
+        simulate("ur5-circle-mpc", duration=0.1, pushes=[(0.0, (0.1, 0, 0))])
+    with pytest.raises(gharial.GharialError, match="payload"):
+        simulate("ur5-circle-mpc", duration=0.1, payload=-1.0)
+    with pytest.raises(gharial.GharialError, match="slope and speed"):
+        simulate("ur5-circle-mpc", duration=0.1, slope=0.1)
+    with pytest.raises(ValueError, match="cycle_budget"):
+        simulate("ur5-circle-mpc", duration=0.1, cycle_budget=-1.0)
+    with pytest.raises(AttributeError, match="no option"):
+        simulate("ur5-circle-mpc", duration=0.1, not_an_option=1)
