@@ -8,6 +8,7 @@ mod convert;
 mod costs;
 mod dynamics;
 mod functions;
+mod mpc;
 mod options;
 mod problem;
 mod pymodel;
@@ -30,6 +31,7 @@ fn _gharial(m: &Bound<'_, PyModule>) -> PyResult<()> {
     constraints::register(m)?;
     problem::register(m)?;
     solvers::register(m)?;
+    mpc::register(m)?;
     robots::register(m)?;
     catalogue::register(m)?;
     viz::register(m)?;

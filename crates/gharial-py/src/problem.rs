@@ -160,30 +160,40 @@ impl PyProblem {
     /// Raises the first exception a Python model of this problem recorded, naming its
     /// stage (the first stage holding the model), and clears the others.
     pub fn raise_python_errors(&self, py: Python<'_>) -> PyResult<()> {
-        let mut first: Option<PyErr> = None;
-        for (t, slots) in self.slots() {
-            for slot in slots {
-                if let Some(e) = slot.take()
-                    && first.is_none()
-                {
-                    let where_ = if t == self.stages.len() {
-                        "the terminal stage".to_string()
-                    } else {
-                        format!("stage {t}")
-                    };
-                    let kind = e.get_type(py).name().map(|n| n.to_string()).unwrap_or_default();
-                    let new = GharialError::new_err(format!(
-                        "{kind}: a Python model ({}) raised at {where_}: {}",
-                        slot.label,
-                        e.value(py)
-                    ));
-                    new.set_cause(py, Some(e));
-                    first = Some(new);
-                }
+        let n = self.stages.len();
+        let named = self.slots().map(|(t, slots)| {
+            let where_ = if t == n {
+                "the terminal stage".to_string()
+            } else {
+                format!("stage {t}")
+            };
+            (where_, slots)
+        });
+        raise_slot_errors(py, named)
+    }
+}
+
+/// Raises the first exception recorded in `slots` (each with where its stage is), and
+/// clears the others.
+pub fn raise_slot_errors<'a>(py: Python<'_>, slots: impl Iterator<Item = (String, &'a Slots)>) -> PyResult<()> {
+    let mut first: Option<PyErr> = None;
+    for (where_, slots) in slots {
+        for slot in slots {
+            if let Some(e) = slot.take()
+                && first.is_none()
+            {
+                let kind = e.get_type(py).name().map(|n| n.to_string()).unwrap_or_default();
+                let new = GharialError::new_err(format!(
+                    "{kind}: a Python model ({}) raised at {where_}: {}",
+                    slot.label,
+                    e.value(py)
+                ));
+                new.set_cause(py, Some(e));
+                first = Some(new);
             }
         }
-        first.map_or(Ok(()), Err)
     }
+    first.map_or(Ok(()), Err)
 }
 
 #[pymethods]

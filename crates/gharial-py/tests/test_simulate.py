@@ -70,3 +70,43 @@ def test_bad_input_is_an_error():
         simulate("ur5-circle-mpc", duration=0.1, cycle_budget=-1.0)
     with pytest.raises(AttributeError, match="no option"):
         simulate("ur5-circle-mpc", duration=0.1, not_an_option=1)
+
+
+def test_the_mpc_class_follows_the_dense_kkt_optimum_from_every_measured_state():
+    from conftest import lqr_kkt, lqr_problem, point_mass
+
+    problem = lqr_problem()
+    xs0, us0 = lqr_kkt()
+    solver = gharial.solver("proxddp", tol=1e-10)
+    mpc = gharial.MPC(problem, solver, xs0, us0, max_iters=50)
+    a, b = point_mass()
+    x = np.array([1.0, -0.5, 0.0, 0.2])
+    for cycle in range(3):
+        r = mpc.solve(x)
+        assert r.status == "converged"
+        xs_ref, us_ref = lqr_kkt(x0=tuple(x))
+        np.testing.assert_allclose(np.array(r.us), np.array(us_ref), atol=1e-7)
+        # The policy is the optimal feedback of the LQ: the KKT optimum from another state.
+        x_other = x + np.array([0.05, -0.02, 0.01, 0.03])
+        _, us_other = lqr_kkt(x0=tuple(x_other))
+        np.testing.assert_allclose(mpc.control(x_other), us_other[0], atol=1e-7)
+        x = a @ x + b @ mpc.control(x)
+        assert mpc.shift() == cycle  # the stage that left comes back at the end
+    assert mpc.cycles == 3 and "MPC(proxddp" in repr(mpc)
+
+
+def test_the_mpc_class_refuses_bad_input():
+    from conftest import lqr_problem
+
+    problem = lqr_problem()
+    xs0 = [np.zeros(4)] * 21
+    us0 = [np.zeros(2)] * 20
+    with pytest.raises(gharial.GharialError, match="max_iters"):
+        gharial.MPC(problem, gharial.solver("fddp"), xs0, us0, max_iters=0)
+    with pytest.raises(ValueError, match="max_time"):
+        gharial.MPC(problem, gharial.solver("fddp"), xs0, us0, max_time=-1.0)
+    mpc = gharial.MPC(problem, gharial.solver("fddp"), xs0, us0)
+    with pytest.raises(ValueError):
+        mpc.solve(np.zeros(3))
+    with pytest.raises(gharial.GharialError):
+        mpc.solve(np.array([np.nan, 0.0, 0.0, 0.0]))

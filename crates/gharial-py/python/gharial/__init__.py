@@ -14,6 +14,7 @@ from ._gharial import (  # noqa: F401
     GharialError,
     LinearFunction,
     LinearFunctionComposition,
+    MPC,
     QuadraticControlCost,
     QuadraticCost,
     QuadraticResidualCost,
