@@ -12,6 +12,7 @@ mod mpc;
 mod options;
 mod problem;
 mod pymodel;
+mod robot_residuals;
 mod robots;
 mod solvers;
 mod spaces;

@@ -388,7 +388,7 @@ fn frame_placement<'py>(
 }
 
 /// A reference frame by name.
-fn reference_frame(name: &str) -> PyResult<ReferenceFrame> {
+pub(crate) fn reference_frame(name: &str) -> PyResult<ReferenceFrame> {
     match name {
         "local_world_aligned" | "LOCAL_WORLD_ALIGNED" => Ok(ReferenceFrame::LocalWorldAligned),
         "world" | "WORLD" => Ok(ReferenceFrame::World),
@@ -522,7 +522,7 @@ impl PyMultibodyPhaseSpace {
 }
 
 /// The phase space of a Python `MultibodyPhaseSpace`.
-fn phase(space: &Bound<'_, PyMultibodyPhaseSpace>) -> Arc<MultibodyPhaseSpace> {
+pub(crate) fn phase(space: &Bound<'_, PyMultibodyPhaseSpace>) -> Arc<MultibodyPhaseSpace> {
     space.get().space.clone()
 }
 
@@ -607,7 +607,7 @@ fn contact_spec(kind: &str, reference: &str, kp: f64, kd: f64) -> PyResult<Conta
 /// placements the `kp` term pulls towards (without it, the world origin).
 #[pyclass(extends = PyOde, name = "MultibodyConstraintFwdDynamics", module = "gharial.robots")]
 pub struct PyConstraintFwdDynamics {
-    ode: Arc<MultibodyConstraintFwdDynamics>,
+    pub(crate) ode: Arc<MultibodyConstraintFwdDynamics>,
 }
 
 #[pymethods]
@@ -662,7 +662,7 @@ impl PyConstraintFwdDynamics {
 }
 
 /// A Rust unary residual lifted to a stage function with `nu` controls.
-fn lifted(f: Arc<dyn gharial::functions::UnaryFunction>, nu: usize) -> PyStageFunction {
+pub(crate) fn lifted(f: Arc<dyn gharial::functions::UnaryFunction>, nu: usize) -> PyStageFunction {
     PyStageFunction::rust(Arc::new(gharial::functions::Unary::new(f, nu)), Vec::new())
 }
 
@@ -783,6 +783,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyFrameTranslation>()?;
     m.add_class::<PyFramePlacement>()?;
     m.add_class::<PyComTranslation>()?;
+    crate::robot_residuals::register(m)?;
     for f in [
         wrap_pyfunction!(load_urdf, m)?,
         wrap_pyfunction!(load_urdf_string, m)?,

@@ -420,6 +420,92 @@ def test_com_residual(solo):
     np.testing.assert_allclose(r(x, u), 0, atol=1e-14)
 
 
+def test_frame_velocity_and_fly_high_residuals(solo):
+    space = robots.MultibodyPhaseSpace(solo)
+    q, v, _ = random_state(solo, 18, scale=0.2)
+    x, u = np.concatenate([q, v]), np.zeros(12)
+    v_ref = np.array([0.1, -0.2, 0.3, 0.0, 0.5, -0.1])
+    for ref in ["local_world_aligned", "local"]:
+        r = robots.FrameVelocityResidual(space, 12, "FL_FOOT", v_ref, ref)
+        assert (r.nr, r.nu) == (6, 12)
+        np.testing.assert_allclose(r(x, u), robots.frame_jacobian(solo, q, "FL_FOOT", ref) @ v - v_ref, atol=1e-12)
+        jx, ju = r.jacobians(x, u)
+        np.testing.assert_allclose(jx, fd_space(space, lambda xx: r(xx, u), x), atol=1e-6)
+        np.testing.assert_array_equal(ju, np.zeros((6, 12)))
+    slope = 30.0
+    r = robots.FlyHighResidual(space, 12, "FL_FOOT", slope)
+    z = robots.frame_placement(solo, q, "FL_FOOT")[1][2]
+    v_xy = (robots.frame_jacobian(solo, q, "FL_FOOT", "local_world_aligned") @ v)[:2]
+    np.testing.assert_allclose(r(x, u), v_xy * np.exp(-slope * z), atol=1e-12)
+    jx, _ = r.jacobians(x, u)
+    np.testing.assert_allclose(jx, fd_space(space, lambda xx: r(xx, u), x), atol=1e-6)
+
+
+def test_contact_force_and_friction_cone_residuals(solo):
+    space = robots.MultibodyPhaseSpace(solo)
+    ode = robots.MultibodyConstraintFwdDynamics(space, None, FEET, kd=50.0)
+    rng = np.random.default_rng(19)
+    q = robots.integrate(solo, standing(solo), 0.05 * rng.standard_normal(18))
+    x, u = np.concatenate([q, 0.1 * rng.standard_normal(18)]), rng.standard_normal(12)
+    lam = ode.contact_forces(x, u)
+    f_ref = np.array([0.0, 0.0, 4.0])
+    force = robots.ContactForceResidual(ode, 2, f_ref)
+    assert (force.nr, force.nu, force.ndx) == (3, 12, 36)
+    np.testing.assert_allclose(force(x, u), lam[6:9] - f_ref, atol=1e-12)
+    mu = 0.8
+    cone = robots.FrictionConeResidual(ode, 2, mu)
+    c = cone(x, u)
+    # (μ f_n, f_t): the scalar part first, the tangential part's norm that of λ_xy.
+    np.testing.assert_allclose(c[0], mu * lam[8], atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(c[1:]), np.linalg.norm(lam[6:8]), atol=1e-12)
+    for r in [force, cone]:
+        jx, ju = r.jacobians(x, u)
+        np.testing.assert_allclose(jx, fd_space(space, lambda xx: r(xx, u), x), atol=1e-5)
+        np.testing.assert_allclose(ju, fd(lambda uu: r(x, uu), u), atol=1e-5)
+    with pytest.raises(GharialError):
+        robots.ContactForceResidual(ode, 4, f_ref)
+    with pytest.raises(GharialError):
+        robots.FrictionConeResidual(ode, 0, -1.0)
+
+
+def test_a_friction_cone_problem_solves_from_python(solo):
+    """Solo on its four feet asked to move its base 2 cm sideways in 0.2 s: without cones
+    the optimum pushes sideways beyond μ = 0.1; with them every force is inside, at a
+    higher cost."""
+    import gharial
+    from gharial import constraints
+    from gharial.dynamics import IntegratorSemiImplEuler
+
+    space = robots.MultibodyPhaseSpace(solo)
+    ode = robots.MultibodyConstraintFwdDynamics(space, None, FEET, kd=50.0)
+    step = IntegratorSemiImplEuler(ode, 0.02)
+    x0 = np.concatenate([standing(solo), np.zeros(18)])
+    target = x0.copy()
+    target[1] += 0.02
+    u0 = robots.generalized_gravity(solo, standing(solo))[6:]
+
+    def solve(mu):
+        stages = []
+        for _ in range(10):
+            cost = gharial.CostStack(space, 12)
+            cost.addCost("x", gharial.QuadraticStateCost(space, 12, target, np.full(36, 1.0)), 0.02)
+            cost.addCost("u", gharial.QuadraticControlCost(space, u0, np.full(12, 1e-3)), 0.02)
+            stage = gharial.StageModel(cost, step)
+            if mu is not None:
+                for k in range(4):
+                    stage.addConstraint(robots.FrictionConeResidual(ode, k, mu), constraints.SecondOrderCone(3))
+            stages.append(stage)
+        terminal = gharial.QuadraticStateCost(space, 0, target, np.full(36, 1.0))
+        s = gharial.solver("proxddp", tol=1e-6, max_iters=200, mu_init=1e-3)
+        assert s.run(gharial.TrajOptProblem(x0, stages, terminal), [x0] * 11, [u0] * 10), s.results
+        lam = [ode.contact_forces(s.results.xs[t], s.results.us[t]).reshape(4, 3) for t in range(10)]
+        return max(np.max(np.linalg.norm(f[:, :2], axis=1) - 0.1 * f[:, 2]) for f in lam), s.results.traj_cost
+
+    free, free_cost = solve(None)
+    coned, coned_cost = solve(0.1)
+    assert free > 0.5 and coned < 1e-5 and coned_cost > free_cost
+
+
 def test_residuals_are_stage_functions(ur5):
     import gharial
 

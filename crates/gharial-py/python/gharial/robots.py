@@ -31,8 +31,12 @@ frame, malformed URDF, a quaternion off the unit sphere) raise
 
 from ._gharial import (  # noqa: F401
     CenterOfMassTranslationResidual,
+    ContactForceResidual,
+    FlyHighResidual,
     FramePlacementResidual,
     FrameTranslationResidual,
+    FrameVelocityResidual,
+    FrictionConeResidual,
     MultibodyConfiguration,
     MultibodyConstraintFwdDynamics,
     MultibodyFreeFwdDynamics,
@@ -83,4 +87,8 @@ __all__ = [
     "FrameTranslationResidual",
     "FramePlacementResidual",
     "CenterOfMassTranslationResidual",
+    "FrameVelocityResidual",
+    "FlyHighResidual",
+    "ContactForceResidual",
+    "FrictionConeResidual",
 ]
