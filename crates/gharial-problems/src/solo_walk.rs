@@ -376,9 +376,8 @@ pub struct WalkTask {
     /// The state cost of each stage object.
     state_costs: Vec<Arc<QuadraticStateCost>>,
     terminal: Arc<QuadraticStateCost>,
-    /// The impact residuals of each stage object: the foot and its translation residual,
-    /// whose height target follows the terrain estimate.
-    impacts: Vec<Vec<(usize, Arc<FrameTranslationResidual>)>>,
+    /// The terrain-following foot terms of each stage object.
+    feet_terms: Vec<FeetTerms>,
     /// Scratch for the state target (set in place after each shift).
     x_ref: Mutex<Vec<f64>>,
     /// The controller's estimate of the ground from the feet's contact points.
@@ -510,7 +509,7 @@ impl WalkTask {
         let weights = state_weights(solo.model.nv());
         let mut stages = Vec::with_capacity(len);
         let mut state_costs = Vec::with_capacity(len);
-        let mut impacts = Vec::with_capacity(len);
+        let mut feet_terms = Vec::with_capacity(len);
         for node in 0..len {
             let cost = Arc::new(QuadraticStateCost::diagonal(
                 solo.space.clone(),
@@ -518,10 +517,10 @@ impl WalkTask {
                 &weights,
                 u_stand.len(),
             )?);
-            let (stage, impact) = stage_model(&solo, &gait, node, &dynamics, &u_stand, cost.clone())?;
+            let (stage, terms) = stage_model(&solo, &gait, node, &dynamics, &u_stand, cost.clone())?;
             stages.push(stage);
             state_costs.push(cost);
-            impacts.push(impact);
+            feet_terms.push(terms);
         }
         let terminal = Arc::new(QuadraticStateCost::diagonal(solo.space.clone(), &solo.x0, &weights, 0)?);
         let task = Self {
@@ -532,7 +531,7 @@ impl WalkTask {
             stages,
             state_costs,
             terminal,
-            impacts,
+            feet_terms,
             x_ref: Mutex::new(solo.x0.clone()),
             terrain: Mutex::new(Terrain::new(&solo)?),
             solo,
@@ -546,7 +545,9 @@ impl WalkTask {
 
     /// The state target at time `t`: the standing posture moved along the command, its
     /// height above the estimated ground where the base is predicted to be, with the
-    /// command (ramped up over [`RAMP`] from rest) as base velocity.
+    /// command (ramped up over [`RAMP`] from rest) as horizontal base velocity and the
+    /// vertical velocity that keeps the base at that height along the estimated plane
+    /// (the target's base is level: its frame's axes are the world's).
     fn write_target(&self, t: f64, terrain: &Terrain, x_ref: &mut [f64]) {
         let nq = self.solo.nq();
         let (ramp, distance) = command_ramp(t);
@@ -555,8 +556,11 @@ impl WalkTask {
         x_ref[1] += self.command[1] * distance;
         let [bx, by] = terrain.base_at(t, self.command);
         x_ref[2] = self.x0[2] + terrain.height(bx, by);
-        x_ref[nq] = self.command[0] * ramp;
-        x_ref[nq + 1] = self.command[1] * ramp;
+        let [_, slope_x, slope_y] = terrain.plane;
+        let v = [self.command[0] * ramp, self.command[1] * ramp];
+        x_ref[nq] = v[0];
+        x_ref[nq + 1] = v[1];
+        x_ref[nq + 2] = slope_x * v[0] + slope_y * v[1];
     }
 
     /// Sets the state target of stage object `id` (gait node `id`) for time `t`.
@@ -573,9 +577,13 @@ impl WalkTask {
         self.set_target(cost, t)?;
         let terrain = self.lock_terrain()?;
         let [bx, by] = terrain.base_at(t, self.command);
-        for (j, r) in &self.impacts[id] {
+        let terms = &self.feet_terms[id];
+        for (j, r) in &terms.impacts {
             let [dx, dy] = terrain.feet_offsets[*j];
             r.set_target(&[0.0, 0.0, terrain.height(bx + dx, by + dy)])?;
+        }
+        for r in &terms.fly_high {
+            r.set_ground(&terrain.plane)?;
         }
         Ok(())
     }
@@ -712,11 +720,18 @@ pub struct FirstPlan {
     pub dual_err: f64,
 }
 
-/// The residuals of the impact costs of a stage: foot and translation residual.
-type Impacts = Vec<(usize, Arc<FrameTranslationResidual>)>;
+/// The foot terms of a stage that follow the terrain estimate.
+#[derive(Default)]
+struct FeetTerms {
+    /// Impact costs: the foot (index into [`FEET`]) and its translation residual, whose
+    /// height target is the estimated ground under the foot.
+    impacts: Vec<(usize, Arc<FrameTranslationResidual>)>,
+    /// Fly-high residuals of the swing feet, measured from the estimated ground plane.
+    fly_high: Vec<Arc<FlyHighResidual>>,
+}
 
 /// The stage of gait node `node` (module documentation), its state cost `state`; and its
-/// impact residuals.
+/// foot terms that follow the terrain.
 fn stage_model(
     solo: &Solo,
     gait: &Gait,
@@ -724,7 +739,7 @@ fn stage_model(
     dynamics: &[Arc<MultibodyConstraintFwdDynamics>],
     u_stand: &[f64],
     state: Arc<QuadraticStateCost>,
-) -> Result<(StageModel, Impacts)> {
+) -> Result<(StageModel, FeetTerms)> {
     let phase = gait.phase(node);
     let dyn_ = &dynamics[phase.index()];
     let (space, nu): (Arc<dyn Manifold>, usize) = (solo.space.clone(), u_stand.len());
@@ -736,7 +751,7 @@ fn stage_model(
     let stance = phase.stance_feet();
     let load = solo.model.total_mass() * solo.model.gravity.linear.z.abs() / stance.len() as f64;
     let touchdowns = gait.touchdowns(node);
-    let mut impacts = Vec::new();
+    let mut terms = FeetTerms::default();
     if W_FORCE > 0.0 {
         // One contact solve for the forces of all stance feet.
         let parts = (0..stance.len())
@@ -750,13 +765,14 @@ fn stage_model(
         let name = FEET[j];
         let stance_index = stance.iter().position(|&s| s == j);
         if stance_index.is_none() {
-            let r = Unary::new(Arc::new(FlyHighResidual::new(&solo.space, name, FLY_HIGH_SLOPE)?), nu);
-            let c = QuadraticResidualCost::diagonal(Arc::new(r), &[W_FLY_HIGH; 2])?;
+            let f = Arc::new(FlyHighResidual::new(&solo.space, name, FLY_HIGH_SLOPE)?);
+            terms.fly_high.push(f.clone());
+            let c = QuadraticResidualCost::diagonal(Arc::new(Unary::new(f, nu)), &[W_FLY_HIGH; 2])?;
             cost = cost.with(format!("fly_high_{name}"), Arc::new(c), DT)?;
         }
         if touchdowns[j] {
             let r = Arc::new(FrameTranslationResidual::new(&solo.space, name, &[0.0; 3])?);
-            impacts.push((j, r.clone()));
+            terms.impacts.push((j, r.clone()));
             let p = Unary::new(r, nu);
             let z: Arc<dyn StageFunction> = Arc::new(Slice::new(Arc::new(p), &[2])?);
             let c = QuadraticResidualCost::diagonal(z, &[W_IMPACT])?;
@@ -788,7 +804,7 @@ fn stage_model(
         .actuated_dofs()
         .ok_or_else(|| Error::InvalidModel("solo_walk: the actuation is not a joint selection".into()))?;
     stage.add_constraint(effort_limits(&solo.space, &dofs)?)?;
-    Ok((stage, impacts))
+    Ok((stage, terms))
 }
 
 /// The ground plane `z = tan(slope) x` (module documentation).
@@ -1129,5 +1145,46 @@ mod tests {
             assert!((cost.error().target()[2] - x[2]).abs() < 1e-9);
         }
         assert!(task.follow_terrain(0, &x[1..]).is_err());
+    }
+
+    /// On an estimated plane `z = a + b x + c y`, every swing foot's fly-high cost is
+    /// measured from that plane, every landing foot's height target is the plane's height
+    /// under the foot, and the base velocity target climbs the plane with the command.
+    #[test]
+    fn the_foot_and_velocity_targets_follow_the_estimated_plane() {
+        let task = WalkTask::new(Gait::default(), COMMAND).unwrap();
+        let plane = [0.03, -0.1, 0.02];
+        let t = 1.0;
+        {
+            let mut terrain = task.lock_terrain().unwrap();
+            terrain.plane = plane;
+            terrain.time = t;
+        }
+        let len = task.stages.len();
+        for id in 0..len {
+            task.set_stage_target(id, t + id as f64 * DT).unwrap();
+        }
+        let terrain = task.lock_terrain().unwrap();
+        let ground = |x: f64, y: f64| plane[0] + plane[1] * x + plane[2] * y;
+        let (mut fly_high, mut impacts) = (0, 0);
+        for (id, terms) in task.feet_terms.iter().enumerate() {
+            for r in &terms.fly_high {
+                assert_eq!(r.ground(), plane);
+                fly_high += 1;
+            }
+            let [bx, by] = terrain.base_at(t + id as f64 * DT, COMMAND);
+            for (j, r) in &terms.impacts {
+                let [dx, dy] = terrain.feet_offsets[*j];
+                assert!((r.target()[2] - ground(bx + dx, by + dy)).abs() < 1e-12);
+                impacts += 1;
+            }
+            let target = task.state_costs[id].error().target();
+            let nq = task.solo.nq();
+            assert!((target[2] - task.x0[2] - ground(bx, by)).abs() < 1e-12);
+            let v = [target[nq], target[nq + 1], target[nq + 2]];
+            assert!((v[0] - COMMAND[0]).abs() < 1e-12 && (v[2] - plane[1] * v[0] - plane[2] * v[1]).abs() < 1e-12);
+        }
+        // Two swing feet on 36 of the 40 nodes, two landing feet at node 20.
+        assert_eq!((fly_high, impacts), (2 * 36, 2));
     }
 }
