@@ -750,7 +750,10 @@ fn stage_model(
             .with("control", Arc::new(control), DT)?;
     let stance = phase.stance_feet();
     let load = solo.model.total_mass() * solo.model.gravity.linear.z.abs() / stance.len() as f64;
-    let touchdowns = gait.touchdowns(node);
+    // The stage object of node 0 also serves nodes L, 2L, ... of the rotating horizon (L a
+    // whole number of periods), where FL and HR land; at node 0 itself they stand at the
+    // fixed initial state, where the impact cost is a constant.
+    let touchdowns = gait.touchdowns(node + gait.period());
     let mut terms = FeetTerms::default();
     if W_FORCE > 0.0 {
         // One contact solve for the forces of all stance feet.
@@ -1184,7 +1187,8 @@ mod tests {
             let v = [target[nq], target[nq + 1], target[nq + 2]];
             assert!((v[0] - COMMAND[0]).abs() < 1e-12 && (v[2] - plane[1] * v[0] - plane[2] * v[1]).abs() < 1e-12);
         }
-        // Two swing feet on 36 of the 40 nodes, two landing feet at node 20.
-        assert_eq!((fly_high, impacts), (2 * 36, 2));
+        // Two swing feet on 36 of the 40 nodes; FR and HL land at node 20, FL and HR at node
+        // 40, stage object 0.
+        assert_eq!((fly_high, impacts), (2 * 36, 4));
     }
 }
