@@ -30,7 +30,7 @@
 //! | state `x ⊖ x_ref(t)`, `x_ref` the standing posture moved along the command, with the command as base velocity (`ℓ_reg` and `ℓ_base`) | base z, roll, pitch: [`W_BASE_POSE`]; yaw: [`W_YAW`]; joints: [`W_JOINTS`]; base linear velocity: [`W_BASE_VELOCITY`]; base angular velocity: [`W_BASE_RATE`]; joint velocities: [`W_JOINT_VELOCITY`] |
 //! | control `u − u_qs`, the quasi-static torque of the standing robot | [`W_CONTROL`] |
 //! | contact forces `λ_j − (0, 0, mg/n_c)` of the stance feet | [`W_FORCE`] |
-//! | fly-high `v_xy(f) e^{−50 z(f)}` of the swing feet | [`W_FLY_HIGH`] |
+//! | fly-high `v_xy(f) e^{−50 h(f)}` of the swing feet, `h` the height above the estimated ground | [`W_FLY_HIGH`] |
 //! | impact: height `z(f)` and velocity `v(f)` of a foot at its touchdown node (not times `Δt`) | [`W_IMPACT`], [`W_IMPACT_VELOCITY`] |
 //!
 //! The terminal cost is the state term of the last stage's time (not times `Δt`).
@@ -69,29 +69,48 @@
 //! state): the controller keeps the last contact point of each foot (the feet in stance
 //! at the measured state) and fits the plane `z = a + b x + c y` through the four; the
 //! base height target is the standing height above that plane where the base is
-//! predicted to be (the measured position moved with the command), and a landing foot's
-//! height target is the plane's height under it. The contact model itself stays flat
-//! (no position gain), and the friction cones vertical.
+//! predicted to be (the measured position moved with the command), its vertical velocity
+//! target the command's climb along the plane, a landing foot's height target the
+//! plane's height under it, and the swing feet's fly-high cost measures their height
+//! above the plane. The contact model itself stays flat (no position gain), and the
+//! friction cones vertical.
 //!
 //! **Results** (`gharial simulate NAME --duration 10`, release build, one thread, 834
 //! cycles of one iteration each; the machine shared with other jobs):
 //!
 //! | scenario | base height / standing | mean velocity, 2nd half | friction cones |
 //! |---|---|---|---|
-//! | `solo-walk-mpc` | 1.000 – 1.034 | 0.191 m/s (4.7 % below the command) | inside by 0.80 N or more |
-//! | `solo-walk-mpc-slope` | 0.935 – 1.001 | 0.192 m/s (4.1 % below) | inside by 0.16 N or more |
-//! | `--slope -0.1` (downhill) | 0.395 – 1.107 | 0.116 m/s (42 % below) | out by up to 37 N |
+//! | `solo-walk-mpc` | 1.000 – 1.020 | 0.190 m/s (5.1 % below the command) | inside by 1.20 N or more |
+//! | `solo-walk-mpc-slope` (0.1 rad uphill) | 1.000 – 1.020 | 0.188 m/s (6.2 % below) | inside by 0.55 N or more |
+//! | `--slope 0.2` | 0.993 – 1.012 | 0.183 m/s (8.7 % below) | out by up to 0.19 N |
+//! | `--slope -0.05` (downhill) | 1.000 – 1.018 | 0.190 m/s (4.9 % below) | inside by 1.31 N or more |
+//! | `--slope -0.1` | 1.000 – 1.017 | 0.190 m/s (5.1 % below) | inside by 1.22 N or more |
+//! | `--slope -0.2` | 0.996 – 1.020 | 0.188 m/s (6.0 % below) | inside by 0.91 N or more |
+//! | `--speed 0.3` (flat) | 1.000 – 1.029 | 0.286 m/s (4.6 % below) | out by up to 0.59 N |
 //!
 //! Without the terrain estimate the controller kept the base at its standing height
-//! above `z = 0` on the slope while the ground rose 0.19 m, and the base ended 8 cm above
-//! the ground (0.365 of the standing height). Downhill the robot falls behind the
-//! command from the start and sinks after 4 s: a foot landing above the ground is pulled
-//! onto it by the plant's bilateral contact, a force no real ground exerts and the
-//! controller does not plan. Over the tests' 1.5 s (`tests/solo_walk.rs`) the flat and
-//! uphill scenarios keep the base within 8 % of the standing height, the velocity within
-//! 7 % of the command and every stance force inside its cone. Each stage solves the
-//! contact dynamics and their derivatives once: its dynamics, its stacked contact-force
-//! cost and its stacked friction cones ([`StackedContactResidual`]) share the solve
+//! above `z = 0` on the slope while the ground rose 0.19 m, and the base ended 8 cm
+//! above the ground (0.365 of the standing height). With the fly-high cost measured
+//! from `z = 0` instead of the estimated ground, its factor grew as `e^{50 · 0.1 x}`
+//! with the distance `x` walked downhill: the plan kept the swing feet ever higher,
+//! they reached their touchdown nodes 3 to 6 cm above the ground and the plant's
+//! bilateral contacts pulled them onto it (a force no real ground exerts, out of the
+//! cones by 50 N), and the base sank to 0.49 of its height with the velocity 39 % below
+//! the command; uphill the term vanished (flat and uphill 0.1 then: 1.000 – 1.034 and
+//! 0.935 – 1.001, 4.7 % and 4.1 % below, inside by 0.80 N and 0.16 N; 0.2 rad: 0.846 –
+//! 1.000, 5.7 %, out by 0.97 N). With the term active uphill the robot trails the
+//! command a little more. The plant's contacts stay bilateral from the scheduled
+//! touchdown on, a foot that reaches its touchdown node above the ground pulled onto
+//! it; over the 10 s the feet reach it 4.2 to 4.5 mm above flat ground (after the first
+//! steps), downhill the front feet 7.9 mm and the hind feet 2.8 mm above, uphill the
+//! front feet 0.7 mm below and the hind feet 5 mm above (their height targets are taken
+//! under the feet's standing positions, not where they land), and no stance foot's
+//! normal force falls below 3.4 N: the plant never pulls. Over the tests' 1.5 s
+//! (`tests/solo_walk.rs`) the flat, uphill and downhill (−0.1 rad) scenarios keep the
+//! base within 8 % of the standing height, the velocity within 7 % of the command and
+//! every stance force inside its cone. Each stage solves the contact dynamics and their
+//! derivatives once: its dynamics, its stacked contact-force cost and its stacked
+//! friction cones ([`StackedContactResidual`]) share the solve
 //! ([`MultibodyConstraintFwdDynamics::shared_contact_data`]); a cycle skips the
 //! derivatives at its end ([`MpcOptions::final_residuals`]), which the next cycle's
 //! shifted problem would not use.
