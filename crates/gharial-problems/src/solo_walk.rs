@@ -30,7 +30,7 @@
 //! | state `x ⊖ x_ref(t)`, `x_ref` the standing posture moved along the command, with the command as base velocity (`ℓ_reg` and `ℓ_base`) | base z, roll, pitch: [`W_BASE_POSE`]; yaw: [`W_YAW`]; joints: [`W_JOINTS`]; base linear velocity: [`W_BASE_VELOCITY`]; base angular velocity: [`W_BASE_RATE`]; joint velocities: [`W_JOINT_VELOCITY`] |
 //! | control `u − u_qs`, the quasi-static torque of the standing robot | [`W_CONTROL`] |
 //! | contact forces `λ_j − (0, 0, mg/n_c)` of the stance feet | [`W_FORCE`] |
-//! | fly-high `v_xy(f) e^{−50 z(f)}` of the swing feet | [`W_FLY_HIGH`] |
+//! | fly-high `v_xy(f) e^{−50 h(f)}` of the swing feet, `h` the height above the estimated ground | [`W_FLY_HIGH`] |
 //! | impact: height `z(f)` and velocity `v(f)` of a foot at its touchdown node (not times `Δt`) | [`W_IMPACT`], [`W_IMPACT_VELOCITY`] |
 //!
 //! The terminal cost is the state term of the last stage's time (not times `Δt`).
@@ -69,29 +69,48 @@
 //! state): the controller keeps the last contact point of each foot (the feet in stance
 //! at the measured state) and fits the plane `z = a + b x + c y` through the four; the
 //! base height target is the standing height above that plane where the base is
-//! predicted to be (the measured position moved with the command), and a landing foot's
-//! height target is the plane's height under it. The contact model itself stays flat
-//! (no position gain), and the friction cones vertical.
+//! predicted to be (the measured position moved with the command), its vertical velocity
+//! target the command's climb along the plane, a landing foot's height target the
+//! plane's height under it, and the swing feet's fly-high cost measures their height
+//! above the plane. The contact model itself stays flat (no position gain), and the
+//! friction cones vertical.
 //!
 //! **Results** (`gharial simulate NAME --duration 10`, release build, one thread, 834
 //! cycles of one iteration each; the machine shared with other jobs):
 //!
 //! | scenario | base height / standing | mean velocity, 2nd half | friction cones |
 //! |---|---|---|---|
-//! | `solo-walk-mpc` | 1.000 – 1.034 | 0.191 m/s (4.7 % below the command) | inside by 0.80 N or more |
-//! | `solo-walk-mpc-slope` | 0.935 – 1.001 | 0.192 m/s (4.1 % below) | inside by 0.16 N or more |
-//! | `--slope -0.1` (downhill) | 0.395 – 1.107 | 0.116 m/s (42 % below) | out by up to 37 N |
+//! | `solo-walk-mpc` | 1.000 – 1.020 | 0.190 m/s (5.1 % below the command) | inside by 1.20 N or more |
+//! | `solo-walk-mpc-slope` (0.1 rad uphill) | 1.000 – 1.020 | 0.188 m/s (6.2 % below) | inside by 0.55 N or more |
+//! | `--slope 0.2` | 0.993 – 1.012 | 0.183 m/s (8.7 % below) | out by up to 0.19 N |
+//! | `--slope -0.05` (downhill) | 1.000 – 1.018 | 0.190 m/s (4.9 % below) | inside by 1.31 N or more |
+//! | `--slope -0.1` | 1.000 – 1.017 | 0.190 m/s (5.1 % below) | inside by 1.22 N or more |
+//! | `--slope -0.2` | 0.996 – 1.020 | 0.188 m/s (6.0 % below) | inside by 0.91 N or more |
+//! | `--speed 0.3` (flat) | 1.000 – 1.029 | 0.286 m/s (4.6 % below) | out by up to 0.59 N |
 //!
 //! Without the terrain estimate the controller kept the base at its standing height
-//! above `z = 0` on the slope while the ground rose 0.19 m, and the base ended 8 cm above
-//! the ground (0.365 of the standing height). Downhill the robot falls behind the
-//! command from the start and sinks after 4 s: a foot landing above the ground is pulled
-//! onto it by the plant's bilateral contact, a force no real ground exerts and the
-//! controller does not plan. Over the tests' 1.5 s (`tests/solo_walk.rs`) the flat and
-//! uphill scenarios keep the base within 8 % of the standing height, the velocity within
-//! 7 % of the command and every stance force inside its cone. Each stage solves the
-//! contact dynamics and their derivatives once: its dynamics, its stacked contact-force
-//! cost and its stacked friction cones ([`StackedContactResidual`]) share the solve
+//! above `z = 0` on the slope while the ground rose 0.19 m, and the base ended 8 cm
+//! above the ground (0.365 of the standing height). With the fly-high cost measured
+//! from `z = 0` instead of the estimated ground, its factor grew as `e^{50 · 0.1 x}`
+//! with the distance `x` walked downhill: the plan kept the swing feet ever higher,
+//! they reached their touchdown nodes 3 to 6 cm above the ground and the plant's
+//! bilateral contacts pulled them onto it (a force no real ground exerts, out of the
+//! cones by 50 N), and the base sank to 0.49 of its height with the velocity 39 % below
+//! the command; uphill the term vanished (flat and uphill 0.1 then: 1.000 – 1.034 and
+//! 0.935 – 1.001, 4.7 % and 4.1 % below, inside by 0.80 N and 0.16 N; 0.2 rad: 0.846 –
+//! 1.000, 5.7 %, out by 0.97 N). With the term active uphill the robot trails the
+//! command a little more. The plant's contacts stay bilateral from the scheduled
+//! touchdown on, a foot that reaches its touchdown node above the ground pulled onto
+//! it; over the 10 s the feet reach it 4.2 to 4.5 mm above flat ground (after the first
+//! steps), downhill the front feet 7.9 mm and the hind feet 2.8 mm above, uphill the
+//! front feet 0.7 mm below and the hind feet 5 mm above (their height targets are taken
+//! under the feet's standing positions, not where they land), and no stance foot's
+//! normal force falls below 3.4 N: the plant never pulls. Over the tests' 1.5 s
+//! (`tests/solo_walk.rs`) the flat, uphill and downhill (−0.1 rad) scenarios keep the
+//! base within 8 % of the standing height, the velocity within 7 % of the command and
+//! every stance force inside its cone. Each stage solves the contact dynamics and their
+//! derivatives once: its dynamics, its stacked contact-force cost and its stacked
+//! friction cones ([`StackedContactResidual`]) share the solve
 //! ([`MultibodyConstraintFwdDynamics::shared_contact_data`]); a cycle skips the
 //! derivatives at its end ([`MpcOptions::final_residuals`]), which the next cycle's
 //! shifted problem would not use.
@@ -376,9 +395,8 @@ pub struct WalkTask {
     /// The state cost of each stage object.
     state_costs: Vec<Arc<QuadraticStateCost>>,
     terminal: Arc<QuadraticStateCost>,
-    /// The impact residuals of each stage object: the foot and its translation residual,
-    /// whose height target follows the terrain estimate.
-    impacts: Vec<Vec<(usize, Arc<FrameTranslationResidual>)>>,
+    /// The terrain-following foot terms of each stage object.
+    feet_terms: Vec<FeetTerms>,
     /// Scratch for the state target (set in place after each shift).
     x_ref: Mutex<Vec<f64>>,
     /// The controller's estimate of the ground from the feet's contact points.
@@ -510,7 +528,7 @@ impl WalkTask {
         let weights = state_weights(solo.model.nv());
         let mut stages = Vec::with_capacity(len);
         let mut state_costs = Vec::with_capacity(len);
-        let mut impacts = Vec::with_capacity(len);
+        let mut feet_terms = Vec::with_capacity(len);
         for node in 0..len {
             let cost = Arc::new(QuadraticStateCost::diagonal(
                 solo.space.clone(),
@@ -518,10 +536,10 @@ impl WalkTask {
                 &weights,
                 u_stand.len(),
             )?);
-            let (stage, impact) = stage_model(&solo, &gait, node, &dynamics, &u_stand, cost.clone())?;
+            let (stage, terms) = stage_model(&solo, &gait, node, &dynamics, &u_stand, cost.clone())?;
             stages.push(stage);
             state_costs.push(cost);
-            impacts.push(impact);
+            feet_terms.push(terms);
         }
         let terminal = Arc::new(QuadraticStateCost::diagonal(solo.space.clone(), &solo.x0, &weights, 0)?);
         let task = Self {
@@ -532,7 +550,7 @@ impl WalkTask {
             stages,
             state_costs,
             terminal,
-            impacts,
+            feet_terms,
             x_ref: Mutex::new(solo.x0.clone()),
             terrain: Mutex::new(Terrain::new(&solo)?),
             solo,
@@ -546,7 +564,9 @@ impl WalkTask {
 
     /// The state target at time `t`: the standing posture moved along the command, its
     /// height above the estimated ground where the base is predicted to be, with the
-    /// command (ramped up over [`RAMP`] from rest) as base velocity.
+    /// command (ramped up over [`RAMP`] from rest) as horizontal base velocity and the
+    /// vertical velocity that keeps the base at that height along the estimated plane
+    /// (the target's base is level: its frame's axes are the world's).
     fn write_target(&self, t: f64, terrain: &Terrain, x_ref: &mut [f64]) {
         let nq = self.solo.nq();
         let (ramp, distance) = command_ramp(t);
@@ -555,8 +575,11 @@ impl WalkTask {
         x_ref[1] += self.command[1] * distance;
         let [bx, by] = terrain.base_at(t, self.command);
         x_ref[2] = self.x0[2] + terrain.height(bx, by);
-        x_ref[nq] = self.command[0] * ramp;
-        x_ref[nq + 1] = self.command[1] * ramp;
+        let [_, slope_x, slope_y] = terrain.plane;
+        let v = [self.command[0] * ramp, self.command[1] * ramp];
+        x_ref[nq] = v[0];
+        x_ref[nq + 1] = v[1];
+        x_ref[nq + 2] = slope_x * v[0] + slope_y * v[1];
     }
 
     /// Sets the state target of stage object `id` (gait node `id`) for time `t`.
@@ -573,9 +596,13 @@ impl WalkTask {
         self.set_target(cost, t)?;
         let terrain = self.lock_terrain()?;
         let [bx, by] = terrain.base_at(t, self.command);
-        for (j, r) in &self.impacts[id] {
+        let terms = &self.feet_terms[id];
+        for (j, r) in &terms.impacts {
             let [dx, dy] = terrain.feet_offsets[*j];
             r.set_target(&[0.0, 0.0, terrain.height(bx + dx, by + dy)])?;
+        }
+        for r in &terms.fly_high {
+            r.set_ground(&terrain.plane)?;
         }
         Ok(())
     }
@@ -712,11 +739,18 @@ pub struct FirstPlan {
     pub dual_err: f64,
 }
 
-/// The residuals of the impact costs of a stage: foot and translation residual.
-type Impacts = Vec<(usize, Arc<FrameTranslationResidual>)>;
+/// The foot terms of a stage that follow the terrain estimate.
+#[derive(Default)]
+struct FeetTerms {
+    /// Impact costs: the foot (index into [`FEET`]) and its translation residual, whose
+    /// height target is the estimated ground under the foot.
+    impacts: Vec<(usize, Arc<FrameTranslationResidual>)>,
+    /// Fly-high residuals of the swing feet, measured from the estimated ground plane.
+    fly_high: Vec<Arc<FlyHighResidual>>,
+}
 
 /// The stage of gait node `node` (module documentation), its state cost `state`; and its
-/// impact residuals.
+/// foot terms that follow the terrain.
 fn stage_model(
     solo: &Solo,
     gait: &Gait,
@@ -724,7 +758,7 @@ fn stage_model(
     dynamics: &[Arc<MultibodyConstraintFwdDynamics>],
     u_stand: &[f64],
     state: Arc<QuadraticStateCost>,
-) -> Result<(StageModel, Impacts)> {
+) -> Result<(StageModel, FeetTerms)> {
     let phase = gait.phase(node);
     let dyn_ = &dynamics[phase.index()];
     let (space, nu): (Arc<dyn Manifold>, usize) = (solo.space.clone(), u_stand.len());
@@ -735,8 +769,11 @@ fn stage_model(
             .with("control", Arc::new(control), DT)?;
     let stance = phase.stance_feet();
     let load = solo.model.total_mass() * solo.model.gravity.linear.z.abs() / stance.len() as f64;
-    let touchdowns = gait.touchdowns(node);
-    let mut impacts = Vec::new();
+    // The stage object of node 0 also serves nodes L, 2L, ... of the rotating horizon (L a
+    // whole number of periods), where FL and HR land; at node 0 itself they stand at the
+    // fixed initial state, where the impact cost is a constant.
+    let touchdowns = gait.touchdowns(node + gait.period());
+    let mut terms = FeetTerms::default();
     if W_FORCE > 0.0 {
         // One contact solve for the forces of all stance feet.
         let parts = (0..stance.len())
@@ -750,13 +787,14 @@ fn stage_model(
         let name = FEET[j];
         let stance_index = stance.iter().position(|&s| s == j);
         if stance_index.is_none() {
-            let r = Unary::new(Arc::new(FlyHighResidual::new(&solo.space, name, FLY_HIGH_SLOPE)?), nu);
-            let c = QuadraticResidualCost::diagonal(Arc::new(r), &[W_FLY_HIGH; 2])?;
+            let f = Arc::new(FlyHighResidual::new(&solo.space, name, FLY_HIGH_SLOPE)?);
+            terms.fly_high.push(f.clone());
+            let c = QuadraticResidualCost::diagonal(Arc::new(Unary::new(f, nu)), &[W_FLY_HIGH; 2])?;
             cost = cost.with(format!("fly_high_{name}"), Arc::new(c), DT)?;
         }
         if touchdowns[j] {
             let r = Arc::new(FrameTranslationResidual::new(&solo.space, name, &[0.0; 3])?);
-            impacts.push((j, r.clone()));
+            terms.impacts.push((j, r.clone()));
             let p = Unary::new(r, nu);
             let z: Arc<dyn StageFunction> = Arc::new(Slice::new(Arc::new(p), &[2])?);
             let c = QuadraticResidualCost::diagonal(z, &[W_IMPACT])?;
@@ -788,7 +826,7 @@ fn stage_model(
         .actuated_dofs()
         .ok_or_else(|| Error::InvalidModel("solo_walk: the actuation is not a joint selection".into()))?;
     stage.add_constraint(effort_limits(&solo.space, &dofs)?)?;
-    Ok((stage, impacts))
+    Ok((stage, terms))
 }
 
 /// The ground plane `z = tan(slope) x` (module documentation).
@@ -1129,5 +1167,47 @@ mod tests {
             assert!((cost.error().target()[2] - x[2]).abs() < 1e-9);
         }
         assert!(task.follow_terrain(0, &x[1..]).is_err());
+    }
+
+    /// On an estimated plane `z = a + b x + c y`, every swing foot's fly-high cost is
+    /// measured from that plane, every landing foot's height target is the plane's height
+    /// under the foot, and the base velocity target climbs the plane with the command.
+    #[test]
+    fn the_foot_and_velocity_targets_follow_the_estimated_plane() {
+        let task = WalkTask::new(Gait::default(), COMMAND).unwrap();
+        let plane = [0.03, -0.1, 0.02];
+        let t = 1.0;
+        {
+            let mut terrain = task.lock_terrain().unwrap();
+            terrain.plane = plane;
+            terrain.time = t;
+        }
+        let len = task.stages.len();
+        for id in 0..len {
+            task.set_stage_target(id, t + id as f64 * DT).unwrap();
+        }
+        let terrain = task.lock_terrain().unwrap();
+        let ground = |x: f64, y: f64| plane[0] + plane[1] * x + plane[2] * y;
+        let (mut fly_high, mut impacts) = (0, 0);
+        for (id, terms) in task.feet_terms.iter().enumerate() {
+            for r in &terms.fly_high {
+                assert_eq!(r.ground(), plane);
+                fly_high += 1;
+            }
+            let [bx, by] = terrain.base_at(t + id as f64 * DT, COMMAND);
+            for (j, r) in &terms.impacts {
+                let [dx, dy] = terrain.feet_offsets[*j];
+                assert!((r.target()[2] - ground(bx + dx, by + dy)).abs() < 1e-12);
+                impacts += 1;
+            }
+            let target = task.state_costs[id].error().target();
+            let nq = task.solo.nq();
+            assert!((target[2] - task.x0[2] - ground(bx, by)).abs() < 1e-12);
+            let v = [target[nq], target[nq + 1], target[nq + 2]];
+            assert!((v[0] - COMMAND[0]).abs() < 1e-12 && (v[2] - plane[1] * v[0] - plane[2] * v[1]).abs() < 1e-12);
+        }
+        // Two swing feet on 36 of the 40 nodes; FR and HL land at node 20, FL and HR at node
+        // 40, stage object 0.
+        assert_eq!((fly_high, impacts), (2 * 36, 4));
     }
 }

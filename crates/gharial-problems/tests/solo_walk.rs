@@ -1,7 +1,7 @@
 //! The Solo-12 trot in closed loop (`solo-walk-mpc`, `solo-walk-mpc-slope`): the gait
-//! schedule, the first OCP, short closed loops on flat and sloped ground (the base stays
-//! up, the base follows the command, the stance forces stay in their friction cones), and
-//! no allocation per MPC cycle with the plant stepping in between.
+//! schedule, the first OCP, short closed loops on flat ground, up and down the slope (the
+//! base stays up, the base follows the command, the stance forces stay in their friction
+//! cones), and no allocation per MPC cycle with the plant stepping in between.
 
 #[path = "../../gharial/tests/support/counting_alloc.rs"]
 mod counting_alloc;
@@ -23,7 +23,11 @@ fn metric(ms: &[Metric], name: &str) -> f64 {
 
 /// `seconds` of closed loop of scenario `name`, with its metrics.
 fn closed_loop(name: &str, seconds: f64) -> (MpcScenario, Record, Vec<Metric>) {
-    let mut sc = scenario(name).unwrap();
+    run_closed_loop(name, scenario(name).unwrap(), seconds)
+}
+
+/// `seconds` of closed loop of `sc` (reported as `name`), with its metrics.
+fn run_closed_loop(name: &str, mut sc: MpcScenario, seconds: f64) -> (MpcScenario, Record, Vec<Metric>) {
     let mut mpc = sc.controller(ProxDdp::new(sc.example.proxddp.clone())).unwrap();
     let rec = sc.run(&mut mpc, seconds).unwrap();
     let ms = sc.metrics(&rec).unwrap();
@@ -110,6 +114,18 @@ fn closed_loop_on_flat_ground() {
 fn closed_loop_on_the_unmodelled_slope() {
     let (_, rec, ms) = closed_loop("solo-walk-mpc-slope", 1.5);
     check_walk("solo-walk-mpc-slope", &rec, &ms, gharial_problems::solo_walk::SLOPE);
+}
+
+/// Downhill the swing feet's fly-high cost is measured from the estimated ground (from
+/// `z = 0` it grew as `e^{50 · 0.1 x}` with the distance walked, the feet landed ever
+/// higher above the ground and were pulled onto it, the forces leaving their cones
+/// within 1.5 s).
+#[test]
+fn closed_loop_downhill() {
+    let slope = -gharial_problems::solo_walk::SLOPE;
+    let sc = gharial_problems::solo_walk::scenario(slope, COMMAND).unwrap();
+    let (_, rec, ms) = run_closed_loop("downhill", sc, 1.5);
+    check_walk("downhill", &rec, &ms, slope);
 }
 
 /// A closed loop driven cycle by cycle: MPC solve, then the policy on the plant.

@@ -134,7 +134,9 @@ fn frame_residual_jacobians_match_finite_differences() {
                     check_unary(Arc::new(f), &space, &x, &what(&format!("velocity {rf:?}")));
                 }
                 let f = Arc::new(FlyHighResidual::new(&space, name, 3.0).unwrap());
-                check_unary(f, &space, &x, &what("fly-high"));
+                check_unary(f.clone(), &space, &x, &what("fly-high"));
+                f.set_ground(&[0.3, -0.2, 0.1]).unwrap();
+                check_unary(f, &space, &x, &what("fly-high above a tilted plane"));
             }
             let m_ab = frame_placement(&model, frames[0], q).inv_compose(&frame_placement(&model, frames[1], q));
             let m_ref = m_ab.compose(&exp6(&random_motion(&mut rng, 0.5)));
@@ -359,6 +361,14 @@ fn kinematic_values_equal_pinocchio() {
                 let v = vecf(&s["frame_velocity"][name]["LOCAL_WORLD_ALIGNED"]);
                 let e = (-slope * o_mf(name).translation.z).exp();
                 assert!(max_diff(&r, &[e * v[0], e * v[1]]) < TOL, "{}", ctx("fly-high"));
+                // Measured from the plane z = a + b x + c y under the frame.
+                let f = FlyHighResidual::new(&space, name, slope).unwrap();
+                let (a, b, c) = (-0.2, 0.1, -0.05);
+                f.set_ground(&[a, b, c]).unwrap();
+                let r = value_of(&f, &x);
+                let p = o_mf(name).translation;
+                let e = (-slope * (p.z - (a + b * p.x + c * p.y))).exp();
+                assert!(max_diff(&r, &[e * v[0], e * v[1]]) < TOL, "{}", ctx("fly-high, ground"));
             }
             let (a, b) = (&frames[0], &frames[1]);
             let xi = random_motion(&mut rng, 1.0);
@@ -886,6 +896,10 @@ fn bad_input_gives_clear_errors() {
     assert!(FrameRotationResidual::new(&space, "tool0", &reflection).is_err());
     assert!(RelativePlacementResidual::new(&space, "tool0", "tool0", &Se3::identity()).is_err());
     assert!(FlyHighResidual::new(&space, "tool0", f64::INFINITY).is_err());
+    let f = FlyHighResidual::new(&space, "tool0", 1.0).unwrap();
+    assert!(f.set_ground(&[0.0, f64::NAN, 0.0]).is_err());
+    assert!(f.set_ground(&[0.0; 2]).is_err());
+    assert_eq!(f.ground(), [0.0; 3]);
 
     // Rejected targets leave the old one.
     let f = FrameTranslationResidual::new(&space, "tool0", &[1.0, 2.0, 3.0]).unwrap();

@@ -9,7 +9,7 @@
 //! | [`FrameRotationResidual`] | `log3(R_refᵀ R_f(q))` | 3 | equality |
 //! | [`FrameVelocityResidual`] | `v_f(q, v) − v_ref` (LOCAL, WORLD or LWA) | 6 | equality |
 //! | [`RelativePlacementResidual`] | `log6(M_ref⁻¹ oMa⁻¹ oMb)` | 6 | equality |
-//! | [`FlyHighResidual`] | `v_xy(f) · exp(−slope · z(f))` | 2 | (cost) |
+//! | [`FlyHighResidual`] | `v_xy(f) · exp(−slope · (z(f) − z_ground(x, y)))`, the ground a settable plane (default `z = 0`) | 2 | (cost) |
 //! | [`CenterOfMassTranslationResidual`] | `c(q) − c_ref` | 3 | equality, box |
 //! | [`CenterOfMassVelocityResidual`] | `ċ(q, v) − ċ_ref` | 3 | equality |
 //! | [`GravityCompensationResidual`] | `B u − g(q)` | nv | (cost) |

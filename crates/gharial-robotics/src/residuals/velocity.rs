@@ -147,17 +147,19 @@ impl UnaryFunction for FrameVelocityResidual {
     }
 }
 
-/// The "fly-high" penalty of a swing foot: `r = v_xy(f) · exp(−slope · z(f))`
+/// The "fly-high" penalty of a swing foot: `r = v_xy(f) · exp(−slope · h(f))`
 /// (ALIGATOR's `FlyHighResidual`, after sobec's), with `v_xy` the horizontal velocity of
-/// the frame's origin (the first two LOCAL_WORLD_ALIGNED linear coordinates) and `z`
-/// its height; `nr = 2`. Penalising it makes the foot move horizontally only high
-/// above the ground.
+/// the frame's origin `p = (x, y, z)` (the first two LOCAL_WORLD_ALIGNED linear
+/// coordinates) and `h = z − (a + b x + c y)` its height above the ground plane
+/// `(a, b, c)` (`z = 0` unless set: [`FlyHighResidual::set_ground`]); `nr = 2`.
+/// Penalising it makes the foot move horizontally only high above the ground.
 ///
-/// Jacobian: `e^{−s z} (∂v_xy/∂x − s v_xy ∂z/∂x)`.
+/// Jacobian: `e^{−s h} (∂v_xy/∂x − s v_xy ∂h/∂x)`, `∂h = ∂z − b ∂x − c ∂y`.
 #[derive(Debug)]
 pub struct FlyHighResidual {
     velocity: FrameVelocityResidual,
     slope: f64,
+    ground: VectorTarget,
 }
 
 /// Scratch of [`FlyHighResidual`]: the data of its frame-velocity residual.
@@ -181,7 +183,12 @@ impl FlyHighResidual {
             ReferenceFrame::LocalWorldAligned,
             &[0.0; 6],
         )?;
-        Ok(Self { velocity, slope })
+        let ground = VectorTarget::new("FlyHighResidual ground plane", &[0.0; 3], 3)?;
+        Ok(Self {
+            velocity,
+            slope,
+            ground,
+        })
     }
 
     /// The decay rate.
@@ -189,11 +196,29 @@ impl FlyHighResidual {
         self.slope
     }
 
-    /// `(exp(−slope · z), v_LWA)` after a kinematic pass with velocities.
+    /// Moves the ground plane `z = a + b x + c y`, given as `(a, b, c)`, above which the
+    /// foot's height is measured (a swing foot over terrain that is not `z = 0`).
+    ///
+    /// # Errors
+    /// If `plane` does not have 3 finite entries; the plane is then unchanged.
+    pub fn set_ground(&self, plane: &[f64]) -> Result<()> {
+        self.ground.set(plane)
+    }
+
+    /// The ground plane `(a, b, c)`.
+    pub fn ground(&self) -> [f64; 3] {
+        let g = self.ground.vec3();
+        [g.x, g.y, g.z]
+    }
+
+    /// `(exp(−slope · h), v_LWA)` after a kinematic pass with velocities, `h` the height
+    /// above the ground plane.
     fn factor_and_velocity(&self, inner: &mut StageFunctionData) -> gharial_multibody::Result<(f64, Motion)> {
         let w: &mut MultibodyWs = ws(&mut inner.ws);
-        let z = self.velocity.frame.placement(&w.data).translation.z;
-        Ok(((-self.slope * z).exp(), self.velocity.velocity(w)?))
+        let p = self.velocity.frame.placement(&w.data).translation;
+        let [a, b, c] = self.ground();
+        let h = p.z - (a + b * p.x + c * p.y);
+        Ok(((-self.slope * h).exp(), self.velocity.velocity(w)?))
     }
 }
 
@@ -234,10 +259,12 @@ impl UnaryFunction for FlyHighResidual {
             return;
         };
         let (nv, j) = (self.velocity.layout.nv, &w.inner.jx);
+        let [_, b, c_y] = self.ground();
         for c in 0..nv {
-            let dz = j[(2, nv + c)];
+            // ∂p/∂q is the v-derivative of the LWA linear velocity.
+            let dh = j[(2, nv + c)] - b * j[(0, nv + c)] - c_y * j[(1, nv + c)];
             for (i, vi) in [v.linear.x, v.linear.y].into_iter().enumerate() {
-                data.jx[(i, c)] = e * (j[(i, c)] - self.slope * vi * dz);
+                data.jx[(i, c)] = e * (j[(i, c)] - self.slope * vi * dh);
                 data.jx[(i, nv + c)] = e * j[(i, nv + c)];
             }
         }
