@@ -110,3 +110,22 @@ def test_the_mpc_class_refuses_bad_input():
         mpc.solve(np.zeros(3))
     with pytest.raises(gharial.GharialError):
         mpc.solve(np.array([np.nan, 0.0, 0.0, 0.0]))
+
+
+def test_queued_stages_enter_the_horizon_in_turn():
+    from conftest import lqr_kkt, lqr_problem
+
+    horizon = lqr_problem(horizon=20)
+    queue = lqr_problem(horizon=2).stages  # the same LQR stages, queued
+    xs0, us0 = lqr_kkt()
+    mpc = gharial.MPC(horizon, gharial.solver("fddp"), xs0, us0, queue=queue, max_iters=20)
+    x = np.array([1.0, -0.5, 0.0, 0.2])
+    entered = []
+    for _ in range(4):
+        r = mpc.solve(x)
+        xs_ref, us_ref = lqr_kkt(x0=tuple(x))
+        np.testing.assert_allclose(np.array(r.us), np.array(us_ref), atol=1e-7)
+        entered.append(mpc.shift())
+    # The queue's stages (20, 21), then the stages that left in their turn (0, 1).
+    assert entered == [20, 21, 0, 1]
+    assert mpc.stage_ids[-1] == 1 and len(mpc.stage_ids) == 20
