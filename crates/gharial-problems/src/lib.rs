@@ -67,6 +67,7 @@ pub mod scenes;
 pub mod se2_car;
 pub mod solo_com_circle;
 pub mod solo_jump;
+pub mod solo_stance;
 pub mod solo_walk;
 pub mod ur10_ballistic;
 pub mod ur5_circle;
