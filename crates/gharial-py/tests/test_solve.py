@@ -228,6 +228,20 @@ def test_examples_run(example):
     assert "status=converged" in out
 
 
+def test_the_mpc_example_holds_the_point_against_the_unknown_push():
+    path = os.path.join(os.path.dirname(__file__), "..", "examples", "mpc_point_mass.py")
+    out = subprocess.run([sys.executable, path], capture_output=True, text=True, check=True).stdout
+    last = out.strip().splitlines()[-1]
+    u = np.array(last.split("[")[1].split("]")[0].split(), dtype=float)
+    u_max = float(last.rsplit(" ", 1)[1])
+    # At rest the applied force cancels the push (b u = -push: u = (-0.3, 0.2)); the
+    # force bound 2 holds to the augmented Lagrangian's slack of one iteration per cycle
+    # (measured 1.2e-4).
+    np.testing.assert_allclose(u, [-0.3, 0.2], atol=1e-3)
+    assert u_max <= 2.0 + 1e-3, last
+    assert "cycles 80" in out
+
+
 def test_proxnlp_kkt_option_dense_and_sparse_take_the_same_iterates():
     ex = gharial.problems.build("pendulum")
     runs = {}
