@@ -114,11 +114,19 @@ fn the_ur5_reach_plays_in_headless_chromium() {
     let profile = d.join("profile");
 
     // Played from the start, the animation advances (how far within the browser's
-    // virtual-time budget depends on its frame scheduling) without a console error.
-    let dom = headless(&bin, &profile, &url("play"), &["--dump-dom"]);
-    assert_eq!(body_attr(&dom, "data-errors"), "0", "console errors: {dom}");
-    let frame: usize = body_attr(&dom, "data-frame").parse().unwrap();
-    assert!((1..=100).contains(&frame), "did not play: frame {frame}");
+    // virtual-time budget depends on its frame scheduling: on a loaded machine a run
+    // may end before the first animation frame, so up to three runs) without a console
+    // error.
+    let mut frame = 0;
+    for _ in 0..3 {
+        let dom = headless(&bin, &profile, &url("play"), &["--dump-dom"]);
+        assert_eq!(body_attr(&dom, "data-errors"), "0", "console errors: {dom}");
+        frame = body_attr(&dom, "data-frame").parse().unwrap();
+        if frame > 0 {
+            break;
+        }
+    }
+    assert!((1..=100).contains(&frame), "did not play in three runs: frame {frame}");
     // Scrubbed to a time, it shows that node.
     let dom = headless(&bin, &profile, &url("t=0.5"), &["--dump-dom"]);
     assert_eq!(body_attr(&dom, "data-frame"), "50");
