@@ -208,12 +208,7 @@ pub fn setup(params: &CircleParams) -> Result<CircleSetup> {
     params.validate()?;
     let solo = Solo::load()?;
     let nq = solo.model.nq();
-    let contacts = solo.contacts(Phase::FourFeet, 0.0, 1.0 / DT)?;
-    let dynamics = Arc::new(MultibodyConstraintFwdDynamics::new(
-        solo.space.clone(),
-        solo.actuation.clone(),
-        contacts,
-    )?);
+    let dynamics = solo.contact_dynamics(Phase::FourFeet, DT)?;
     let u_stand = dynamics.quasi_static_torque(&solo.x0[..nq])?.u;
     let c0 = circle_start(&solo)?;
     let nu = u_stand.len();

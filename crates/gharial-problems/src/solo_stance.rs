@@ -80,12 +80,7 @@ pub fn setup(dy: f64, mu: Option<f64>) -> Result<StanceSetup> {
     }
     let solo = Solo::load()?;
     let (nq, nv) = (solo.model.nq(), solo.model.nv());
-    let contacts = solo.contacts(Phase::FourFeet, 0.0, 1.0 / DT)?;
-    let dynamics = Arc::new(MultibodyConstraintFwdDynamics::new(
-        solo.space.clone(),
-        solo.actuation.clone(),
-        contacts,
-    )?);
+    let dynamics = solo.contact_dynamics(Phase::FourFeet, DT)?;
     let mut data = solo.model.create_data();
     let u_grav = generalized_gravity(&solo.model, &mut data, &solo.x0[..nq])
         .map_err(|e| Error::InvalidModel(format!("solo_stance: generalised gravity: {e}")))?[6..]

@@ -343,8 +343,10 @@ impl Solo {
         gharial_robotics::contacts_at_frames(&self.model, &names, spec)
     }
 
-    fn contact_dynamics(&self, phase: Phase) -> Result<Arc<MultibodyConstraintFwdDynamics>> {
-        let contacts = self.contacts(phase, 0.0, 1.0 / DT)?;
+    /// The contact dynamics of the stance feet of `phase` for nodes of `dt`: no position
+    /// gain, the velocity gain `Kd = 1/dt` (the contact velocity damped in one node).
+    pub(crate) fn contact_dynamics(&self, phase: Phase, dt: f64) -> Result<Arc<MultibodyConstraintFwdDynamics>> {
+        let contacts = self.contacts(phase, 0.0, 1.0 / dt)?;
         Ok(Arc::new(MultibodyConstraintFwdDynamics::new(
             self.space.clone(),
             self.actuation.clone(),
@@ -520,7 +522,7 @@ impl WalkTask {
         let nq = solo.nq();
         let dynamics: Vec<_> = Phase::ALL
             .iter()
-            .map(|&p| solo.contact_dynamics(p))
+            .map(|&p| solo.contact_dynamics(p, DT))
             .collect::<Result<_>>()?;
         let u_stand = dynamics[0].quasi_static_torque(&solo.x0[..nq])?.u;
         let period = gait.period();
