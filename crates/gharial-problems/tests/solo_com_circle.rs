@@ -3,6 +3,9 @@
 //! contact dynamics) lie in their friction cones, on the boundary over the last 27
 //! stages, and whose CoM follows the circle.
 
+#[path = "support/cones.rs"]
+mod cones;
+
 use gharial::solvers::csqp::{Csqp, CsqpOptions};
 use gharial::solvers::proxddp::ProxDdp;
 use gharial::solvers::{InitialGuess, Solution, Solver};
@@ -52,18 +55,9 @@ fn solve_proxddp(s: &CircleSetup) -> Solution {
         .clone()
 }
 
-/// `‖f_t‖ − μ f_n` (N) of each foot at each stage, the forces recomputed by the contact
-/// dynamics at the solution.
+/// The cone margins of `sol` on the setup's contact dynamics.
 fn cone_margins(s: &CircleSetup, sol: &Solution) -> Vec<[f64; 4]> {
-    let mut d = s.dynamics.create_contact_data();
-    sol.us
-        .iter()
-        .zip(&sol.xs)
-        .map(|(u, x)| {
-            let f = s.dynamics.contact_forces(x, u, &mut d).unwrap();
-            std::array::from_fn(|j| f[3 * j].hypot(f[3 * j + 1]) - MU * f[3 * j + 2])
-        })
-        .collect()
+    cones::cone_margins(&s.dynamics, MU, sol)
 }
 
 /// The largest distance (m) between the CoM at node `t` and

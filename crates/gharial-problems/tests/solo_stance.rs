@@ -4,6 +4,9 @@
 //! recomputed by the contact dynamics, lie in their cones; without the cones the optimum
 //! leaves them.
 
+#[path = "support/cones.rs"]
+mod cones;
+
 use gharial::solvers::csqp::{Csqp, CsqpOptions};
 use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions};
 use gharial::solvers::{InitialGuess, Solution, Solver, Status};
@@ -47,18 +50,9 @@ fn csqp_tight(s: &StanceSetup) -> Solution {
         .clone()
 }
 
-/// `‖f_t‖ − μ f_n` (N) of each foot at each stage, the forces recomputed by the contact
-/// dynamics.
+/// The cone margins of `sol` on the setup's contact dynamics.
 fn cone_margins(s: &StanceSetup, sol: &Solution) -> Vec<[f64; 4]> {
-    let mut d = s.dynamics.create_contact_data();
-    sol.us
-        .iter()
-        .zip(&sol.xs)
-        .map(|(u, x)| {
-            let f = s.dynamics.contact_forces(x, u, &mut d).unwrap();
-            std::array::from_fn(|j| f[3 * j].hypot(f[3 * j + 1]) - MU * f[3 * j + 2])
-        })
-        .collect()
+    cones::cone_margins(&s.dynamics, MU, sol)
 }
 
 #[test]
