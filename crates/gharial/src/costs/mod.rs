@@ -85,6 +85,17 @@ pub struct HessianMut<'a> {
     pub luu: MatMut<'a, f64>,
 }
 
+impl<'a> HessianMut<'a> {
+    /// The blocks `lxx`, `lxu`, `luu` of whole matrices.
+    pub fn of(lxx: &'a mut Mat<f64>, lxu: &'a mut Mat<f64>, luu: &'a mut Mat<f64>) -> Self {
+        Self {
+            lxx: lxx.as_mut(),
+            lxu: lxu.as_mut(),
+            luu: luu.as_mut(),
+        }
+    }
+}
+
 impl HessianMut<'_> {
     /// A shorter-lived view of the same blocks.
     pub fn rb_mut(&mut self) -> HessianMut<'_> {

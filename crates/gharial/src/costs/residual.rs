@@ -196,11 +196,7 @@ fn write_own(data: &mut CostData, hessian: bool, add: impl FnOnce(&mut ResidualW
     let out = DerivativesMut {
         lx: slice_mut(lx),
         lu: slice_mut(lu),
-        hessian: hessian.then(|| HessianMut {
-            lxx: lxx.as_mut(),
-            lxu: lxu.as_mut(),
-            luu: luu.as_mut(),
-        }),
+        hessian: hessian.then(|| HessianMut::of(lxx, lxu, luu)),
     };
     add(downcast(ws), out);
     if hessian {
@@ -777,11 +773,7 @@ mod tests {
                     let out = DerivativesMut {
                         lx: crate::linalg::col_of_mut(&mut lx, 0),
                         lu: crate::linalg::col_of_mut(&mut lu, 0),
-                        hessian: Some(HessianMut {
-                            lxx: lxx.as_mut(),
-                            lxu: lxu.as_mut(),
-                            luu: luu.as_mut(),
-                        }),
+                        hessian: Some(HessianMut::of(&mut lxx, &mut lxu, &mut luu)),
                     };
                     cost.add_derivatives(&x, &u, &mut d, reuse, s, out);
                     let tol = 1e-12;
@@ -804,11 +796,7 @@ mod tests {
             let out = DerivativesMut {
                 lx: crate::linalg::col_of_mut(&mut lx, 0),
                 lu: crate::linalg::col_of_mut(&mut lu, 0),
-                hessian: Some(HessianMut {
-                    lxx: lxx.as_mut(),
-                    lxu: lxu.as_mut(),
-                    luu: luu.as_mut(),
-                }),
+                hessian: Some(HessianMut::of(&mut lxx, &mut lxu, &mut luu)),
             };
             barrier.add_derivatives(&x, &u, &mut d, false, 2.5, out);
             let zero_upper =

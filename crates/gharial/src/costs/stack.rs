@@ -226,11 +226,7 @@ impl Cost for CostStack {
             let out = DerivativesMut {
                 lx: slice_mut(lx),
                 lu: slice_mut(lu),
-                hessian: (!is_constant).then(|| HessianMut {
-                    lxx: lxx.as_mut(),
-                    lxu: lxu.as_mut(),
-                    luu: luu.as_mut(),
-                }),
+                hessian: (!is_constant).then(|| HessianMut::of(lxx, lxu, luu)),
             };
             // Just formed, the constant blocks are there to reuse.
             let reuse_k = ws.written[k] && (reuse || (rebuild && is_constant));
@@ -263,11 +259,7 @@ impl CostStack {
             let out = DerivativesMut {
                 lx,
                 lu,
-                hessian: Some(HessianMut {
-                    lxx: cxx.as_mut(),
-                    lxu: cxu.as_mut(),
-                    luu: cuu.as_mut(),
-                }),
+                hessian: Some(HessianMut::of(cxx, cxu, cuu)),
             };
             c.add_derivatives(x, u, d, reuse && ws.written[k], w, out);
             ws.written[k] = true;
