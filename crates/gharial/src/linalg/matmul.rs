@@ -12,6 +12,13 @@ use super::reduce::{dot, dot_fixed};
 /// takes 113 ns in faer, about 20 ns in the loops).
 const SMALL_PRODUCT: usize = 512;
 
+/// The same bound for [`matmul_lower`], whose loops do half the multiply-adds and faer's
+/// triangular product costs more per call: the Riccati stage's `[A B]ᵀ P [A B]` at
+/// `nx = 8`, `nu = 4` (1152 multiply-adds) is about 11 % of an LQR FDDP solve faster in
+/// the loops (per-process minima, 60 alternating runs), while raising [`SMALL_PRODUCT`]
+/// to 1024 makes that solve slower (faer's AVX-512 kernel wins on `P [A B]`).
+const SMALL_LOWER_PRODUCT: usize = 4 * SMALL_PRODUCT;
+
 /// `dst = alpha * lhs * rhs` (`Accum::Replace`) or `dst += alpha * lhs * rhs` (`Accum::Add`).
 #[inline]
 pub fn matmul(mut dst: MatMut<'_, f64>, accum: Accum, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>, alpha: f64) {
@@ -38,7 +45,7 @@ pub(crate) fn matmul_lower(
 ) {
     debug_assert_eq!((dst.nrows(), dst.ncols()), (lhs.nrows(), rhs.ncols()));
     debug_assert_eq!(lhs.ncols(), rhs.nrows());
-    if dst.nrows() * dst.ncols() * lhs.ncols() <= 2 * SMALL_PRODUCT
+    if dst.nrows() * dst.ncols() * lhs.ncols() <= SMALL_LOWER_PRODUCT
         && small_matmul(dst.rb_mut(), accum, lhs, rhs, alpha, true)
     {
         return;
