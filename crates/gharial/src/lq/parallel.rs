@@ -1,12 +1,12 @@
 //! The parallel proximal Riccati solver (see [`ParallelRiccatiSolver`]).
 
 use faer::prelude::ReborrowMut;
-use faer::{Accum, Col, Mat};
+use faer::{Accum, Col, Mat, MatRef};
 use rayon::{ThreadPool, ThreadPoolBuilder};
 
 use super::riccati::{InitialStage, Outputs, Pass, check_primal_reg, rollout, sweep};
 use super::stage::{ExtraGains, RiccatiStage, StageScratch};
-use super::{KnotDims, LqError, LqProblem, LqSolution, LqVectors, check_regularisation, check_same_dims};
+use super::{KnotDims, LqError, LqKnot, LqProblem, LqSolution, LqVectors, check_regularisation, check_same_dims};
 use crate::linalg::{self, BunchKaufman, FactorError, col_of, col_of_mut, matmul, matvec, matvec_t, slice, slice_mut};
 
 /// Relative cost of a knot of a parameterised leg with respect to a plain knot, used to
@@ -144,6 +144,79 @@ struct Boundary {
     saved: Vec<f64>,
 }
 
+impl Leg {
+    /// The leg of knots `s..end` (`end` is the next leg's first knot, or the horizon's
+    /// length for the last leg).
+    fn new(dims: &[KnotDims], s: usize, end: usize) -> Self {
+        let n_knots = dims.len();
+        let ntheta = if end < n_knots { dims[end].nx } else { 0 };
+        // Parameterised legs need the closed loop T = Ã + B̃K.
+        let extra = if end < n_knots {
+            ExtraGains::ClosedLoop
+        } else {
+            ExtraGains::None
+        };
+        let stages = (s..end)
+            .map(|t| {
+                let d = dims[t];
+                RiccatiStage::new(t, d.nx, d.nu, d.nc, d.nx_next, extra, d.nx_next.max(ntheta) + 1)
+            })
+            .collect();
+        Leg {
+            start: s,
+            stages,
+            scratch: StageScratch::new(&dims[s..end]),
+            param: (end < n_knots).then(|| LegParam::new(dims, s, end, ntheta)),
+            result: Ok(()),
+        }
+    }
+}
+
+impl LegParam {
+    /// The parameter storage of the leg `s..end` with a boundary co-state of size `ntheta`.
+    fn new(dims: &[KnotDims], s: usize, end: usize, ntheta: usize) -> Self {
+        let (max_nu, max_nk, max_ny) = (s..end).fold((0, 0, 0), |(a, b, c), t| {
+            (
+                a.max(dims[t].nu),
+                b.max(dims[t].nu + dims[t].nc),
+                c.max(dims[t].nx_next),
+            )
+        });
+        LegParam {
+            zero_P: Mat::zeros(ntheta, ntheta),
+            tail_p: Col::zeros(ntheta),
+            gamma: (s..=end).map(|t| Mat::zeros(dims[t].nx, ntheta)).collect(),
+            gamma_tilde: (s..end).map(|t| Mat::zeros(dims[t].nx_next, ntheta)).collect(),
+            omega: Mat::zeros(ntheta, ntheta),
+            omega_vec: Col::zeros(ntheta),
+            bg: Mat::zeros(max_nu, ntheta),
+            hbg: Mat::zeros(max_nu, ntheta),
+            kinv: Mat::zeros(max_nk, max_nu),
+            ggt: Mat::zeros(max_ny, ntheta),
+            gp: Col::zeros(max_ny),
+            x_end: Col::zeros(ntheta),
+            lambda_end: Col::zeros(ntheta),
+        }
+    }
+}
+
+impl Boundary {
+    /// The condensed system between the leg starting at `s` and the next, starting at `b`.
+    fn new(dims: &[KnotDims], s: usize, b: usize) -> Self {
+        let (ntheta, nxs) = (dims[b].nx, dims[s].nx);
+        Boundary {
+            b,
+            s,
+            kkt: Mat::zeros(2 * ntheta, 2 * ntheta),
+            bk: BunchKaufman::with_max_rhs(2 * ntheta, 1 + nxs),
+            gains: Mat::zeros(2 * ntheta, 1 + nxs),
+            hat_P: Mat::zeros(nxs, nxs),
+            hat_p: Col::zeros(nxs),
+            saved: vec![0.0; 2 * ntheta + nxs],
+        }
+    }
+}
+
 impl ParallelRiccatiSolver {
     /// Allocates a solver for problems with the dimensions of `problem`, split into
     /// `num_threads` legs (fewer for short horizons) run on a dedicated pool of at most
@@ -174,69 +247,14 @@ impl ParallelRiccatiSolver {
         let lp = ((n_knots as f64) / (n_legs as f64 - 1.0 + PARAM_COST)).floor().max(1.0) as usize;
         let mut starts: Vec<usize> = (0..n_legs).map(|j| j * lp).collect();
         starts.retain(|&s| s < n_knots);
-        let mut legs = Vec::with_capacity(starts.len());
-        for (j, &s) in starts.iter().enumerate() {
-            let end = starts.get(j + 1).copied().unwrap_or(n_knots);
-            let ntheta = if end < n_knots { dims[end].nx } else { 0 };
-            // Parameterised legs need the closed loop T = Ã + B̃K.
-            let extra = if end < n_knots {
-                ExtraGains::ClosedLoop
-            } else {
-                ExtraGains::None
-            };
-            let stages = (s..end)
-                .map(|t| {
-                    let d = dims[t];
-                    RiccatiStage::new(t, d.nx, d.nu, d.nc, d.nx_next, extra, d.nx_next.max(ntheta) + 1)
-                })
-                .collect();
-            let param = (end < n_knots).then(|| {
-                let (max_nu, max_nk, max_ny) = (s..end).fold((0, 0, 0), |(a, b, c), t| {
-                    (
-                        a.max(dims[t].nu),
-                        b.max(dims[t].nu + dims[t].nc),
-                        c.max(dims[t].nx_next),
-                    )
-                });
-                LegParam {
-                    zero_P: Mat::zeros(ntheta, ntheta),
-                    tail_p: Col::zeros(ntheta),
-                    gamma: (s..=end).map(|t| Mat::zeros(dims[t].nx, ntheta)).collect(),
-                    gamma_tilde: (s..end).map(|t| Mat::zeros(dims[t].nx_next, ntheta)).collect(),
-                    omega: Mat::zeros(ntheta, ntheta),
-                    omega_vec: Col::zeros(ntheta),
-                    bg: Mat::zeros(max_nu, ntheta),
-                    hbg: Mat::zeros(max_nu, ntheta),
-                    kinv: Mat::zeros(max_nk, max_nu),
-                    ggt: Mat::zeros(max_ny, ntheta),
-                    gp: Col::zeros(max_ny),
-                    x_end: Col::zeros(ntheta),
-                    lambda_end: Col::zeros(ntheta),
-                }
-            });
-            legs.push(Leg {
-                start: s,
-                stages,
-                scratch: StageScratch::new(&dims[s..end]),
-                param,
-                result: Ok(()),
-            });
-        }
-        let boundaries = (0..legs.len() - 1)
-            .map(|j| {
-                let (s, b) = (legs[j].start, legs[j + 1].start);
-                let (ntheta, nxs) = (dims[b].nx, dims[s].nx);
-                Boundary {
-                    b,
-                    s,
-                    kkt: Mat::zeros(2 * ntheta, 2 * ntheta),
-                    bk: BunchKaufman::with_max_rhs(2 * ntheta, 1 + nxs),
-                    gains: Mat::zeros(2 * ntheta, 1 + nxs),
-                    hat_P: Mat::zeros(nxs, nxs),
-                    hat_p: Col::zeros(nxs),
-                    saved: vec![0.0; 2 * ntheta + nxs],
-                }
-            })
+        let legs: Vec<Leg> = starts
+            .iter()
+            .enumerate()
+            .map(|(j, &s)| Leg::new(&dims, s, starts.get(j + 1).copied().unwrap_or(n_knots)))
+            .collect();
+        let boundaries = legs
+            .windows(2)
+            .map(|w| Boundary::new(&dims, w[0].start, w[1].start))
             .collect();
         let refinement =
             (refinement_steps > 0).then(|| (refinement_steps, LqVectors::new(problem), LqSolution::new(problem)));
@@ -541,106 +559,118 @@ impl LegParam {
     fn propagate(&mut self, stages: &mut [RiccatiStage], problem: &LqProblem, start: usize, pass: Pass) {
         let n = stages.len();
         let full = matches!(pass, Pass::Full { .. });
-        let nt = self.zero_P.nrows();
         if full {
             let e = &problem.knots[start + n - 1].E;
             linalg::copy_transposed(self.gamma[n].as_mut(), e.as_ref());
-            for j in 0..nt {
-                for i in 0..nt {
-                    self.gamma[n][(i, j)] = -self.gamma[n][(i, j)];
-                }
-            }
+            linalg::negate(self.gamma[n].as_mut());
             self.omega.fill(0.0);
         }
         self.omega_vec.fill(0.0);
         for i in (0..n).rev() {
-            let st = &mut stages[i];
-            let (nx, nu, nc, ny) = st.dims();
-            let mu = st.mu_dyn();
-            let (gamma_head, gamma_rest) = self.gamma.split_at_mut(i + 1);
-            let gp = gamma_rest[0].as_ref();
-            // Γ̃ = (I + P'G)⁻¹ Γ'.
-            if full && mu > 0.0 {
-                linalg::copy(self.gamma_tilde[i].as_mut(), gp);
-                st.prox_solve_in_place(self.gamma_tilde[i].as_mut());
-            }
-            let gt = if mu > 0.0 { self.gamma_tilde[i].as_ref() } else { gp };
-            // G Γ̃ and G p̃ (G = mu I when E = -I).
-            let ggt = self.ggt.as_mut().submatrix_mut(0, 0, ny, nt);
-            let gpv = &mut slice_mut(&mut self.gp)[..ny];
-            if mu > 0.0 {
-                if st.e_is_minus_identity() {
-                    if full {
-                        let mut ggt = ggt;
-                        for j in 0..nt {
-                            for r in 0..ny {
-                                ggt[(r, j)] = mu * gt[(r, j)];
-                            }
-                        }
-                    }
-                    for (a, b) in gpv.iter_mut().zip(st.ptilde_vec()) {
-                        *a = mu * b;
-                    }
-                } else {
-                    if full {
-                        matmul(ggt, Accum::Replace, st.g(), gt, 1.0);
-                    }
-                    matvec(gpv, Accum::Replace, st.g(), st.ptilde_vec(), 1.0);
-                }
-            }
-            if full {
-                // Ω -= Γ'ᵀ G Γ̃.
-                if mu > 0.0 {
-                    matmul(
-                        self.omega.as_mut(),
-                        Accum::Add,
-                        gp.transpose(),
-                        self.ggt.as_ref().submatrix(0, 0, ny, nt),
-                        -1.0,
-                    );
-                }
-                // Ω -= (B̃ᵀΓ̃)ᵀ H_uu (B̃ᵀΓ̃), H_uu from K⁻¹[I; 0].
-                if nu > 0 {
-                    let bt = st.b_tilde(&problem.knots[start + i]);
-                    let mut bg = self.bg.as_mut().submatrix_mut(0, 0, nu, nt);
-                    matmul(bg.rb_mut(), Accum::Replace, bt.transpose(), gt, 1.0);
-                    let mut kinv = self.kinv.as_mut().submatrix_mut(0, 0, nu + nc, nu);
-                    kinv.fill(0.0);
-                    for r in 0..nu {
-                        kinv[(r, r)] = 1.0;
-                    }
-                    st.kkt_solve_in_place(kinv.rb_mut());
-                    let huu = self.kinv.as_ref().submatrix(0, 0, nu, nu);
-                    let mut hbg = self.hbg.as_mut().submatrix_mut(0, 0, nu, nt);
-                    matmul(
-                        hbg.rb_mut(),
-                        Accum::Replace,
-                        huu,
-                        self.bg.as_ref().submatrix(0, 0, nu, nt),
-                        1.0,
-                    );
-                    matmul(
-                        self.omega.as_mut(),
-                        Accum::Add,
-                        self.bg.as_ref().submatrix(0, 0, nu, nt).transpose(),
-                        self.hbg.as_ref().submatrix(0, 0, nu, nt),
-                        -1.0,
-                    );
-                }
-                // Γ_t = Tᵀ Γ̃.
-                let t = st.z_gains().submatrix(0, 1, ny, nx);
-                matmul(gamma_head[i].as_mut(), Accum::Replace, t.transpose(), gt, 1.0);
-            }
-            // ω += Γ̃ᵀ t0 - Γ'ᵀ G p̃.
-            let w = slice_mut(&mut self.omega_vec);
-            matvec_t(w, Accum::Add, gt, st.z_feedforward(), 1.0);
-            if mu > 0.0 {
-                matvec_t(w, Accum::Add, gp, &slice(&self.gp)[..ny], -1.0);
-            }
+            self.propagate_knot(&mut stages[i], &problem.knots[start + i], i, full);
         }
         if full {
             linalg::symmetrize(self.omega.as_mut());
         }
+    }
+
+    /// One knot `i` of [`propagate`](Self::propagate): `Γ̃`, then `Ω`, `Γ_i` (matrix
+    /// pass) and `ω`.
+    fn propagate_knot(&mut self, st: &mut RiccatiStage, knot: &LqKnot, i: usize, full: bool) {
+        let (nx, nu, _, ny) = st.dims();
+        let nt = self.zero_P.nrows();
+        let mu = st.mu_dyn();
+        // Γ̃ = (I + P'G)⁻¹ Γ'.
+        if full && mu > 0.0 {
+            linalg::copy(self.gamma_tilde[i].as_mut(), self.gamma[i + 1].as_ref());
+            st.prox_solve_in_place(self.gamma_tilde[i].as_mut());
+        }
+        if mu > 0.0 {
+            self.g_products(st, i, full);
+        }
+        if full {
+            // Ω -= Γ'ᵀ G Γ̃.
+            if mu > 0.0 {
+                matmul(
+                    self.omega.as_mut(),
+                    Accum::Add,
+                    self.gamma[i + 1].as_ref().transpose(),
+                    self.ggt.as_ref().submatrix(0, 0, ny, nt),
+                    -1.0,
+                );
+            }
+            if nu > 0 {
+                self.subtract_control_curvature(st, knot, i);
+            }
+            // Γ_t = Tᵀ Γ̃.
+            let (head, rest) = self.gamma.split_at_mut(i + 1);
+            let gt = tilde(&rest[0], &self.gamma_tilde[i], mu);
+            let t = st.z_gains().submatrix(0, 1, ny, nx);
+            matmul(head[i].as_mut(), Accum::Replace, t.transpose(), gt, 1.0);
+        }
+        // ω += Γ̃ᵀ t0 - Γ'ᵀ G p̃.
+        let gt = tilde(&self.gamma[i + 1], &self.gamma_tilde[i], mu);
+        let w = slice_mut(&mut self.omega_vec);
+        matvec_t(w, Accum::Add, gt, st.z_feedforward(), 1.0);
+        if mu > 0.0 {
+            matvec_t(w, Accum::Add, self.gamma[i + 1].as_ref(), &slice(&self.gp)[..ny], -1.0);
+        }
+    }
+
+    /// `G Γ̃` (matrix pass) and `G p̃` at knot `i` (`G = mu I` when `E = -I`).
+    fn g_products(&mut self, st: &RiccatiStage, i: usize, full: bool) {
+        let (ny, nt, mu) = (st.dims().3, self.zero_P.nrows(), st.mu_dyn());
+        let gt = self.gamma_tilde[i].as_ref();
+        let mut ggt = self.ggt.as_mut().submatrix_mut(0, 0, ny, nt);
+        let gpv = &mut slice_mut(&mut self.gp)[..ny];
+        if st.e_is_minus_identity() {
+            if full {
+                for j in 0..nt {
+                    for r in 0..ny {
+                        ggt[(r, j)] = mu * gt[(r, j)];
+                    }
+                }
+            }
+            for (a, b) in gpv.iter_mut().zip(st.ptilde_vec()) {
+                *a = mu * b;
+            }
+        } else {
+            if full {
+                matmul(ggt, Accum::Replace, st.g(), gt, 1.0);
+            }
+            matvec(gpv, Accum::Replace, st.g(), st.ptilde_vec(), 1.0);
+        }
+    }
+
+    /// `Ω -= (B̃ᵀΓ̃)ᵀ H_uu (B̃ᵀΓ̃)` at knot `i`, `H_uu` from `K⁻¹[I; 0]`.
+    fn subtract_control_curvature(&mut self, st: &mut RiccatiStage, knot: &LqKnot, i: usize) {
+        let (_, nu, nc, _) = st.dims();
+        let nt = self.zero_P.nrows();
+        let gt = tilde(&self.gamma[i + 1], &self.gamma_tilde[i], st.mu_dyn());
+        let bt = st.b_tilde(knot);
+        let mut bg = self.bg.as_mut().submatrix_mut(0, 0, nu, nt);
+        matmul(bg.rb_mut(), Accum::Replace, bt.transpose(), gt, 1.0);
+        let mut kinv = self.kinv.as_mut().submatrix_mut(0, 0, nu + nc, nu);
+        kinv.fill(0.0);
+        for r in 0..nu {
+            kinv[(r, r)] = 1.0;
+        }
+        st.kkt_solve_in_place(kinv.rb_mut());
+        let huu = self.kinv.as_ref().submatrix(0, 0, nu, nu);
+        let bg = self.bg.as_ref().submatrix(0, 0, nu, nt);
+        let mut hbg = self.hbg.as_mut().submatrix_mut(0, 0, nu, nt);
+        matmul(hbg.rb_mut(), Accum::Replace, huu, bg, 1.0);
+        matmul(self.omega.as_mut(), Accum::Add, bg.transpose(), hbg.as_ref(), -1.0);
+    }
+}
+
+/// `Γ̃ = (I + P'G)⁻¹ Γ'` when the dynamics have a proximal term (`mu > 0`), `Γ'` itself
+/// otherwise.
+fn tilde<'a>(gamma_next: &'a Mat<f64>, gamma_tilde: &'a Mat<f64>, mu: f64) -> MatRef<'a, f64> {
+    if mu > 0.0 {
+        gamma_tilde.as_ref()
+    } else {
+        gamma_next.as_ref()
     }
 }
 

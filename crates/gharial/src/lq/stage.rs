@@ -222,21 +222,7 @@ impl RiccatiStage {
         self.mu_dyn = knot.mu_dyn;
         if ny > 0 {
             let P_next = P_next.expect("a knot with dynamics has a next value function");
-            // Step 1: [Ã B̃] = -E⁻¹[A B] unless E = -I.
-            self.e_fac.factor(knot.E.as_ref()).map_err(|e| match e {
-                FactorError::NonFinite => LqError::NonFinite {
-                    knot: self.index,
-                    field: "E",
-                },
-                FactorError::Singular { .. } => self.singular("dynamics matrix E"),
-            })?;
-            if !self.e_fac.is_minus_identity() {
-                let mut ab = self.ab_tilde.as_mut();
-                linalg::copy(ab.rb_mut().submatrix_mut(0, 0, ny, nx), knot.A.as_ref());
-                linalg::copy(ab.rb_mut().submatrix_mut(0, nx, ny, nu), knot.B.as_ref());
-                self.e_fac.solve_in_place(ab.rb_mut());
-                linalg::negate(ab);
-            }
+            self.dynamics_tilde(knot)?;
             // Step 2: P̃ = (I + P'G)⁻¹ P'.
             if self.mu_dyn > 0.0 {
                 self.factor_prox(P_next, scratch.m.as_mut().submatrix_mut(0, 0, ny, ny))?;
@@ -244,61 +230,87 @@ impl RiccatiStage {
                 self.prox.solve_in_place(&mut self.e_fac, self.ptilde.as_mut());
                 linalg::symmetrize(self.ptilde.as_mut());
             }
-            // Step 3: Q += [Ã B̃]ᵀ P̃ [Ã B̃] (lower triangle): two products on a contiguous
-            // [Ã B̃] (the knot's A and B copied side by side when small: fewer calls), five
-            // on the knot's A and B in place when large (no copy).
-            let pt = if self.mu_dyn > 0.0 {
-                self.ptilde.as_ref()
-            } else {
-                P_next
-            };
-            let n = nx + nu;
-            let contiguous = if !self.e_fac.is_minus_identity() {
-                Some(self.ab_tilde.as_ref())
-            } else if n <= SMALL_AB {
-                let mut ab = scratch.ab.as_mut().submatrix_mut(0, 0, ny, n);
-                linalg::copy(ab.rb_mut().subcols_mut(0, nx), knot.A.as_ref());
-                linalg::copy(ab.rb_mut().subcols_mut(nx, nu), knot.B.as_ref());
-                Some(scratch.ab.as_ref().submatrix(0, 0, ny, n))
-            } else {
-                None
-            };
-            let mut w = scratch.pab.as_mut().submatrix_mut(0, 0, ny, n);
-            let mut q = self.qmat.as_mut();
-            if let Some(ab) = contiguous {
-                matmul(w.rb_mut(), Accum::Replace, pt, ab, 1.0);
-                matmul_lower(q, Accum::Add, ab.transpose(), w.as_ref(), 1.0);
-            } else {
-                let (a, b) = (knot.A.as_ref(), knot.B.as_ref());
-                matmul(w.rb_mut().subcols_mut(0, nx), Accum::Replace, pt, a, 1.0);
-                matmul_lower(
-                    q.rb_mut().submatrix_mut(0, 0, nx, nx),
-                    Accum::Add,
-                    a.transpose(),
-                    w.as_ref().subcols(0, nx),
-                    1.0,
-                );
-                if nu > 0 {
-                    matmul(w.rb_mut().subcols_mut(nx, nu), Accum::Replace, pt, b, 1.0);
-                    matmul(
-                        q.rb_mut().submatrix_mut(nx, 0, nu, nx),
-                        Accum::Add,
-                        b.transpose(),
-                        w.as_ref().subcols(0, nx),
-                        1.0,
-                    );
-                    matmul_lower(
-                        q.rb_mut().submatrix_mut(nx, nx, nu, nu),
-                        Accum::Add,
-                        b.transpose(),
-                        w.as_ref().subcols(nx, nu),
-                        1.0,
-                    );
-                }
-            }
+            self.add_dynamics_curvature(knot, P_next, scratch);
         }
         linalg::symmetrize_from_lower(self.qmat.as_mut());
         Ok(())
+    }
+
+    /// Step 1: factors `E` and, unless `E = -I`, forms `[Ã B̃] = -E⁻¹[A B]`.
+    fn dynamics_tilde(&mut self, knot: &LqKnot) -> Result<(), LqError> {
+        let (nx, nu, ny) = (self.nx, self.nu, self.ny);
+        self.e_fac.factor(knot.E.as_ref()).map_err(|e| match e {
+            FactorError::NonFinite => LqError::NonFinite {
+                knot: self.index,
+                field: "E",
+            },
+            FactorError::Singular { .. } => self.singular("dynamics matrix E"),
+        })?;
+        if !self.e_fac.is_minus_identity() {
+            let mut ab = self.ab_tilde.as_mut();
+            linalg::copy(ab.rb_mut().submatrix_mut(0, 0, ny, nx), knot.A.as_ref());
+            linalg::copy(ab.rb_mut().submatrix_mut(0, nx, ny, nu), knot.B.as_ref());
+            self.e_fac.solve_in_place(ab.rb_mut());
+            linalg::negate(ab);
+        }
+        Ok(())
+    }
+
+    /// Step 3: `Q += [Ã B̃]ᵀ P̃ [Ã B̃]` (lower triangle; `P̃ = P'` without the dynamics'
+    /// proximal term): two products on a contiguous `[Ã B̃]` (the knot's `A` and `B`
+    /// copied side by side when small: fewer calls), five on the knot's `A` and `B` in
+    /// place when large (no copy).
+    fn add_dynamics_curvature(&mut self, knot: &LqKnot, P_next: MatRef<'_, f64>, scratch: &mut StageScratch) {
+        let (nx, nu, ny) = (self.nx, self.nu, self.ny);
+        let pt = if self.mu_dyn > 0.0 {
+            self.ptilde.as_ref()
+        } else {
+            P_next
+        };
+        let n = nx + nu;
+        let contiguous = if !self.e_fac.is_minus_identity() {
+            Some(self.ab_tilde.as_ref())
+        } else if n <= SMALL_AB {
+            let mut ab = scratch.ab.as_mut().submatrix_mut(0, 0, ny, n);
+            linalg::copy(ab.rb_mut().subcols_mut(0, nx), knot.A.as_ref());
+            linalg::copy(ab.rb_mut().subcols_mut(nx, nu), knot.B.as_ref());
+            Some(scratch.ab.as_ref().submatrix(0, 0, ny, n))
+        } else {
+            None
+        };
+        let mut w = scratch.pab.as_mut().submatrix_mut(0, 0, ny, n);
+        let mut q = self.qmat.as_mut();
+        if let Some(ab) = contiguous {
+            matmul(w.rb_mut(), Accum::Replace, pt, ab, 1.0);
+            matmul_lower(q, Accum::Add, ab.transpose(), w.as_ref(), 1.0);
+            return;
+        }
+        let (a, b) = (knot.A.as_ref(), knot.B.as_ref());
+        matmul(w.rb_mut().subcols_mut(0, nx), Accum::Replace, pt, a, 1.0);
+        matmul_lower(
+            q.rb_mut().submatrix_mut(0, 0, nx, nx),
+            Accum::Add,
+            a.transpose(),
+            w.as_ref().subcols(0, nx),
+            1.0,
+        );
+        if nu > 0 {
+            matmul(w.rb_mut().subcols_mut(nx, nu), Accum::Replace, pt, b, 1.0);
+            matmul(
+                q.rb_mut().submatrix_mut(nx, 0, nu, nx),
+                Accum::Add,
+                b.transpose(),
+                w.as_ref().subcols(0, nx),
+                1.0,
+            );
+            matmul_lower(
+                q.rb_mut().submatrix_mut(nx, nx, nu, nu),
+                Accum::Add,
+                b.transpose(),
+                w.as_ref().subcols(nx, nu),
+                1.0,
+            );
+        }
     }
 
     /// Factors `M = I + P'G`, computing `G` first for a general `E`; `m` is scratch.
@@ -480,6 +492,8 @@ impl RiccatiStage {
         self.solve_kkt_impl(knot, P_next, primal_reg, Some(d))
     }
 
+    /// The stage KKT solve (47): factors `[[Q_uu + ρI, Dᵀ], [D, -diag(mu_c)]]`, solves for
+    /// the gains `[K; Z]` (and the feedforward column with `d`), then the value Hessian.
     fn solve_kkt_impl(
         &mut self,
         knot: &LqKnot,
@@ -487,108 +501,118 @@ impl RiccatiStage {
         primal_reg: f64,
         d: Option<&[f64]>,
     ) -> Result<(), LqError> {
-        let (nx, nu, nc) = (self.nx, self.nu, self.nc);
-        let nk = nu + nc;
         // Exact zeros only (a NaN in C keeps the products, which report it).
-        self.c_is_zero = (0..nx).all(|j| linalg::norm_l1(col_of(&knot.C, j)) == 0.0);
-        if nk > 0 {
-            let f = &mut self.kkt;
-            f.use_bk = (0..nc).any(|i| knot.mu_c[i] == 0.0);
-            {
-                // Lower triangle of [[Q_uu + ρI, ·], [D, -diag(mu_c)]], in the factor's storage.
-                let mut k = if f.use_bk {
-                    f.bk.matrix_mut()
-                } else {
-                    f.ldlt.matrix_mut()
-                };
-                linalg::copy(
-                    k.rb_mut().submatrix_mut(0, 0, nu, nu),
-                    self.qmat.as_ref().submatrix(nx, nx, nu, nu),
-                );
-                for i in 0..nu {
-                    k[(i, i)] += primal_reg;
-                }
-                linalg::copy(k.rb_mut().submatrix_mut(nu, 0, nc, nu), knot.D.as_ref());
-                k.rb_mut().submatrix_mut(nu, nu, nc, nc).fill(0.0);
-                for i in 0..nc {
-                    k[(nu + i, nu + i)] = -knot.mu_c[i];
-                }
-            }
-            let res = if f.use_bk {
-                f.bk.factor_filled(0.0)
-            } else {
-                f.ldlt.factor_filled()
-            };
-            let expected = Inertia {
-                positive: nu,
-                negative: nc,
-                zero: 0,
-            };
-            match res {
-                Ok(inertia) if inertia == expected => {}
-                Ok(got) => {
-                    return Err(LqError::Inertia {
-                        knot: self.index,
-                        system: "stage KKT",
-                        expected,
-                        got,
-                    });
-                }
-                Err(FactorError::NonFinite) => {
-                    return Err(LqError::NonFinite {
-                        knot: self.index,
-                        field: "Q_uu",
-                    });
-                }
-                Err(FactorError::Singular { index }) => {
-                    return Err(LqError::Inertia {
-                        knot: self.index,
-                        system: "stage KKT",
-                        expected,
-                        got: Inertia {
-                            positive: index.min(nu),
-                            negative: index.saturating_sub(nu),
-                            zero: 1,
-                        },
-                    });
-                }
-            }
-            // Right-hand side -[Q_ux; C], solved in place into [K; Z].
-            let mut rhs = self.gains.as_mut().submatrix_mut(0, 1, nk, nx);
-            linalg::copy(
-                rhs.rb_mut().submatrix_mut(0, 0, nu, nx),
-                self.qmat.as_ref().submatrix(nx, 0, nu, nx),
-            );
-            linalg::copy(rhs.rb_mut().submatrix_mut(nu, 0, nc, nx), knot.C.as_ref());
-            linalg::negate(rhs.rb_mut());
-            match d {
-                Some(d) => {
-                    self.fill_feedforward_rhs(d);
-                    self.kkt.solve_in_place(self.gains.as_mut());
-                }
-                None => self.kkt.solve_in_place(rhs),
-            }
+        self.c_is_zero = (0..self.nx).all(|j| linalg::norm_l1(col_of(&knot.C, j)) == 0.0);
+        if self.nu + self.nc > 0 {
+            self.factor_stage_kkt(knot, primal_reg)?;
+            self.solve_gains(knot, d);
         }
-        // P = Q_xx + [Q_xu Cᵀ][K; Z] (47b), the Schur complement of the stage KKT matrix.
-        // (The equivalent sum of semidefinite terms [I; K]ᵀH[I; K] + Zᵀdiag(mu_c)Z is not
-        // used: it agrees with the gains only to the accuracy of the KKT solve, about ε/mu
-        // relative, which the forward pass's co-states P x + p would inherit.) Lower
-        // triangle, then mirrored.
+        self.value_hessian(knot)?;
+        if self.ny > 0 && self.extra != ExtraGains::None {
+            self.feedback_extra_gains(knot, P_next.expect("a knot with dynamics has a next value function"));
+        }
+        Ok(())
+    }
+
+    /// Fills the lower triangle of `[[Q_uu + ρI, ·], [D, -diag(mu_c)]]` into the factor's
+    /// storage and factors it (LDLᵀ, Bunch-Kaufman when a row has `mu_c = 0`), checking
+    /// the inertia `(nu, nc, 0)`.
+    fn factor_stage_kkt(&mut self, knot: &LqKnot, primal_reg: f64) -> Result<(), LqError> {
+        let (nx, nu, nc) = (self.nx, self.nu, self.nc);
+        let f = &mut self.kkt;
+        f.use_bk = (0..nc).any(|i| knot.mu_c[i] == 0.0);
+        let mut k = if f.use_bk {
+            f.bk.matrix_mut()
+        } else {
+            f.ldlt.matrix_mut()
+        };
+        linalg::copy(
+            k.rb_mut().submatrix_mut(0, 0, nu, nu),
+            self.qmat.as_ref().submatrix(nx, nx, nu, nu),
+        );
+        for i in 0..nu {
+            k[(i, i)] += primal_reg;
+        }
+        linalg::copy(k.rb_mut().submatrix_mut(nu, 0, nc, nu), knot.D.as_ref());
+        k.rb_mut().submatrix_mut(nu, nu, nc, nc).fill(0.0);
+        for i in 0..nc {
+            k[(nu + i, nu + i)] = -knot.mu_c[i];
+        }
+        let res = if f.use_bk {
+            f.bk.factor_filled(0.0)
+        } else {
+            f.ldlt.factor_filled()
+        };
+        let expected = Inertia {
+            positive: nu,
+            negative: nc,
+            zero: 0,
+        };
+        match res {
+            Ok(inertia) if inertia == expected => Ok(()),
+            Ok(got) => Err(LqError::Inertia {
+                knot: self.index,
+                system: "stage KKT",
+                expected,
+                got,
+            }),
+            Err(FactorError::NonFinite) => Err(LqError::NonFinite {
+                knot: self.index,
+                field: "Q_uu",
+            }),
+            Err(FactorError::Singular { index }) => Err(LqError::Inertia {
+                knot: self.index,
+                system: "stage KKT",
+                expected,
+                got: Inertia {
+                    positive: index.min(nu),
+                    negative: index.saturating_sub(nu),
+                    zero: 1,
+                },
+            }),
+        }
+    }
+
+    /// Solves the factored stage KKT system for the feedback gains `[K; Z]` from the
+    /// right-hand side `-[Q_ux; C]` (47a), and for the feedforward column too with `d`.
+    fn solve_gains(&mut self, knot: &LqKnot, d: Option<&[f64]>) {
+        let (nx, nu, nc) = (self.nx, self.nu, self.nc);
+        let mut rhs = self.gains.as_mut().submatrix_mut(0, 1, nu + nc, nx);
+        linalg::copy(
+            rhs.rb_mut().submatrix_mut(0, 0, nu, nx),
+            self.qmat.as_ref().submatrix(nx, 0, nu, nx),
+        );
+        linalg::copy(rhs.rb_mut().submatrix_mut(nu, 0, nc, nx), knot.C.as_ref());
+        linalg::negate(rhs.rb_mut());
+        match d {
+            Some(d) => {
+                self.fill_feedforward_rhs(d);
+                self.kkt.solve_in_place(self.gains.as_mut());
+            }
+            None => self.kkt.solve_in_place(rhs),
+        }
+    }
+
+    /// `P = Q_xx + [Q_xu Cᵀ][K; Z]` (47b), the Schur complement of the stage KKT matrix.
+    /// (The equivalent sum of semidefinite terms `[I; K]ᵀH[I; K] + Zᵀdiag(mu_c)Z` is not
+    /// used: it agrees with the gains only to the accuracy of the KKT solve, about `ε/mu`
+    /// relative, which the forward pass's co-states `P x + p` would inherit.) Lower
+    /// triangle, then mirrored.
+    fn value_hessian(&mut self, knot: &LqKnot) -> Result<(), LqError> {
+        let (nx, nu, nc) = (self.nx, self.nu, self.nc);
         linalg::copy(self.P.as_mut(), self.qmat.as_ref().submatrix(0, 0, nx, nx));
-        if nk > 0 {
-            let fb = self.gains.as_ref().submatrix(0, 1, nk, nx);
-            if nu > 0 {
-                matmul_lower(
-                    self.P.as_mut(),
-                    Accum::Add,
-                    self.qmat.as_ref().submatrix(0, nx, nx, nu),
-                    fb.subrows(0, nu),
-                    1.0,
-                );
-            }
-            if nc > 0 && !self.c_is_zero {
-                matmul_lower(self.P.as_mut(), Accum::Add, knot.C.transpose(), fb.subrows(nu, nc), 1.0);
-            }
+        let fb = self.gains.as_ref().submatrix(0, 1, nu + nc, nx);
+        if nu > 0 {
+            matmul_lower(
+                self.P.as_mut(),
+                Accum::Add,
+                self.qmat.as_ref().submatrix(0, nx, nx, nu),
+                fb.subrows(0, nu),
+                1.0,
+            );
+        }
+        if nc > 0 && !self.c_is_zero {
+            matmul_lower(self.P.as_mut(), Accum::Add, knot.C.transpose(), fb.subrows(nu, nc), 1.0);
         }
         linalg::symmetrize_from_lower(self.P.as_mut());
         if !sum_is_finite(self.P.as_ref()) {
@@ -596,9 +620,6 @@ impl RiccatiStage {
                 knot: self.index,
                 field: "value Hessian P",
             });
-        }
-        if self.ny > 0 && self.extra != ExtraGains::None {
-            self.feedback_extra_gains(knot, P_next.expect("a knot with dynamics has a next value function"));
         }
         Ok(())
     }
