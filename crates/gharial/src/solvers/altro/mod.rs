@@ -379,71 +379,7 @@ impl Altro {
         }
         ws.start(problem, &guess, opts.infeasible_start)?;
         ws.init_multipliers(guess.nus, opts);
-        let mut status = Status::MaxIterations;
-        let mut inner_iters = 0;
-        let tol = if opts.projected_newton {
-            opts.projected_newton_tolerance.max(opts.constraint_tolerance)
-        } else {
-            opts.constraint_tolerance
-        };
-        let mut viol = f64::INFINITY;
-        for outer in 0..opts.iterations_outer {
-            let last = viol <= tol;
-            let th = if last {
-                opts.cost_tolerance
-            } else {
-                inner_tolerance(opts, viol, ws.max_penalty())
-            };
-            let budget = opts.max_time.map(|b| b.saturating_sub(start.elapsed()));
-            let (inner_status, stop, iters) = ws.inner_solve(th, budget)?;
-            inner_iters += iters;
-            if inner_status == Status::NonFinite {
-                status = Status::NonFinite;
-                break;
-            }
-            viol = ws.constraints(false, opts.dual_max);
-            ws.sync_controls();
-            ws.cost = ws.data.evaluate(problem, &ws.xs, &ws.us_orig);
-            let record = IterationRecord {
-                iter: inner_iters,
-                al_iter: outer,
-                cost: ws.cost,
-                prim_err: viol,
-                stop,
-                mu: ws.max_penalty(),
-                ..Default::default()
-            };
-            push_record(sol, record, &opts.log, &TABLE);
-            // The inner solve converged to cost_tolerance when it ran with it.
-            let inner_ok = last && matches!(inner_status, Status::Converged | Status::Stalled);
-            if viol <= tol && inner_ok {
-                status = Status::Converged;
-                break;
-            }
-            // An inner solve that can no longer step (its line search or regularisation
-            // gave up) near the projection's tolerance: the penalties would only grow
-            // while the point stays, so the projection (Algorithm 3) takes it from here.
-            let stuck = matches!(inner_status, Status::RegularizationFailure | Status::LinesearchFailure);
-            if stuck && opts.projected_newton && viol <= HANDOFF * tol {
-                status = Status::Converged;
-                break;
-            }
-            if opts.max_time.is_some_and(|b| start.elapsed() >= b) {
-                status = Status::TimeBudget;
-                break;
-            }
-            // (17)-(18), unless the constraints are met and only the cost tolerance is not.
-            if viol > tol {
-                ws.constraints(true, opts.dual_max);
-                ws.scale_penalties(opts);
-            }
-            if let Some(cb) = callback.as_mut()
-                && !cb.on_iteration(&record)
-            {
-                status = Status::Interrupted;
-                break;
-            }
-        }
+        let (mut status, inner_iters, mut viol) = outer_loop(ws, problem, opts, sol, &mut callback, start)?;
         let projected = status == Status::Converged && opts.projected_newton;
         if projected {
             (status, viol) = project(ws, problem, opts, sol, inner_iters);
@@ -464,6 +400,93 @@ impl Altro {
         sol.solve_time = start.elapsed();
         Ok(&self.solution)
     }
+}
+
+/// Algorithm 1's outer loop: inner iLQR solves on the augmented Lagrangian, multiplier
+/// and penalty updates (17)-(18), one table row each. Returns the status, the inner
+/// iterations and the last constraint violation.
+fn outer_loop(
+    ws: &mut Workspace,
+    problem: &Problem,
+    opts: &AltroOptions,
+    sol: &mut Solution,
+    callback: &mut Option<&mut dyn Callback>,
+    start: Instant,
+) -> Result<(Status, usize, f64)> {
+    let tol = if opts.projected_newton {
+        opts.projected_newton_tolerance.max(opts.constraint_tolerance)
+    } else {
+        opts.constraint_tolerance
+    };
+    let (mut inner_iters, mut viol) = (0, f64::INFINITY);
+    for outer in 0..opts.iterations_outer {
+        let last = viol <= tol;
+        let th = if last {
+            opts.cost_tolerance
+        } else {
+            inner_tolerance(opts, viol, ws.max_penalty())
+        };
+        let budget = opts.max_time.map(|b| b.saturating_sub(start.elapsed()));
+        let (inner_status, stop, iters) = ws.inner_solve(th, budget)?;
+        inner_iters += iters;
+        if inner_status == Status::NonFinite {
+            return Ok((Status::NonFinite, inner_iters, viol));
+        }
+        viol = ws.constraints(false, opts.dual_max);
+        ws.sync_controls();
+        ws.cost = ws.data.evaluate(problem, &ws.xs, &ws.us_orig);
+        let record = IterationRecord {
+            iter: inner_iters,
+            al_iter: outer,
+            cost: ws.cost,
+            prim_err: viol,
+            stop,
+            mu: ws.max_penalty(),
+            ..Default::default()
+        };
+        push_record(sol, record, &opts.log, &TABLE);
+        if let Some(status) = outer_stop(opts, inner_status, viol, tol, last, start) {
+            return Ok((status, inner_iters, viol));
+        }
+        // (17)-(18), unless the constraints are met and only the cost tolerance is not.
+        if viol > tol {
+            ws.constraints(true, opts.dual_max);
+            ws.scale_penalties(opts);
+        }
+        if let Some(cb) = callback.as_mut()
+            && !cb.on_iteration(&record)
+        {
+            return Ok((Status::Interrupted, inner_iters, viol));
+        }
+    }
+    Ok((Status::MaxIterations, inner_iters, viol))
+}
+
+/// Whether the outer loop ends after an inner solve that ended with `inner_status` at the
+/// violation `viol` (`last`: it ran with the final cost tolerance), and with which status.
+fn outer_stop(
+    opts: &AltroOptions,
+    inner_status: Status,
+    viol: f64,
+    tol: f64,
+    last: bool,
+    start: Instant,
+) -> Option<Status> {
+    // The inner solve converged to cost_tolerance when it ran with it.
+    let inner_ok = last && matches!(inner_status, Status::Converged | Status::Stalled);
+    if viol <= tol && inner_ok {
+        return Some(Status::Converged);
+    }
+    // An inner solve that can no longer step (its line search or regularisation gave
+    // up) near the projection's tolerance: the penalties would only grow while the point
+    // stays, so the projection (Algorithm 3) takes it from here.
+    let stuck = matches!(inner_status, Status::RegularizationFailure | Status::LinesearchFailure);
+    if stuck && opts.projected_newton && viol <= HANDOFF * tol {
+        return Some(Status::Converged);
+    }
+    opts.max_time
+        .is_some_and(|b| start.elapsed() >= b)
+        .then_some(Status::TimeBudget)
 }
 
 /// Algorithm 2 from the AL-iLQR solution: the status and the violation reached (a row of
