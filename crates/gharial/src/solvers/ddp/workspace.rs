@@ -180,28 +180,9 @@ impl Workspace {
                 "{name} needs a fixed initial state x_0 (the problem has a general initial constraint)"
             )));
         };
-        if let Some(q) = queue {
-            Receding::of(problem, q)?;
-        }
+        let bounds = checked_bounds(problem, opts, queue, al.is_some())?;
         let queue = queue.unwrap_or(&[]);
-        let bounds = if variant.control_bounds() {
-            Some(ControlBounds::new(problem, queue, name)?)
-        } else if al.is_some() {
-            None
-        } else {
-            check_unconstrained(problem, queue, name)?;
-            None
-        };
         let exact = opts.hessian == HessianApprox::Exact;
-        if exact {
-            check_exact_hessian(problem, queue, variant)?;
-            if opts.square_root {
-                return Err(Error::option(
-                    "square_root",
-                    format!("{name}: the square-root pass takes the Gauss-Newton Hessian only"),
-                ));
-            }
-        }
         let n = problem.horizon();
         let s = crate::solvers::Solution::new(problem, 0);
         let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
@@ -739,4 +720,37 @@ fn box_law(
     crate::linalg::copy(gain.as_mut(), st.Q_xu().transpose());
     qp.apply_free_inverse_negated(gain.as_mut());
     st.value_from_gains(k, gain.as_ref())
+}
+
+/// The checks of [`Workspace::new`] on what the variant `opts.variant` takes (a queue for
+/// receding horizons, constraints, the exact Hessian), and its control bounds.
+fn checked_bounds(
+    problem: &Problem,
+    opts: &DdpOptions,
+    queue: Option<&[StageModel]>,
+    has_al: bool,
+) -> Result<Option<ControlBounds>> {
+    let (variant, name) = (opts.variant, opts.variant.name());
+    if let Some(q) = queue {
+        Receding::of(problem, q)?;
+    }
+    let queue = queue.unwrap_or(&[]);
+    let bounds = if variant.control_bounds() {
+        Some(ControlBounds::new(problem, queue, name)?)
+    } else {
+        if !has_al {
+            check_unconstrained(problem, queue, name)?;
+        }
+        None
+    };
+    if opts.hessian == HessianApprox::Exact {
+        check_exact_hessian(problem, queue, variant)?;
+        if opts.square_root {
+            return Err(Error::option(
+                "square_root",
+                format!("{name}: the square-root pass takes the Gauss-Newton Hessian only"),
+            ));
+        }
+    }
+    Ok(bounds)
 }
