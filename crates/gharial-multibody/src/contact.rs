@@ -506,121 +506,18 @@ pub fn compute_constraint_dynamics_derivatives(
                 .into(),
         ));
     }
-    let (nv, nc) = (model.nv, cdata.nc);
-    let q = std::mem::take(&mut cdata.q);
-    let v = std::mem::take(&mut cdata.v);
-    let mut m = std::mem::take(&mut data.m);
-    // ∂τ/∂q, ∂τ/∂v of RNEA(q, v, ddq); the factorization of M from `constraint_dynamics`
-    // stays valid (same q).
-    velocity_pass(model, data, &q, &v);
-    rnea_derivatives_kernel(model, data, &v, &cdata.ddq, &mut cdata.b_dq, &mut cdata.b_dv, &mut m);
-    data.m = m;
-    cdata.q = q;
-    cdata.v = v;
-    let g = model.gravity;
-    // Subtract ∂(Jcᵀ λ)/∂q and build −∂g.
+    inverse_dynamics_derivatives(model, data, cdata);
     cdata.r2_dq.fill(0.0);
     cdata.r2_dv.fill(0.0);
     let mut off = 0;
     for (ci, c) in contacts.iter().enumerate() {
-        let i = c.joint;
-        let o_mc = data.o_mi[i].compose(&c.placement);
-        let p = o_mc.translation;
-        let r = o_mc.rotation;
-        let ov = data.ov[i];
-        let oa = data.oa_gf[i] + g;
+        let pt = ContactPoint::of(model, data, c);
+        support_chain(model, c.joint, &mut cdata.chain);
         let f6 = cdata.contact_force(contacts, ci);
-        // World wrench at the world origin and world linear force.
-        let (of, flin) = match c.reference_frame {
-            ReferenceFrame::Local => {
-                let w = o_mc.act_force(&f6);
-                (w, w.linear)
-            }
-            _ => (Force::new(f6.linear, f6.angular + p.cross(&f6.linear)), f6.linear),
-        };
-        let local = c.reference_frame == ReferenceFrame::Local;
-        cdata.chain.clear();
-        let mut k = model.last_dof(i);
-        while k != NONE {
-            cdata.chain.push(k);
-            k = model.dof_parent[k];
-        }
-        for &rr in &cdata.chain {
-            let jr = data.j[rr];
-            for &cc in &cdata.chain {
-                let jc = data.j[cc];
-                let c_below_or_same = model.dof_joint[cc] <= model.dof_joint[rr];
-                let mut val = 0.0;
-                if local {
-                    if !c_below_or_same {
-                        val = jr.dot(&jc.cross_force(&of));
-                    }
-                } else {
-                    let jp = jc.shifted_to(&p).linear;
-                    val = jr.angular.dot(&jp.cross(&flin));
-                    if c_below_or_same {
-                        val -= jr.dot(&jc.cross_force(&of));
-                    }
-                }
-                cdata.b_dq[cc * nv + rr] -= val;
-            }
-        }
-        // −∂g/∂q and −∂g/∂v, columns over the support.
-        let (w, alpha) = (ov.angular, oa.angular);
-        let vp = ov.shifted_to(&p).linear;
-        let e = if c.kind == ContactType::Contact6D && c.kp != 0.0 {
-            placement_error(c, &o_mc)
-        } else {
-            Motion::zero()
-        };
-        let (jl, jc_blk) = jlog6_blocks(&e);
+        subtract_force_derivative(model, data, c, &pt, &f6, &cdata.chain, &mut cdata.b_dq);
+        let nc = cdata.nc;
         for &cc in &cdata.chain {
-            let jc = data.j[cc];
-            let dvdq = data.dvdq[cc];
-            let dadqk = data.dadq[cc] + g.cross(&jc);
-            let dov_q = jc.cross(&ov) + dvdq;
-            let doa_q = jc.cross(&oa) + dadqk - ov.cross(&dvdq);
-            let doa_v = data.dadv[cc] - ov.cross(&jc);
-            let jp = jc.shifted_to(&p).linear;
-            let (gq, gv): ([f64; 6], [f64; 6]) = match c.kind {
-                ContactType::Contact3D => {
-                    let dvp_q = dov_q.shifted_to(&p).linear + w.cross(&jp);
-                    let dap_q = doa_q.shifted_to(&p).linear + alpha.cross(&jp);
-                    let dx_q = dap_q + dov_q.angular.cross(&vp) + w.cross(&dvp_q);
-                    let mut dq = dx_q + dvp_q * c.kd + jp * c.kp;
-                    let dx_v = doa_v.shifted_to(&p).linear + jc.angular.cross(&vp) + w.cross(&jp);
-                    let mut dv = dx_v + jp * c.kd;
-                    if local {
-                        let gw = contact3d_world(c, &ov, &oa, &p);
-                        dq = r.tr_mul(&(dq + gw.cross(&jc.angular)));
-                        dv = r.tr_mul(&dv);
-                    }
-                    ([dq.x, dq.y, dq.z, 0.0, 0.0, 0.0], [dv.x, dv.y, dv.z, 0.0, 0.0, 0.0])
-                }
-                ContactType::Contact6D => {
-                    let jloc = o_mc.act_inv_motion(&jc);
-                    let de = Motion::new(jl * jloc.linear + jc_blk * jloc.angular, jl * jloc.angular);
-                    if local {
-                        let dq = o_mc.act_inv_motion(&(dadqk - ov.cross(&dvdq)))
-                            + o_mc.act_inv_motion(&dvdq) * c.kd
-                            + de * c.kp;
-                        let dv = o_mc.act_inv_motion(&doa_v) + jloc * c.kd;
-                        (dq.to_array(), dv.to_array())
-                    } else {
-                        let mut dq = doa_q.shifted_to(&p);
-                        dq.linear += alpha.cross(&jp);
-                        let mut dvel = dov_q.shifted_to(&p);
-                        dvel.linear += w.cross(&jp);
-                        let de_w = Motion::new(
-                            jc.angular.cross(&(r * e.linear)) + r * de.linear,
-                            jc.angular.cross(&(r * e.angular)) + r * de.angular,
-                        );
-                        let dq = dq + dvel * c.kd + de_w * c.kp;
-                        let dv = doa_v.shifted_to(&p) + jc.shifted_to(&p) * c.kd;
-                        (dq.to_array(), dv.to_array())
-                    }
-                }
-            };
+            let (gq, gv) = constraint_derivative_columns(data, c, &pt, cc);
             for rrow in 0..c.size() {
                 cdata.r2_dq[cc * nc + off + rrow] = -gq[rrow];
                 cdata.r2_dv[cc * nc + off + rrow] = -gv[rrow];
@@ -628,6 +525,175 @@ pub fn compute_constraint_dynamics_derivatives(
         }
         off += c.size();
     }
+    solution_derivatives(model, data, cdata)
+}
+
+/// `∂τ/∂q`, `∂τ/∂v` of RNEA at the last solve's `(q, v, ddq)` into `cdata.b_dq`,
+/// `cdata.b_dv`; the factorization of M from `constraint_dynamics` stays valid (same q).
+fn inverse_dynamics_derivatives(model: &Model, data: &mut Data, cdata: &mut ContactData) {
+    let q = std::mem::take(&mut cdata.q);
+    let v = std::mem::take(&mut cdata.v);
+    let mut m = std::mem::take(&mut data.m);
+    velocity_pass(model, data, &q, &v);
+    rnea_derivatives_kernel(model, data, &v, &cdata.ddq, &mut cdata.b_dq, &mut cdata.b_dv, &mut m);
+    data.m = m;
+    cdata.q = q;
+    cdata.v = v;
+}
+
+/// What the derivatives of one contact share over its support: the contact frame's
+/// placement and origin, the world velocity and acceleration (gravity included) of its
+/// joint, the velocity of the origin, gravity, and for 6D contacts with `Kp ≠ 0` the
+/// placement error and the blocks of its `Jlog6`.
+struct ContactPoint {
+    o_mc: Se3,
+    p: Vec3,
+    ov: Motion,
+    oa: Motion,
+    vp: Vec3,
+    g: Motion,
+    e: Motion,
+    jlog: (Mat3, Mat3),
+}
+
+impl ContactPoint {
+    #[inline]
+    fn of(model: &Model, data: &Data, c: &ContactModel) -> Self {
+        let o_mc = data.o_mi[c.joint].compose(&c.placement);
+        let p = o_mc.translation;
+        let (ov, g) = (data.ov[c.joint], model.gravity);
+        let e = if c.kind == ContactType::Contact6D && c.kp != 0.0 {
+            placement_error(c, &o_mc)
+        } else {
+            Motion::zero()
+        };
+        Self {
+            o_mc,
+            p,
+            ov,
+            oa: data.oa_gf[c.joint] + g,
+            vp: ov.shifted_to(&p).linear,
+            g,
+            jlog: jlog6_blocks(&e),
+            e,
+        }
+    }
+}
+
+/// The degrees of freedom supporting joint `joint`, from the last one up to the root.
+#[inline]
+fn support_chain(model: &Model, joint: usize, chain: &mut Vec<usize>) {
+    chain.clear();
+    let mut k = model.last_dof(joint);
+    while k != NONE {
+        chain.push(k);
+        k = model.dof_parent[k];
+    }
+}
+
+/// Subtracts `∂(Jcᵀ λ)/∂q` of contact `c` (force `f6` in its frame) from `b_dq`, over
+/// the support `chain`.
+#[inline(always)]
+fn subtract_force_derivative(
+    model: &Model,
+    data: &Data,
+    c: &ContactModel,
+    pt: &ContactPoint,
+    f6: &Force,
+    chain: &[usize],
+    b_dq: &mut [f64],
+) {
+    let (nv, p) = (model.nv, pt.p);
+    let local = c.reference_frame == ReferenceFrame::Local;
+    // World wrench at the world origin and world linear force.
+    let (of, flin) = if local {
+        let w = pt.o_mc.act_force(f6);
+        (w, w.linear)
+    } else {
+        (Force::new(f6.linear, f6.angular + p.cross(&f6.linear)), f6.linear)
+    };
+    for &rr in chain {
+        let jr = data.j[rr];
+        for &cc in chain {
+            let jc = data.j[cc];
+            let c_below_or_same = model.dof_joint[cc] <= model.dof_joint[rr];
+            let mut val = 0.0;
+            if local {
+                if !c_below_or_same {
+                    val = jr.dot(&jc.cross_force(&of));
+                }
+            } else {
+                let jp = jc.shifted_to(&p).linear;
+                val = jr.angular.dot(&jp.cross(&flin));
+                if c_below_or_same {
+                    val -= jr.dot(&jc.cross_force(&of));
+                }
+            }
+            b_dq[cc * nv + rr] -= val;
+        }
+    }
+}
+
+/// Column `cc` of `∂g/∂q` and `∂g/∂v`, the derivatives of contact `c`'s constraint
+/// acceleration `g` (its first `c.size()` entries).
+#[inline(always)]
+fn constraint_derivative_columns(data: &Data, c: &ContactModel, pt: &ContactPoint, cc: usize) -> ([f64; 6], [f64; 6]) {
+    let (o_mc, p, ov, oa, vp, g) = (&pt.o_mc, &pt.p, &pt.ov, &pt.oa, &pt.vp, &pt.g);
+    let r = &o_mc.rotation;
+    let (w, alpha) = (ov.angular, oa.angular);
+    let local = c.reference_frame == ReferenceFrame::Local;
+    let jc = data.j[cc];
+    let dvdq = data.dvdq[cc];
+    let dadqk = data.dadq[cc] + g.cross(&jc);
+    let dov_q = jc.cross(ov) + dvdq;
+    let doa_q = jc.cross(oa) + dadqk - ov.cross(&dvdq);
+    let doa_v = data.dadv[cc] - ov.cross(&jc);
+    let jp = jc.shifted_to(p).linear;
+    match c.kind {
+        ContactType::Contact3D => {
+            let dvp_q = dov_q.shifted_to(p).linear + w.cross(&jp);
+            let dap_q = doa_q.shifted_to(p).linear + alpha.cross(&jp);
+            let dx_q = dap_q + dov_q.angular.cross(vp) + w.cross(&dvp_q);
+            let mut dq = dx_q + dvp_q * c.kd + jp * c.kp;
+            let dx_v = doa_v.shifted_to(p).linear + jc.angular.cross(vp) + w.cross(&jp);
+            let mut dv = dx_v + jp * c.kd;
+            if local {
+                let gw = contact3d_world(c, ov, oa, p);
+                dq = r.tr_mul(&(dq + gw.cross(&jc.angular)));
+                dv = r.tr_mul(&dv);
+            }
+            ([dq.x, dq.y, dq.z, 0.0, 0.0, 0.0], [dv.x, dv.y, dv.z, 0.0, 0.0, 0.0])
+        }
+        ContactType::Contact6D => {
+            let (e, (jl, jc_blk)) = (pt.e, pt.jlog);
+            let jloc = o_mc.act_inv_motion(&jc);
+            let de = Motion::new(jl * jloc.linear + jc_blk * jloc.angular, jl * jloc.angular);
+            if local {
+                let dq =
+                    o_mc.act_inv_motion(&(dadqk - ov.cross(&dvdq))) + o_mc.act_inv_motion(&dvdq) * c.kd + de * c.kp;
+                let dv = o_mc.act_inv_motion(&doa_v) + jloc * c.kd;
+                (dq.to_array(), dv.to_array())
+            } else {
+                let mut dq = doa_q.shifted_to(p);
+                dq.linear += alpha.cross(&jp);
+                let mut dvel = dov_q.shifted_to(p);
+                dvel.linear += w.cross(&jp);
+                let de_w = Motion::new(
+                    jc.angular.cross(&(r * e.linear)) + r * de.linear,
+                    jc.angular.cross(&(r * e.angular)) + r * de.angular,
+                );
+                let dq = dq + dvel * c.kd + de_w * c.kp;
+                let dv = doa_v.shifted_to(p) + jc.shifted_to(p) * c.kd;
+                (dq.to_array(), dv.to_array())
+            }
+        }
+    }
+}
+
+/// From `∂τ` (`b_*`) and `−∂g` (`r2_*`): the derivatives of `ddq` and `λ` through the
+/// inverse KKT matrix, `∂ddq/∂τ = P`, `∂λ/∂τ = −Qᵀ`, each checked finite.
+fn solution_derivatives(model: &Model, data: &mut Data, cdata: &mut ContactData) -> Result<()> {
+    let (nv, nc) = (model.nv, cdata.nc);
     kkt_inverse_blocks(model, data, cdata);
     let tree = model.dof_tree(&data.subtree_end);
     let cd = &mut *cdata;
@@ -637,7 +703,6 @@ pub fn compute_constraint_dynamics_derivatives(
     ] {
         kkt_derivatives(&tree, nc, &cd.pq, &cd.qt_linv, b, r2, ddq_dx, dl_dx, &mut cd.terms);
     }
-    // τ: ∂ddq/∂τ = P, ∂λ/∂τ = −Qᵀ.
     for (x, y) in cdata.dl_dtau.iter_mut().zip(&cdata.qt_linv[..nc * nv]) {
         *x = -y;
     }
