@@ -176,21 +176,54 @@ fn parse_urdf(text: &str, file: &str, root: RootJoint, options: &UrdfOptions) ->
     if robot.tag_name().name() != "robot" {
         return Err(ctx.err(&robot, "the root element must be <robot>"));
     }
-    let robot_name = robot.attribute("name").unwrap_or("");
+    let el = read_elements(&ctx, &robot)?;
+    let (children, root_link) = kinematic_tree(&ctx, &robot, &el)?;
+    let mut model = Model::new(robot.attribute("name").unwrap_or(""));
+    let (root_joint, root_frame) = add_root(&ctx, &mut model, root, root_link, &el.links[root_link])?;
+    let visited = descend(
+        &ctx,
+        &mut model,
+        &el.joints,
+        &el.links,
+        &children,
+        (root_link, root_joint, root_frame, Se3::identity()),
+    )?;
+    if visited != el.links.len() {
+        return Err(ctx.err(
+            &robot,
+            "some links are not connected to the root link (cycle in the kinematic graph)",
+        ));
+    }
+    record_mimics(&ctx, &mut model, &el.joints, &el.joint_index, options)?;
+    Ok(model)
+}
 
-    let mut links: HashMap<&str, LinkInfo> = HashMap::new();
-    let mut link_order: Vec<&str> = Vec::new();
-    let mut joints: Vec<JointInfo> = Vec::new();
-    let mut joint_index: HashMap<&str, usize> = HashMap::new();
+/// The `<link>` and `<joint>` elements of a URDF, validated one by one.
+struct Elements<'a, 'i> {
+    links: HashMap<&'a str, LinkInfo<'a, 'i>>,
+    /// Link names in document order.
+    link_order: Vec<&'a str>,
+    joints: Vec<JointInfo<'a, 'i>>,
+    joint_index: HashMap<&'a str, usize>,
+}
+
+/// Reads the links and joints of `<robot>` (duplicate names are errors).
+fn read_elements<'a, 'i>(ctx: &Ctx, robot: &Node<'a, 'i>) -> Result<Elements<'a, 'i>> {
+    let mut el = Elements {
+        links: HashMap::new(),
+        link_order: Vec::new(),
+        joints: Vec::new(),
+        joint_index: HashMap::new(),
+    };
     for node in robot.children().filter(|n| n.is_element()) {
         match node.tag_name().name() {
             "link" => {
                 let name = ctx.attr(&node, "name")?;
-                let inertia = parse_inertial(&ctx, &node)?;
-                if links.insert(name, LinkInfo { node, inertia }).is_some() {
+                let inertia = parse_inertial(ctx, &node)?;
+                if el.links.insert(name, LinkInfo { node, inertia }).is_some() {
                     return Err(ctx.err(&node, "duplicate link name"));
                 }
-                link_order.push(name);
+                el.link_order.push(name);
             }
             "joint" => {
                 let name = ctx.attr(&node, "name")?;
@@ -200,11 +233,11 @@ fn parse_urdf(text: &str, file: &str, root: RootJoint, options: &UrdfOptions) ->
                 let parent = ctx.attr(&parent, "link")?;
                 let childl = ctx.attr(&childn, "link")?;
                 let origin = ctx.origin(&node)?;
-                let mimic = parse_mimic(&ctx, &node)?;
-                if joint_index.insert(name, joints.len()).is_some() {
+                let mimic = parse_mimic(ctx, &node)?;
+                if el.joint_index.insert(name, el.joints.len()).is_some() {
                     return Err(ctx.err(&node, "duplicate joint name"));
                 }
-                joints.push(JointInfo {
+                el.joints.push(JointInfo {
                     node,
                     name,
                     kind,
@@ -217,17 +250,26 @@ fn parse_urdf(text: &str, file: &str, root: RootJoint, options: &UrdfOptions) ->
             _ => {}
         }
     }
-    if links.is_empty() {
-        return Err(ctx.err(&robot, "no <link>"));
+    if el.links.is_empty() {
+        return Err(ctx.err(robot, "no <link>"));
     }
-    // Tree structure.
+    Ok(el)
+}
+
+/// The child joints of each link (sorted by name) and the root link: every joint joins
+/// existing links, no link has two parents, exactly one link has none.
+fn kinematic_tree<'a>(
+    ctx: &Ctx,
+    robot: &Node,
+    el: &Elements<'a, '_>,
+) -> Result<(HashMap<&'a str, Vec<usize>>, &'a str)> {
     let mut parent_joint_of: HashMap<&str, usize> = HashMap::new();
     let mut children: HashMap<&str, Vec<usize>> = HashMap::new();
-    for (k, j) in joints.iter().enumerate() {
-        if !links.contains_key(j.parent) {
+    for (k, j) in el.joints.iter().enumerate() {
+        if !el.links.contains_key(j.parent) {
             return Err(ctx.err(&j.node, format!("parent link `{}` does not exist", j.parent)));
         }
-        if !links.contains_key(j.child) {
+        if !el.links.contains_key(j.child) {
             return Err(ctx.err(&j.node, format!("child link `{}` does not exist", j.child)));
         }
         if parent_joint_of.insert(j.child, k).is_some() {
@@ -236,24 +278,32 @@ fn parse_urdf(text: &str, file: &str, root: RootJoint, options: &UrdfOptions) ->
         children.entry(j.parent).or_default().push(k);
     }
     for list in children.values_mut() {
-        list.sort_by(|a, b| joints[*a].name.cmp(joints[*b].name));
+        list.sort_by(|a, b| el.joints[*a].name.cmp(el.joints[*b].name));
     }
-    let roots: Vec<&str> = link_order
+    let roots: Vec<&str> = el
+        .link_order
         .iter()
         .copied()
         .filter(|l| !parent_joint_of.contains_key(l))
         .collect();
     if roots.len() != 1 {
         return Err(ctx.err(
-            &robot,
+            robot,
             format!("expected exactly one root link, found {} ({:?})", roots.len(), roots),
         ));
     }
-    let root_link = roots[0];
+    Ok((children, roots[0]))
+}
 
-    let mut model = Model::new(robot_name);
-    // State of a processed link: (joint it moves with, its body frame, placement in that joint).
-    let root_info = &links[root_link];
+/// The root link's body, frame and visuals, on a free-flyer joint or on the universe:
+/// returns the joint it moves with and its body frame.
+fn add_root(
+    ctx: &Ctx,
+    model: &mut Model,
+    root: RootJoint,
+    root_link: &str,
+    root_info: &LinkInfo,
+) -> Result<(usize, usize)> {
     let (root_joint, root_parent_frame) = match root {
         RootJoint::Fixed => (0, 0),
         RootJoint::FreeFlyer => {
@@ -278,31 +328,15 @@ fn parse_urdf(text: &str, file: &str, root: RootJoint, options: &UrdfOptions) ->
         placement: Se3::identity(),
     })?;
     add_visuals(
-        &ctx,
-        &mut model,
+        ctx,
+        model,
         root_link,
         &root_info.node,
         root_joint,
         root_frame,
         &Se3::identity(),
     )?;
-
-    let visited = descend(
-        &ctx,
-        &mut model,
-        &joints,
-        &links,
-        &children,
-        (root_link, root_joint, root_frame, Se3::identity()),
-    )?;
-    if visited != links.len() {
-        return Err(ctx.err(
-            &robot,
-            "some links are not connected to the root link (cycle in the kinematic graph)",
-        ));
-    }
-    record_mimics(&ctx, &mut model, &joints, &joint_index, options)?;
-    Ok(model)
+    Ok((root_joint, root_frame))
 }
 
 /// Reads a joint's `<mimic joint multiplier offset/>` (URDF defaults 1 and 0).
