@@ -345,6 +345,65 @@ impl Model {
         name: &str,
         limits: JointLimits,
     ) -> Result<usize> {
+        self.check_new_joint(parent, kind, &placement, name, &limits)?;
+        let (nq, nv) = (kind.nq(), kind.nv());
+        let id = self.joints.len();
+        let jm = JointModel {
+            kind,
+            idx_q: self.nq,
+            idx_v: self.nv,
+            nq,
+            nv,
+        };
+        self.push_dofs(parent, id, nv);
+        if let Some((start, len)) = kind.unit_block() {
+            self.unit_blocks.push(UnitBlock {
+                joint: id,
+                start: self.nq + start,
+                len,
+            });
+        }
+        self.joints.push(jm);
+        self.names.push(name.to_string());
+        self.name_index.insert(name.to_string(), id);
+        // The new joint is a leaf and takes its parent's place in the list, if it had one.
+        match self.leaf_slot[parent] {
+            NONE => {
+                self.leaf_slot.push(self.leaves.len());
+                self.leaves.push(id);
+            }
+            slot => {
+                self.leaves[slot] = id;
+                self.leaf_slot[parent] = NONE;
+                self.leaf_slot.push(slot);
+            }
+        }
+        self.parents.push(parent);
+        self.placements.push(placement);
+        self.inertias.push(Inertia::zero());
+        self.nq += nq;
+        self.nv += nv;
+        self.lower_position_limit.extend_from_slice(&limits.lower);
+        self.upper_position_limit.extend_from_slice(&limits.upper);
+        self.velocity_limit.extend_from_slice(&limits.velocity);
+        self.effort_limit.extend_from_slice(&limits.effort);
+        self.damping.extend_from_slice(&limits.damping);
+        self.friction.extend_from_slice(&limits.friction);
+        self.armature.extend(std::iter::repeat_n(0.0, nv));
+        self.rotor_inertia.extend(std::iter::repeat_n(0.0, nv));
+        self.rotor_gear_ratio.extend(std::iter::repeat_n(1.0, nv));
+        Ok(id)
+    }
+
+    /// The checks of [`Model::add_joint`], before anything changes.
+    fn check_new_joint(
+        &self,
+        parent: usize,
+        kind: JointType,
+        placement: &Se3,
+        name: &str,
+        limits: &JointLimits,
+    ) -> Result<()> {
         if parent >= self.joints.len() {
             return Err(Error::NotFound {
                 what: "parent joint".into(),
@@ -385,14 +444,12 @@ impl Model {
                 });
             }
         }
-        let id = self.joints.len();
-        let jm = JointModel {
-            kind,
-            idx_q: self.nq,
-            idx_v: self.nv,
-            nq,
-            nv,
-        };
+        Ok(())
+    }
+
+    /// Appends the `nv` degrees of freedom of the new joint `id` below `parent` to the
+    /// dof tree: parents, joints, ancestor ranges and the tree's hash.
+    fn push_dofs(&mut self, parent: usize, id: usize, nv: usize) {
         // Parent dof of this joint's first dof: the last dof of the nearest ancestor with dofs.
         let mut anc = parent;
         while anc != 0 && self.joints[anc].nv == 0 {
@@ -418,43 +475,6 @@ impl Model {
             self.dof_tree_hash = (self.dof_tree_hash ^ prev as u64).wrapping_mul(0x0100_0000_01b3);
             prev = self.nv + k;
         }
-        if let Some((start, len)) = kind.unit_block() {
-            self.unit_blocks.push(UnitBlock {
-                joint: id,
-                start: self.nq + start,
-                len,
-            });
-        }
-        self.joints.push(jm);
-        self.names.push(name.to_string());
-        self.name_index.insert(name.to_string(), id);
-        // The new joint is a leaf and takes its parent's place in the list, if it had one.
-        match self.leaf_slot[parent] {
-            NONE => {
-                self.leaf_slot.push(self.leaves.len());
-                self.leaves.push(id);
-            }
-            slot => {
-                self.leaves[slot] = id;
-                self.leaf_slot[parent] = NONE;
-                self.leaf_slot.push(slot);
-            }
-        }
-        self.parents.push(parent);
-        self.placements.push(placement);
-        self.inertias.push(Inertia::zero());
-        self.nq += nq;
-        self.nv += nv;
-        self.lower_position_limit.extend_from_slice(&limits.lower);
-        self.upper_position_limit.extend_from_slice(&limits.upper);
-        self.velocity_limit.extend_from_slice(&limits.velocity);
-        self.effort_limit.extend_from_slice(&limits.effort);
-        self.damping.extend_from_slice(&limits.damping);
-        self.friction.extend_from_slice(&limits.friction);
-        self.armature.extend(std::iter::repeat_n(0.0, nv));
-        self.rotor_inertia.extend(std::iter::repeat_n(0.0, nv));
-        self.rotor_gear_ratio.extend(std::iter::repeat_n(1.0, nv));
-        Ok(id)
     }
 
     /// Adds the inertia `y` (given in a frame placed at `placement` in the joint frame) to
