@@ -61,6 +61,17 @@ impl CostData {
         crate::linalg::slice(&self.lu)
     }
 
+    /// The gradient, the Hessian blocks and the workspace, borrowed apart (for models
+    /// that write their derivatives while using their workspace).
+    pub fn parts(&mut self) -> CostParts<'_> {
+        CostParts {
+            lx: crate::linalg::slice_mut(&mut self.lx),
+            lu: crate::linalg::slice_mut(&mut self.lu),
+            hessian: HessianMut::of(&mut self.lxx, &mut self.lxu, &mut self.luu),
+            ws: &mut self.ws,
+        }
+    }
+
     /// Downcasts the workspace to the model's own type.
     ///
     /// # Panics
@@ -70,6 +81,19 @@ impl CostData {
             .downcast_mut::<T>()
             .expect("cost data used with a model that did not create it")
     }
+}
+
+/// The blocks and the workspace of a [`CostData`], borrowed apart ([`CostData::parts`]).
+#[derive(Debug)]
+pub struct CostParts<'a> {
+    /// `dℓ/dx` (`ndx`).
+    pub lx: &'a mut [f64],
+    /// `dℓ/du` (`nu`).
+    pub lu: &'a mut [f64],
+    /// The whole Hessian blocks.
+    pub hessian: HessianMut<'a>,
+    /// The model's private scratch memory.
+    pub ws: &'a mut Workspace,
 }
 
 /// The Hessian blocks that [`Cost::add_derivatives`] adds to: the lower triangles

@@ -19,13 +19,11 @@ use std::sync::Arc;
 use faer::reborrow::ReborrowMut;
 use faer::{Accum, Mat, MatRef};
 
-use super::{Cost, CostData, DerivativesMut, HessianMut};
+use super::{Cost, CostData, CostParts, DerivativesMut};
 use crate::error::{check_dim, check_finite};
 use crate::functions::util::{add_scaled, checked_sym, downcast};
 use crate::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary, Workspace};
-use crate::linalg::{
-    GramScratch, GramWeight, add_scaled_lower, fill_lower, matmul, scale_rows, slice_mut, symmetrize_from_lower,
-};
+use crate::linalg::{GramScratch, GramWeight, add_scaled_lower, fill_lower, matmul, scale_rows, symmetrize_from_lower};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
@@ -177,31 +175,28 @@ fn add_chain_rule(
 /// `add_derivatives` (`add`, scale 1), the Hessian too if `hessian`, and mirrors the
 /// symmetric blocks.
 fn write_own(data: &mut CostData, hessian: bool, add: impl FnOnce(&mut ResidualWs, DerivativesMut<'_>)) {
-    let CostData {
+    let CostParts {
         lx,
         lu,
-        lxx,
-        lxu,
-        luu,
+        hessian: mut h,
         ws,
-        ..
-    } = data;
+    } = data.parts();
     lx.fill(0.0);
     lu.fill(0.0);
     if hessian {
-        fill_lower(lxx.as_mut(), 0.0);
-        lxu.fill(0.0);
-        fill_lower(luu.as_mut(), 0.0);
+        fill_lower(h.lxx.rb_mut(), 0.0);
+        h.lxu.fill(0.0);
+        fill_lower(h.luu.rb_mut(), 0.0);
     }
     let out = DerivativesMut {
-        lx: slice_mut(lx),
-        lu: slice_mut(lu),
-        hessian: hessian.then(|| HessianMut::of(lxx, lxu, luu)),
+        lx: &mut *lx,
+        lu: &mut *lu,
+        hessian: hessian.then(|| h.rb_mut()),
     };
     add(downcast(ws), out);
     if hessian {
-        symmetrize_from_lower(lxx.as_mut());
-        symmetrize_from_lower(luu.as_mut());
+        symmetrize_from_lower(h.lxx);
+        symmetrize_from_lower(h.luu);
     }
 }
 
@@ -630,6 +625,7 @@ impl LogBarrierCost {
 mod tests {
     use super::*;
     use crate::check::{CheckOptions, check_cost};
+    use crate::costs::HessianMut;
     use crate::functions::testing::{
         TestFunction, assert_close, dual_check_cost, dual_jacobian, random_mat, random_vec, rng, test_fn,
     };

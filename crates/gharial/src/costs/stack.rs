@@ -2,12 +2,13 @@
 
 use std::sync::Arc;
 
+use faer::reborrow::ReborrowMut;
 use faer::{Mat, MatMut};
 
-use super::{Cost, CostData, DerivativesMut, HessianMut};
+use super::{Cost, CostData, CostParts, DerivativesMut, HessianMut};
 use crate::functions::Workspace;
 use crate::functions::util::downcast;
-use crate::linalg::{copy, copy_lower, fill_lower, is_zero, slice_mut, symmetrize_from_lower};
+use crate::linalg::{copy, copy_lower, fill_lower, is_zero, symmetrize_from_lower};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
@@ -194,15 +195,12 @@ impl Cost for CostStack {
     /// and these components then add only their gradient; the result is the same to the
     /// bit with or without `reuse`.
     fn derivatives_reusing(&self, x: &[f64], u: &[f64], data: &mut CostData, reuse: bool) {
-        let CostData {
+        let CostParts {
             lx,
             lu,
-            lxx,
-            lxu,
-            luu,
+            mut hessian,
             ws,
-            ..
-        } = data;
+        } = data.parts();
         let ws = downcast::<StackWorkspace>(ws);
         // Weights may change between calls (through `&self`): the sum is formed again then.
         let rebuild = !reuse
@@ -214,9 +212,9 @@ impl Cost for CostStack {
         lx.fill(0.0);
         lu.fill(0.0);
         let ([cxx, cxu, cuu], [nxx, nxu, nuu]) = (&ws.constant, ws.constant_nonzero);
-        start_from(lxx.as_mut(), cxx, nxx, true);
-        start_from(lxu.as_mut(), cxu, nxu, false);
-        start_from(luu.as_mut(), cuu, nuu, true);
+        start_from(hessian.lxx.rb_mut(), cxx, nxx, true);
+        start_from(hessian.lxu.rb_mut(), cxu, nxu, false);
+        start_from(hessian.luu.rb_mut(), cuu, nuu, true);
         for (k, (c, d)) in self.costs.iter().zip(ws.datas.iter_mut()).enumerate() {
             let w = self.weights.get(k);
             if w == 0.0 {
@@ -224,17 +222,17 @@ impl Cost for CostStack {
             }
             let is_constant = c.hessian_is_constant();
             let out = DerivativesMut {
-                lx: slice_mut(lx),
-                lu: slice_mut(lu),
-                hessian: (!is_constant).then(|| HessianMut::of(lxx, lxu, luu)),
+                lx: &mut *lx,
+                lu: &mut *lu,
+                hessian: (!is_constant).then(|| hessian.rb_mut()),
             };
             // Just formed, the constant blocks are there to reuse.
             let reuse_k = ws.written[k] && (reuse || (rebuild && is_constant));
             c.add_derivatives(x, u, d, reuse_k, w, out);
             ws.written[k] = true;
         }
-        symmetrize_from_lower(lxx.as_mut());
-        symmetrize_from_lower(luu.as_mut());
+        symmetrize_from_lower(hessian.lxx);
+        symmetrize_from_lower(hessian.luu);
     }
 }
 

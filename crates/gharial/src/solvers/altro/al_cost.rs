@@ -19,9 +19,9 @@ use std::sync::Arc;
 use faer::Mat;
 use faer::prelude::ReborrowMut;
 
-use crate::costs::{Cost, CostData};
+use crate::costs::{Cost, CostData, CostParts, HessianMut};
 use crate::functions::{StageFunctionData, Workspace};
-use crate::linalg::{self, matmul, matvec_t, slice, slice_mut};
+use crate::linalg::{self, matmul, matvec_t, slice};
 use crate::param::ParamVec;
 use crate::problem::StageConstraint;
 
@@ -200,26 +200,27 @@ impl Cost for AlCost {
     }
 
     fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-        let CostData {
+        let CostParts {
             lx,
             lu,
-            lxx,
-            lxu,
-            luu,
+            hessian:
+                HessianMut {
+                    mut lxx,
+                    mut lxu,
+                    mut luu,
+                },
             ws,
-            ..
-        } = data;
+        } = data.parts();
         let ws = ws.downcast_mut::<AlWs>().expect("AL cost data");
         let (u, slack) = u.split_at(self.nu);
         let (ndx, nu) = (self.ndx(), self.nu);
         self.base.derivatives(x, u, &mut ws.base);
-        linalg::copy(lxx.as_mut(), ws.base.lxx.as_ref());
+        linalg::copy(lxx.rb_mut(), ws.base.lxx.as_ref());
         lxu.fill(0.0);
         luu.fill(0.0);
-        linalg::copy(lxu.as_mut().subcols_mut(0, nu), ws.base.lxu.as_ref());
-        linalg::copy(luu.as_mut().submatrix_mut(0, 0, nu, nu), ws.base.luu.as_ref());
-        slice_mut(lx).copy_from_slice(ws.base.lx());
-        let lu = slice_mut(lu);
+        linalg::copy(lxu.rb_mut().subcols_mut(0, nu), ws.base.lxu.as_ref());
+        linalg::copy(luu.rb_mut().submatrix_mut(0, 0, nu, nu), ws.base.luu.as_ref());
+        lx.copy_from_slice(ws.base.lx());
         lu[..nu].copy_from_slice(ws.base.lu());
         // Slack (32) and s = 0: gradient (R_s + μ_s)s + λ_s, Hessian (R_s + μ_s)I.
         let mu_s = if self.ns > 0 { self.mu.get(self.cons.len()) } else { 0.0 };
@@ -235,7 +236,7 @@ impl Cost for AlCost {
             let mu = self.mu.get(i);
             self.shifted(i, slice(&fd.value), mu, &mut ws.y[..m], &mut ws.e[..m]);
             // Gradient Jᵀλ⁺ with λ⁺ = μe (11)-(12).
-            matvec_t(slice_mut(lx), faer::Accum::Add, fd.jx.as_ref(), &ws.e[..m], mu);
+            matvec_t(lx, faer::Accum::Add, fd.jx.as_ref(), &ws.e[..m], mu);
             matvec_t(&mut lu[..nu], faer::Accum::Add, fd.ju.as_ref(), &ws.e[..m], mu);
             // Gauss-Newton Hessian μ Jᵀ(I - P)J (8)-(10).
             let mut jac = ws.jac.as_mut().subrows_mut(0, m);
@@ -248,9 +249,9 @@ impl Cost for AlCost {
             let add = faer::Accum::Add;
             let (jx, ju) = (j.subcols(0, ndx), j.subcols(ndx, nu));
             let (pjx, pju) = (pj.subcols(0, ndx), pj.subcols(ndx, nu));
-            matmul(lxx.as_mut(), add, jx.transpose(), pjx, mu);
-            matmul(lxu.as_mut().subcols_mut(0, nu), add, jx.transpose(), pju, mu);
-            matmul(luu.as_mut().submatrix_mut(0, 0, nu, nu), add, ju.transpose(), pju, mu);
+            matmul(lxx.rb_mut(), add, jx.transpose(), pjx, mu);
+            matmul(lxu.rb_mut().subcols_mut(0, nu), add, jx.transpose(), pju, mu);
+            matmul(luu.rb_mut().submatrix_mut(0, 0, nu, nu), add, ju.transpose(), pju, mu);
         }
     }
 }
