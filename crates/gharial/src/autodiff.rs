@@ -283,68 +283,15 @@ pub(crate) fn hessian_hyper(
     u: &[f64],
     w: &[f64],
     s: &mut DualScratch,
-    h: Hessian<'_>,
+    mut h: Hessian<'_>,
     mut g: impl FnMut(&[HyperDual64], &[HyperDual64], &mut [HyperDual64]),
 ) {
-    let Hessian {
-        mut xx,
-        mut xu,
-        mut uu,
-        mut grad,
-    } = h;
     let (ndx, nu) = (space.ndx(), u.len());
     let n = ndx + nu;
-    let manifold_out = match out {
-        Output::Manifold(m, y) if !m.is_vector_space() => {
-            for (d, &v) in s.y0h.iter_mut().zip(y) {
-                *d = hd(v);
-            }
-            Some(m)
-        }
-        _ => None,
-    };
-    for (d, &v) in s.x0h.iter_mut().zip(x) {
-        *d = hd(v);
-    }
-    for (d, &v) in s.uh.iter_mut().zip(u) {
-        *d = hd(v);
-    }
-    let vector = space.is_vector_space();
-    if !vector {
-        space.tangent_map(x, s.tm.as_mut());
-    }
-    // Seed of x along tangent direction i: column i of the tangent map.
-    let seed = |tm: &Mat<f64>, k: usize, i: usize| {
-        if vector {
-            if k == i { 1.0 } else { 0.0 }
-        } else {
-            tm[(k, i)]
-        }
-    };
+    let manifold_out = load_point(space, out, x, u, s);
     for i in 0..n {
         for j in i..n {
-            let perturb_x = i < ndx;
-            if perturb_x && j < ndx && !vector {
-                // Both directions on a curved x: the ε1ε2 term of x ⊕ δ is needed.
-                for v in s.vh.iter_mut() {
-                    *v = hd(0.0);
-                }
-                s.vh[i].eps1 = 1.0;
-                s.vh[j].eps2 = 1.0;
-                space.integrate_hyper(&s.x0h, &s.vh, &mut s.xh);
-            } else if perturb_x {
-                // A vector space, or one direction on u: x depends linearly on ε1 and ε2
-                // up to ε1², ε2² (which vanish), so seeding with the tangent map is exact.
-                for (k, xk) in s.xh.iter_mut().enumerate() {
-                    let e2 = if j < ndx { seed(&s.tm, k, j) } else { 0.0 };
-                    *xk = HyperDual64::new(x[k], seed(&s.tm, k, i), e2, 0.0);
-                }
-            } else {
-                s.uh[i - ndx].eps1 = 1.0;
-            }
-            if j >= ndx {
-                s.uh[j - ndx].eps2 = 1.0;
-            }
+            let perturb_x = seed_pair(space, x, s, i, j);
             let xin = if perturb_x { &s.xh } else { &s.x0h };
             g(xin, &s.uh, &mut s.yh);
             if !perturb_x {
@@ -365,25 +312,102 @@ pub(crate) fn hessian_hyper(
                 second += wk * v.eps1eps2;
                 first += wk * v.eps1;
             }
-            if i == j
-                && let Some((gx, gu)) = grad.as_mut()
-            {
-                if i < ndx {
-                    gx[i] = first;
-                } else {
-                    gu[i - ndx] = first;
-                }
+            h.store(ndx, i, j, first, second);
+        }
+    }
+}
+
+/// Loads the point `(x, u)` (and the output's base point `y` on a curved output
+/// manifold, which is returned) into the hyper-dual scratch, with the tangent map at
+/// `x` on a curved state space.
+fn load_point<'m>(
+    space: &dyn Manifold,
+    out: Output<'m>,
+    x: &[f64],
+    u: &[f64],
+    s: &mut DualScratch,
+) -> Option<&'m dyn Manifold> {
+    let manifold_out = match out {
+        Output::Manifold(m, y) if !m.is_vector_space() => {
+            for (d, &v) in s.y0h.iter_mut().zip(y) {
+                *d = hd(v);
             }
-            match (i < ndx, j < ndx) {
-                (true, true) => {
-                    xx[(i, j)] = second;
-                    xx[(j, i)] = second;
-                }
-                (true, false) => xu[(i, j - ndx)] = second,
-                _ => {
-                    uu[(i - ndx, j - ndx)] = second;
-                    uu[(j - ndx, i - ndx)] = second;
-                }
+            Some(m)
+        }
+        _ => None,
+    };
+    for (d, &v) in s.x0h.iter_mut().zip(x) {
+        *d = hd(v);
+    }
+    for (d, &v) in s.uh.iter_mut().zip(u) {
+        *d = hd(v);
+    }
+    if !space.is_vector_space() {
+        space.tangent_map(x, s.tm.as_mut());
+    }
+    manifold_out
+}
+
+/// Seeds the directions `i ≤ j` of `(δ_x, δ_u)` (ε1 along `i`, ε2 along `j`) into
+/// `s.xh` (a state direction: returns `true`) or `s.uh`.
+fn seed_pair(space: &dyn Manifold, x: &[f64], s: &mut DualScratch, i: usize, j: usize) -> bool {
+    let ndx = space.ndx();
+    let vector = space.is_vector_space();
+    // Seed of x along tangent direction i: column i of the tangent map.
+    let seed = |tm: &Mat<f64>, k: usize, i: usize| {
+        if vector {
+            if k == i { 1.0 } else { 0.0 }
+        } else {
+            tm[(k, i)]
+        }
+    };
+    let perturb_x = i < ndx;
+    if perturb_x && j < ndx && !vector {
+        // Both directions on a curved x: the ε1ε2 term of x ⊕ δ is needed.
+        for v in s.vh.iter_mut() {
+            *v = hd(0.0);
+        }
+        s.vh[i].eps1 = 1.0;
+        s.vh[j].eps2 = 1.0;
+        space.integrate_hyper(&s.x0h, &s.vh, &mut s.xh);
+    } else if perturb_x {
+        // A vector space, or one direction on u: x depends linearly on ε1 and ε2 up to
+        // ε1², ε2² (which vanish), so seeding with the tangent map is exact.
+        for (k, xk) in s.xh.iter_mut().enumerate() {
+            let e2 = if j < ndx { seed(&s.tm, k, j) } else { 0.0 };
+            *xk = HyperDual64::new(x[k], seed(&s.tm, k, i), e2, 0.0);
+        }
+    } else {
+        s.uh[i - ndx].eps1 = 1.0;
+    }
+    if j >= ndx {
+        s.uh[j - ndx].eps2 = 1.0;
+    }
+    perturb_x
+}
+
+impl Hessian<'_> {
+    /// Stores the second derivative along the directions `i ≤ j` (both symmetric
+    /// entries) and, when `i = j`, the first derivative along `i` into the gradient.
+    fn store(&mut self, ndx: usize, i: usize, j: usize, first: f64, second: f64) {
+        if i == j
+            && let Some((gx, gu)) = self.grad.as_mut()
+        {
+            if i < ndx {
+                gx[i] = first;
+            } else {
+                gu[i - ndx] = first;
+            }
+        }
+        match (i < ndx, j < ndx) {
+            (true, true) => {
+                self.xx[(i, j)] = second;
+                self.xx[(j, i)] = second;
+            }
+            (true, false) => self.xu[(i, j - ndx)] = second,
+            _ => {
+                self.uu[(i - ndx, j - ndx)] = second;
+                self.uu[(j - ndx, i - ndx)] = second;
             }
         }
     }
