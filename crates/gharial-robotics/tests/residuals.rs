@@ -1082,3 +1082,49 @@ fn shared_contact_solve_gives_the_unshared_results() {
     let mut d = dynamics.create_contact_data();
     assert_eq!(lambda, dynamics.contact_forces(x, u, &mut d).unwrap());
 }
+
+/// The velocity residuals of one stage share one kinematic pass per state (the data
+/// created in one `with_shared_data` scope): evaluated and differentiated in an
+/// interleaved order at two states, each returns exactly what it returns with its own
+/// data, so the memo is invalidated whenever the state changes.
+#[test]
+fn velocity_residuals_sharing_a_stage_pass_equal_their_unshared_values() {
+    let mut rng = SmallRng::seed_from_u64(7);
+    let model = common::solo12();
+    let space = space_of(&model);
+    let fly = FlyHighResidual::new(&space, "FL_FOOT", 3.0).unwrap();
+    let vel = FrameVelocityResidual::new(&space, "HR_FOOT", ReferenceFrame::World, &[0.0; 6]).unwrap();
+    let fs: [&dyn UnaryFunction; 2] = [&fly, &vel];
+    let data = |f: &dyn UnaryFunction| StageFunctionData::new(f.ndx(), 0, f.nr(), f.create_workspace());
+    let mut shared = gharial::functions::with_shared_data(|| [data(fs[0]), data(fs[1])]);
+    let xs = [random_state(&space, &mut rng), random_state(&space, &mut rng)];
+    // (function, state, evaluate, differentiate)
+    let order = [
+        (0, 0, true, false),
+        (1, 0, true, true),
+        (1, 1, true, false),
+        (0, 0, true, true),
+        (0, 1, true, true),
+        (1, 1, true, true),
+        (1, 0, true, false),
+        (0, 1, false, true),
+        (1, 1, true, false),
+        (0, 0, false, true),
+    ];
+    for (k, (i, s, evaluate, jacobian)) in order.into_iter().enumerate() {
+        let (f, x, d) = (fs[i], &xs[s], &mut shared[i]);
+        if evaluate {
+            f.evaluate(x, d);
+        }
+        if jacobian {
+            f.jacobian(x, d);
+        }
+        let own = value_and_jacobian(f, x);
+        if evaluate {
+            assert_eq!(d.value(), &own.0[..], "step {k}: value");
+        }
+        if jacobian {
+            assert_eq!(d.jx, own.1, "step {k}: Jacobian");
+        }
+    }
+}

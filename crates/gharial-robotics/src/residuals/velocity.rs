@@ -8,12 +8,18 @@
 //! fixed point `p`; the residual adds the missing `ω × ∂p/∂q`, where `∂p/∂q` is the
 //! linear part of the LWA Jacobian (the v-derivative), so that its Jacobian is the
 //! derivative of its value.
+//!
+//! The residuals of one stage on one model share their kinematic passes: their data,
+//! created in the stage's scope (`gharial::functions::with_shared_data`), hold one
+//! memoised pass per state instead of one each.
 
 use std::sync::Arc;
 
 use faer::MatMut;
 use faer::reborrow::ReborrowMut;
-use gharial::functions::{StageFunctionData, UnaryFunction, Workspace};
+use std::sync::Mutex;
+
+use gharial::functions::{StageFunctionData, UnaryFunction, Workspace, lock, shared_data};
 use gharial::linalg::slice_mut;
 use gharial::{Error, Result};
 use gharial_multibody::spatial::{Motion, Vec3};
@@ -23,7 +29,69 @@ use gharial_multibody::{
 };
 
 use super::{FrameRef, MultibodyWs, StateLayout, VectorTarget, ok_or_nan_mat, ws};
+
 use crate::MultibodyPhaseSpace;
+
+/// The velocity-level kinematics (placements and velocities at zero acceleration, and
+/// their derivatives) of one model at one state, shared by the velocity residuals of a
+/// stage ([`shared_data`], keyed by the model): the swing feet's fly-high terms of a
+/// stage need one pass, not one each. Memoised by the state.
+struct VelocityKinematics {
+    ws: MultibodyWs,
+    /// The state of the last forward pass, and whether it succeeded.
+    fk_at: Vec<f64>,
+    fk_ok: bool,
+    /// The state of the last derivative pass (which includes a forward pass), and
+    /// whether it succeeded; reset by a forward pass at another state.
+    deriv_at: Vec<f64>,
+    deriv_ok: bool,
+}
+
+impl VelocityKinematics {
+    fn new(model: &Model, nx: usize) -> Self {
+        Self {
+            ws: MultibodyWs::new(model),
+            fk_at: vec![f64::NAN; nx],
+            fk_ok: false,
+            deriv_at: vec![f64::NAN; nx],
+            deriv_ok: false,
+        }
+    }
+
+    /// The kinematic pass with velocities at `x`, unless the data hold it.
+    fn forward(&mut self, model: &Model, layout: &StateLayout, x: &[f64]) -> gharial_multibody::Result<()> {
+        if !(self.fk_ok && self.fk_at == x) {
+            self.fk_ok = false;
+            self.deriv_ok = false;
+            let w = &mut self.ws;
+            forward_kinematics(model, &mut w.data, layout.q(x), layout.v(x), &w.zeros)?;
+            self.fk_at.copy_from_slice(x);
+            self.fk_ok = true;
+        }
+        Ok(())
+    }
+
+    /// The kinematic derivative pass at `x` (with its forward pass), unless the data
+    /// hold it.
+    fn derivatives(&mut self, model: &Model, layout: &StateLayout, x: &[f64]) -> gharial_multibody::Result<()> {
+        if !(self.deriv_ok && self.deriv_at == x) {
+            self.fk_ok = false;
+            self.deriv_ok = false;
+            let w = &mut self.ws;
+            compute_forward_kinematics_derivatives(model, &mut w.data, layout.q(x), layout.v(x), &w.zeros)?;
+            self.fk_at.copy_from_slice(x);
+            self.deriv_at.copy_from_slice(x);
+            self.fk_ok = true;
+            self.deriv_ok = true;
+        }
+        Ok(())
+    }
+}
+
+/// Scratch of [`FrameVelocityResidual`]: the stage's shared velocity kinematics.
+struct VelocityWs {
+    kin: Arc<Mutex<VelocityKinematics>>,
+}
 
 /// The velocity error `r = v_f(q, v) − v_ref` of a frame in LOCAL, WORLD or
 /// LOCAL_WORLD_ALIGNED coordinates (ALIGATOR's `FrameVelocityResidual`), `nr = 6`,
@@ -120,14 +188,20 @@ impl FrameVelocityResidual {
     }
 }
 
-impl UnaryFunction for FrameVelocityResidual {
-    unary_sizes!(6);
+impl FrameVelocityResidual {
+    /// The stage's shared velocity kinematics (a fresh one outside a stage's scope).
+    fn kinematics(&self) -> Arc<Mutex<VelocityKinematics>> {
+        let nx = self.layout.nx();
+        shared_data(Arc::as_ptr(&self.model) as usize, || {
+            VelocityKinematics::new(&self.model, nx)
+        })
+    }
 
-    fn evaluate(&self, x: &[f64], data: &mut StageFunctionData) {
-        let w: &mut MultibodyWs = ws(&mut data.ws);
-        let out = slice_mut(&mut data.value);
-        let (q, v) = (self.layout.q(x), self.layout.v(x));
-        let res = forward_kinematics(&self.model, &mut w.data, q, v, &w.zeros).and_then(|()| self.velocity(w));
+    /// `v_f − v_ref` into `out` at `x`, NaN if the kinematic pass fails.
+    fn write_value(&self, kin: &mut VelocityKinematics, x: &[f64], out: &mut [f64]) {
+        let res = kin
+            .forward(&self.model, &self.layout, x)
+            .and_then(|()| self.velocity(&kin.ws));
         match res {
             Ok(m) => {
                 for (i, (o, vi)) in out.iter_mut().zip(m.to_array()).enumerate() {
@@ -137,12 +211,34 @@ impl UnaryFunction for FrameVelocityResidual {
             Err(_) => out.fill(f64::NAN),
         }
     }
+}
+
+impl UnaryFunction for FrameVelocityResidual {
+    fn nx(&self) -> usize {
+        self.layout.nx()
+    }
+    fn ndx(&self) -> usize {
+        self.layout.ndx()
+    }
+    fn nr(&self) -> usize {
+        6
+    }
+    fn create_workspace(&self) -> Workspace {
+        Box::new(VelocityWs { kin: self.kinematics() })
+    }
+
+    fn evaluate(&self, x: &[f64], data: &mut StageFunctionData) {
+        let w: &mut VelocityWs = ws(&mut data.ws);
+        let mut kin = lock(&w.kin);
+        self.write_value(&mut kin, x, slice_mut(&mut data.value));
+    }
 
     fn jacobian(&self, x: &[f64], data: &mut StageFunctionData) {
-        let w: &mut MultibodyWs = ws(&mut data.ws);
-        let (q, v) = (self.layout.q(x), self.layout.v(x));
-        let res = compute_forward_kinematics_derivatives(&self.model, &mut w.data, q, v, &w.zeros)
-            .and_then(|()| self.write_jacobian(w, data.jx.as_mut()));
+        let w: &mut VelocityWs = ws(&mut data.ws);
+        let mut kin = lock(&w.kin);
+        let res = kin
+            .derivatives(&self.model, &self.layout, x)
+            .and_then(|()| self.write_jacobian(&kin.ws, data.jx.as_mut()));
         ok_or_nan_mat(res, data.jx.as_mut());
     }
 }
@@ -214,11 +310,12 @@ impl FlyHighResidual {
     /// `(exp(−slope · h), v_LWA)` after a kinematic pass with velocities, `h` the height
     /// above the ground plane.
     fn factor_and_velocity(&self, inner: &mut StageFunctionData) -> gharial_multibody::Result<(f64, Motion)> {
-        let w: &mut MultibodyWs = ws(&mut inner.ws);
-        let p = self.velocity.frame.placement(&w.data).translation;
+        let w: &mut VelocityWs = ws(&mut inner.ws);
+        let kin = lock(&w.kin);
+        let p = self.velocity.frame.placement(&kin.ws.data).translation;
         let [a, b, c] = self.ground();
         let h = p.z - (a + b * p.x + c * p.y);
-        Ok(((-self.slope * h).exp(), self.velocity.velocity(w)?))
+        Ok(((-self.slope * h).exp(), self.velocity.velocity(&kin.ws)?))
     }
 }
 
