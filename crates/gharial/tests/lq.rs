@@ -556,6 +556,54 @@ fn control_only_constraints_match_the_dense_solution() {
     }
 }
 
+/// Constraint rows that do not depend on the control (`D` row zero: obstacles, state
+/// bounds), mixed with rows that do, leave the stage factorization (their multipliers are
+/// their right-hand side over `-mu_c`): serial and parallel solves and re-solves with new
+/// vectors equal the dense KKT solution; with `mu_c = 0` on one row (Bunch-Kaufman) too.
+#[test]
+fn state_only_constraint_rows_match_the_dense_solution() {
+    for (seed, e, hard) in [
+        (21, None, false),
+        (22, Some(0), false),
+        (23, Some(3), false),
+        (24, None, true),
+    ] {
+        let mut p = feature_problem(seed, e, 1e-3);
+        for k in &mut p.knots {
+            // (A row with `D = 0` and `mu_c = 0` would make the stage system singular.)
+            for i in (0..k.nc).step_by(2).filter(|&i| k.mu_c[i] > 0.0) {
+                for j in 0..k.nu {
+                    k.D[(i, j)] = 0.0;
+                }
+            }
+            if hard && k.nc > 1 {
+                k.mu_c[1] = 0.0;
+            }
+        }
+        assert!(p.knots.iter().any(|k| k.nu > 0 && k.nc > 1));
+        let reference = dense::solve(&p).unwrap();
+        let e = rel_err(&riccati(&p, 1), &reference);
+        assert!(e.primal <= 1e-9 && e.dual <= 1e-9, "seed {seed}: serial {e:?}");
+        let e = rel_err(&parallel(&p, 3, 1), &reference);
+        assert!(e.primal <= 1e-9 && e.dual <= 1e-9, "seed {seed}: parallel {e:?}");
+        let mut changed = p.clone();
+        let mut rng = SplitMix64::new(seed + 100);
+        for k in &mut changed.knots {
+            for i in 0..k.d.nrows() {
+                k.d[i] += rng.uniform(-1.0, 1.0);
+            }
+        }
+        let reference = dense::solve(&changed).unwrap();
+        let mut solver = RiccatiSolver::new(&p).unwrap();
+        let mut sol = LqSolution::new(&p);
+        solver.backward(&p, 0.0).unwrap();
+        solver.backward_vectors(&changed).unwrap();
+        solver.forward(&changed, &mut sol).unwrap();
+        let e = rel_err(&sol, &reference);
+        assert!(e.primal <= 1e-9 && e.dual <= 1e-9, "seed {seed}: new vectors {e:?}");
+    }
+}
+
 /// `backward_with` and `value_from_gains`: plugging the unconstrained LQR gains
 /// `k = -Q_uu⁻¹Q_u`, `K = -Q_uu⁻¹Q_ux` (computed here by an LU solve of each `Q_uu`) into
 /// the sweep gives the dense solution of an unconstrained problem; the built-in stage solve

@@ -18,6 +18,8 @@ const MAX_SOLVE_DIM: usize = 64;
 /// regularised stage KKT blocks `[[R, Dᵀ], [D, -mu I]]`.
 pub(crate) struct Ldlt {
     factors: Mat<f64>,
+    /// The dimension in use (at most the allocated one): the leading block of `factors`.
+    n: usize,
     buf: MemBuffer,
     scratch: Vec<f64>,
 }
@@ -34,6 +36,7 @@ impl Ldlt {
         let req = ldlt::factor::cholesky_in_place_scratch::<f64>(n, Par::Seq, Default::default());
         Self {
             factors: Mat::zeros(n, n),
+            n,
             buf: stack_buffer(req),
             scratch: vec![0.0; n],
         }
@@ -41,41 +44,56 @@ impl Ldlt {
 
     /// Dimension of the factorization.
     pub fn dim(&self) -> usize {
-        self.factors.nrows()
+        self.n
+    }
+
+    /// Uses the leading `n × n` block of the storage from now on (`n` at most the
+    /// dimension allocated by [`Ldlt::new`]); allocates nothing.
+    pub fn set_dim(&mut self, n: usize) {
+        assert!(
+            n <= self.factors.nrows(),
+            "Ldlt::set_dim beyond the allocated dimension"
+        );
+        self.n = n;
+    }
+
+    /// The leading block in use.
+    fn active(&self) -> MatRef<'_, f64> {
+        self.factors.as_ref().submatrix(0, 0, self.n, self.n)
+    }
+
+    /// The leading block in use, mutable.
+    fn active_mut(&mut self) -> MatMut<'_, f64> {
+        self.factors.as_mut().submatrix_mut(0, 0, self.n, self.n)
     }
 
     /// Factors the lower triangle of `a` and returns the inertia read off `D`.
     #[cfg(test)]
     pub fn factor(&mut self, a: MatRef<'_, f64>) -> Result<Inertia, FactorError> {
         debug_assert_eq!((a.nrows(), a.ncols()), (self.dim(), self.dim()));
-        copy_lower(self.factors.as_mut(), a);
+        copy_lower(self.active_mut(), a);
         self.factor_filled()
     }
 
     /// The storage of the matrix to factor: write its lower triangle here, then call
     /// [`factor_filled`](Self::factor_filled) (saves a copy).
     pub fn matrix_mut(&mut self) -> MatMut<'_, f64> {
-        self.factors.as_mut()
+        self.active_mut()
     }
 
     /// Factors the lower triangle written through [`matrix_mut`](Self::matrix_mut) and
     /// returns the inertia read off `D`.
     pub fn factor_filled(&mut self) -> Result<Inertia, FactorError> {
         let n = self.dim();
-        if !lower_sum_is_finite(self.factors.as_ref()) {
+        if !lower_sum_is_finite(self.active()) {
             return Err(FactorError::NonFinite);
         }
-        if let Some(res) = with_small_dim!(n, small_factor, (self.factors.as_mut(), false)) {
+        if let Some(res) = with_small_dim!(n, small_factor, (self.active_mut(), false)) {
             res?;
         } else {
             let stack = MemStack::new(&mut self.buf);
-            match ldlt::factor::cholesky_in_place(
-                self.factors.as_mut(),
-                Default::default(),
-                Par::Seq,
-                stack,
-                Default::default(),
-            ) {
+            let f = self.factors.as_mut().submatrix_mut(0, 0, n, n);
+            match ldlt::factor::cholesky_in_place(f, Default::default(), Par::Seq, stack, Default::default()) {
                 Ok(_) => {}
                 Err(ldlt::factor::LdltError::ZeroPivot { index }) => return Err(FactorError::Singular { index }),
             }
@@ -106,7 +124,7 @@ impl Ldlt {
     /// Solves `A X = B` in place (`rhs` holds `B` on entry, `X` on exit).
     pub fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
         let n = self.dim();
-        if with_small_dim!(n, ldlt_solve_fixed, (self.factors.as_ref(), rhs.rb_mut())).is_some() {
+        if with_small_dim!(n, ldlt_solve_fixed, (self.active(), rhs.rb_mut())).is_some() {
             return;
         }
         if rhs.ncols() <= 2 && n <= MAX_SOLVE_DIM {
@@ -136,7 +154,7 @@ impl Ldlt {
             return;
         }
         let stack = MemStack::new(&mut self.buf);
-        let f = self.factors.as_ref();
+        let f = self.factors.as_ref().submatrix(0, 0, n, n);
         ldlt::solve::solve_in_place(f, f.diagonal(), rhs, Par::Seq, stack);
     }
 }

@@ -160,11 +160,7 @@ impl RiccatiStage {
             v: Col::zeros(ny),
             qmat: Mat::zeros(nx + nu, nx + nu),
             qvec: Col::zeros(nx + nu),
-            kkt: KktFactor {
-                ldlt: Ldlt::new(nk),
-                bk: BunchKaufman::with_max_rhs(nk, (1 + nx).max(nu)),
-                use_bk: false,
-            },
+            kkt: KktFactor::new(nu, nc, (1 + nx).max(nu)),
             c_is_zero: false,
             gains: Mat::zeros(nk, 1 + nx),
             P: Mat::zeros(nx, nx),
@@ -516,11 +512,17 @@ impl RiccatiStage {
 
     /// Fills the lower triangle of `[[Q_uu + ρI, ·], [D, -diag(mu_c)]]` into the factor's
     /// storage and factors it (LDLᵀ, Bunch-Kaufman when a row has `mu_c = 0`), checking
-    /// the inertia `(nu, nc, 0)`.
+    /// the inertia `(nu, nc, 0)`. Constraint rows that do not depend on the control (`D`
+    /// row zero, `mu_c > 0`: obstacles, state bounds) decouple from the rest and stay out
+    /// of the LDLᵀ factorization: their multipliers are their right-hand side over
+    /// `-mu_c` (170 wall discs per knot: one 2 × 2 factorization instead of 172 × 172).
     fn factor_stage_kkt(&mut self, knot: &LqKnot, primal_reg: f64) -> Result<(), LqError> {
         let (nx, nu, nc) = (self.nx, self.nu, self.nc);
         let f = &mut self.kkt;
         f.use_bk = (0..nc).any(|i| knot.mu_c[i] == 0.0);
+        f.partition(knot);
+        // The constraint rows in the factorization (all of them unless some decouple).
+        let mc = f.coupled.len() - nu;
         let mut k = if f.use_bk {
             f.bk.matrix_mut()
         } else {
@@ -533,22 +535,29 @@ impl RiccatiStage {
         for i in 0..nu {
             k[(i, i)] += primal_reg;
         }
-        linalg::copy(k.rb_mut().submatrix_mut(nu, 0, nc, nu), knot.D.as_ref());
-        k.rb_mut().submatrix_mut(nu, nu, nc, nc).fill(0.0);
-        for i in 0..nc {
-            k[(nu + i, nu + i)] = -knot.mu_c[i];
+        k.rb_mut().submatrix_mut(nu, nu, mc, mc).fill(0.0);
+        for (a, &r) in f.coupled[nu..].iter().enumerate() {
+            for j in 0..nu {
+                k[(nu + a, j)] = knot.D[(r - nu, j)];
+            }
+            k[(nu + a, nu + a)] = -knot.mu_c[r - nu];
         }
         let res = if f.use_bk {
             f.bk.factor_filled(0.0)
         } else {
             f.ldlt.factor_filled()
         };
+        // The decoupled rows' pivots -mu_c are negative: the inertia of the whole system.
+        let n_free = f.free.len();
         let expected = Inertia {
             positive: nu,
             negative: nc,
             zero: 0,
         };
-        match res {
+        match res.map(|got| Inertia {
+            negative: got.negative + n_free,
+            ..got
+        }) {
             Ok(inertia) if inertia == expected => Ok(()),
             Ok(got) => Err(LqError::Inertia {
                 knot: self.index,
@@ -566,7 +575,7 @@ impl RiccatiStage {
                 expected,
                 got: Inertia {
                     positive: index.min(nu),
-                    negative: index.saturating_sub(nu),
+                    negative: index.saturating_sub(nu) + n_free,
                     zero: 1,
                 },
             }),
@@ -1178,14 +1187,76 @@ struct KktFactor {
     ldlt: Ldlt,
     bk: BunchKaufman,
     use_bk: bool,
+    /// Rows of the system in the LDLᵀ factorization when some are decoupled: the `nu`
+    /// control rows and the constraint rows with a nonzero `D` row.
+    coupled: Vec<usize>,
+    /// The decoupled rows (constraint rows with `D` row zero and `mu_c > 0`) with their
+    /// pivot `-mu_c`: `[K; Z]` on them is the right-hand side divided by the pivot.
+    free: Vec<(usize, f64)>,
+    /// Gathered coupled rows of a right-hand side.
+    gather: Mat<f64>,
 }
 
 impl KktFactor {
-    fn solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
+    /// For `nu` controls, `nc` constraint rows and right-hand sides of up to `max_rhs`
+    /// columns.
+    fn new(nu: usize, nc: usize, max_rhs: usize) -> Self {
+        let nk = nu + nc;
+        Self {
+            ldlt: Ldlt::new(nk),
+            bk: BunchKaufman::with_max_rhs(nk, max_rhs),
+            use_bk: false,
+            coupled: Vec::with_capacity(nk),
+            free: Vec::with_capacity(nc),
+            gather: Mat::zeros(nk, max_rhs),
+        }
+    }
+
+    /// Sorts the rows of the LDLᵀ path into coupled and decoupled ones (none decoupled
+    /// with Bunch-Kaufman, for rows with `mu_c = 0`).
+    fn partition(&mut self, knot: &LqKnot) {
+        let (nu, nc) = (knot.nu, knot.nc);
+        self.coupled.clear();
+        self.free.clear();
+        self.coupled.extend(0..nu);
+        for i in 0..nc {
+            let decoupled = !self.use_bk && (0..nu).all(|j| knot.D[(i, j)] == 0.0);
+            if decoupled {
+                self.free.push((nu + i, -knot.mu_c[i]));
+            } else {
+                self.coupled.push(nu + i);
+            }
+        }
+        let m = if self.free.is_empty() {
+            nu + nc
+        } else {
+            self.coupled.len()
+        };
+        self.ldlt.set_dim(m);
+    }
+
+    fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
         if self.use_bk {
             self.bk.solve_in_place(rhs);
-        } else {
+        } else if self.free.is_empty() {
             self.ldlt.solve_in_place(rhs);
+        } else {
+            let (m, c) = (self.coupled.len(), rhs.ncols());
+            let mut g = self.gather.as_mut().submatrix_mut(0, 0, m, c);
+            for j in 0..c {
+                for (a, &r) in self.coupled.iter().enumerate() {
+                    g[(a, j)] = rhs[(r, j)];
+                }
+            }
+            self.ldlt.solve_in_place(g.rb_mut());
+            for j in 0..c {
+                for (a, &r) in self.coupled.iter().enumerate() {
+                    rhs[(r, j)] = g[(a, j)];
+                }
+                for &(r, pivot) in &self.free {
+                    rhs[(r, j)] /= pivot;
+                }
+            }
         }
     }
 }
