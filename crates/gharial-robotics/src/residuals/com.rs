@@ -217,15 +217,8 @@ impl CenterOfMassVelocityResidual {
 }
 
 impl UnaryFunction for CenterOfMassVelocityResidual {
-    fn nx(&self) -> usize {
-        self.layout.nx()
-    }
-    fn ndx(&self) -> usize {
-        self.layout.ndx()
-    }
-    fn nr(&self) -> usize {
-        3
-    }
+    unary_dims!(3);
+
     fn create_workspace(&self) -> Workspace {
         Box::new(ComVelocityWs {
             mb: MultibodyWs::new(&self.model),

@@ -69,9 +69,9 @@ use gharial_multibody::{Data, Model};
 use crate::MultibodyPhaseSpace;
 use crate::multibody_error;
 
-/// Implements the size methods of [`UnaryFunction`] from the fields `layout` (a
-/// [`StateLayout`]) and `model`.
-macro_rules! unary_sizes {
+/// Implements the size methods of [`UnaryFunction`] from the field `layout` (a
+/// [`StateLayout`]), for residuals with a workspace of their own.
+macro_rules! unary_dims {
     ($nr:expr) => {
         fn nx(&self) -> usize {
             self.layout.nx()
@@ -82,6 +82,13 @@ macro_rules! unary_sizes {
         fn nr(&self) -> usize {
             $nr
         }
+    };
+}
+
+/// [`unary_dims`] and a [`MultibodyWs`] workspace from the field `model`.
+macro_rules! unary_sizes {
+    ($nr:expr) => {
+        unary_dims!($nr);
         fn create_workspace(&self) -> Workspace {
             MultibodyWs::boxed(&self.model)
         }

@@ -13,12 +13,10 @@
 //! created in the stage's scope (`gharial::functions::with_shared_data`), hold one
 //! memoised pass per state instead of one each.
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use faer::MatMut;
 use faer::reborrow::ReborrowMut;
-use std::sync::Mutex;
-
 use gharial::functions::{StageFunctionData, UnaryFunction, Workspace, lock, shared_data};
 use gharial::linalg::slice_mut;
 use gharial::{Error, Result};
@@ -29,7 +27,6 @@ use gharial_multibody::{
 };
 
 use super::{FrameRef, MultibodyWs, StateLayout, VectorTarget, ok_or_nan_mat, ws};
-
 use crate::MultibodyPhaseSpace;
 
 /// The velocity-level kinematics (placements and velocities at zero acceleration, and
@@ -38,52 +35,42 @@ use crate::MultibodyPhaseSpace;
 /// stage need one pass, not one each. Memoised by the state.
 struct VelocityKinematics {
     ws: MultibodyWs,
-    /// The state of the last forward pass, and whether it succeeded.
-    fk_at: Vec<f64>,
-    fk_ok: bool,
-    /// The state of the last derivative pass (which includes a forward pass), and
-    /// whether it succeeded; reset by a forward pass at another state.
-    deriv_at: Vec<f64>,
-    deriv_ok: bool,
+    /// The state the data hold passes at, and which passes.
+    at: Vec<f64>,
+    pass: Pass,
+}
+
+/// The kinematic passes the shared data hold at their state.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Pass {
+    None,
+    Forward,
+    /// The derivative pass, which includes the forward pass.
+    Derivatives,
 }
 
 impl VelocityKinematics {
     fn new(model: &Model, nx: usize) -> Self {
         Self {
             ws: MultibodyWs::new(model),
-            fk_at: vec![f64::NAN; nx],
-            fk_ok: false,
-            deriv_at: vec![f64::NAN; nx],
-            deriv_ok: false,
+            at: vec![f64::NAN; nx],
+            pass: Pass::None,
         }
     }
 
-    /// The kinematic pass with velocities at `x`, unless the data hold it.
-    fn forward(&mut self, model: &Model, layout: &StateLayout, x: &[f64]) -> gharial_multibody::Result<()> {
-        if !(self.fk_ok && self.fk_at == x) {
-            self.fk_ok = false;
-            self.deriv_ok = false;
-            let w = &mut self.ws;
-            forward_kinematics(model, &mut w.data, layout.q(x), layout.v(x), &w.zeros)?;
-            self.fk_at.copy_from_slice(x);
-            self.fk_ok = true;
+    /// Makes the data hold at least `pass` at `x`, running it unless they do.
+    fn ensure(&mut self, model: &Model, layout: &StateLayout, x: &[f64], pass: Pass) -> gharial_multibody::Result<()> {
+        if self.pass >= pass && self.at == x {
+            return Ok(());
         }
-        Ok(())
-    }
-
-    /// The kinematic derivative pass at `x` (with its forward pass), unless the data
-    /// hold it.
-    fn derivatives(&mut self, model: &Model, layout: &StateLayout, x: &[f64]) -> gharial_multibody::Result<()> {
-        if !(self.deriv_ok && self.deriv_at == x) {
-            self.fk_ok = false;
-            self.deriv_ok = false;
-            let w = &mut self.ws;
-            compute_forward_kinematics_derivatives(model, &mut w.data, layout.q(x), layout.v(x), &w.zeros)?;
-            self.fk_at.copy_from_slice(x);
-            self.deriv_at.copy_from_slice(x);
-            self.fk_ok = true;
-            self.deriv_ok = true;
+        self.pass = Pass::None;
+        let (w, (q, v)) = (&mut self.ws, (layout.q(x), layout.v(x)));
+        match pass {
+            Pass::Derivatives => compute_forward_kinematics_derivatives(model, &mut w.data, q, v, &w.zeros)?,
+            _ => forward_kinematics(model, &mut w.data, q, v, &w.zeros)?,
         }
+        self.at.copy_from_slice(x);
+        self.pass = pass;
         Ok(())
     }
 }
@@ -200,7 +187,7 @@ impl FrameVelocityResidual {
     /// `v_f − v_ref` into `out` at `x`, NaN if the kinematic pass fails.
     fn write_value(&self, kin: &mut VelocityKinematics, x: &[f64], out: &mut [f64]) {
         let res = kin
-            .forward(&self.model, &self.layout, x)
+            .ensure(&self.model, &self.layout, x, Pass::Forward)
             .and_then(|()| self.velocity(&kin.ws));
         match res {
             Ok(m) => {
@@ -214,15 +201,7 @@ impl FrameVelocityResidual {
 }
 
 impl UnaryFunction for FrameVelocityResidual {
-    fn nx(&self) -> usize {
-        self.layout.nx()
-    }
-    fn ndx(&self) -> usize {
-        self.layout.ndx()
-    }
-    fn nr(&self) -> usize {
-        6
-    }
+    unary_dims!(6);
     fn create_workspace(&self) -> Workspace {
         Box::new(VelocityWs { kin: self.kinematics() })
     }
@@ -237,7 +216,7 @@ impl UnaryFunction for FrameVelocityResidual {
         let w: &mut VelocityWs = ws(&mut data.ws);
         let mut kin = lock(&w.kin);
         let res = kin
-            .derivatives(&self.model, &self.layout, x)
+            .ensure(&self.model, &self.layout, x, Pass::Derivatives)
             .and_then(|()| self.write_jacobian(&kin.ws, data.jx.as_mut()));
         ok_or_nan_mat(res, data.jx.as_mut());
     }

@@ -1227,12 +1227,8 @@ impl KktFactor {
                 self.coupled.push(nu + i);
             }
         }
-        let m = if self.free.is_empty() {
-            nu + nc
-        } else {
-            self.coupled.len()
-        };
-        self.ldlt.set_dim(m);
+        // All rows when none decouples (`coupled` then holds them in order).
+        self.ldlt.set_dim(self.coupled.len());
     }
 
     fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
