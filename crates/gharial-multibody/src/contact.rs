@@ -364,7 +364,37 @@ pub fn constraint_dynamics(
         cdata.ddq[k] = tau[k] - data.nle[k];
     }
     ltdl_solve_rows(&model.dof_tree(&data.subtree_end), 1, &data.l, &data.d, &mut cdata.ddq);
-    // Contact Jacobian and drift.
+    contact_jacobian_and_drift(model, data, contacts, cdata);
+    delassus_factor(model, data, cdata)?;
+    // λ = −Λ⁻¹ (Jc ddq_free + γ).
+    for r in 0..nc {
+        cdata.lambda[r] = -cdata.gamma[r];
+    }
+    for k in 0..nv {
+        axpy(-cdata.ddq[k], &cdata.jc[k * nc..(k + 1) * nc], &mut cdata.lambda);
+    }
+    cholesky_solve(nc, &cdata.delassus, &mut cdata.lambda);
+    // ddq = ddq_free + M⁻¹ Jcᵀ λ.
+    for k in 0..nv {
+        let s: f64 = cdata.jcminv[k * nc..(k + 1) * nc]
+            .iter()
+            .zip(&cdata.lambda)
+            .map(|(a, b)| a * b)
+            .sum();
+        cdata.ddq[k] += s;
+    }
+    check_result_vec("constrained ddq", &cdata.ddq)?;
+    check_result_vec("contact forces lambda", &cdata.lambda)?;
+    data.ddq.copy_from_slice(&cdata.ddq);
+    cdata.solved = true;
+    Ok(())
+}
+
+/// The contact Jacobian `Jc` (columns over each contact's support) and the drift `γ`
+/// of the constraint accelerations into `cdata`, after the kinematic pass of the
+/// mass matrix.
+fn contact_jacobian_and_drift(model: &Model, data: &Data, contacts: &[ContactModel], cdata: &mut ContactData) {
+    let nc = cdata.nc;
     cdata.jc.fill(0.0);
     let g = model.gravity;
     let mut off = 0;
@@ -387,7 +417,12 @@ pub fn constraint_dynamics(
         cdata.gamma[off..off + c.size()].copy_from_slice(&gam[..c.size()]);
         off += c.size();
     }
-    // Jc M⁻¹ (rows of M⁻¹ Jcᵀ), Delassus matrix and its Cholesky factor.
+}
+
+/// `Jc M⁻¹` (rows of `M⁻¹ Jcᵀ`), the Delassus matrix `Jc M⁻¹ Jcᵀ` and its Cholesky
+/// factor, from the factorization of `M`.
+fn delassus_factor(model: &Model, data: &Data, cdata: &mut ContactData) -> Result<()> {
+    let (nv, nc) = (model.nv, cdata.nc);
     cdata.jcminv.copy_from_slice(&cdata.jc);
     ltdl_solve_rows(
         &model.dof_tree(&data.subtree_end),
@@ -407,27 +442,6 @@ pub fn constraint_dynamics(
         }
     }
     cholesky_factor(nc, &mut cdata.delassus, "Delassus matrix Jc M⁻¹ Jcᵀ")?;
-    // λ = −Λ⁻¹ (Jc ddq_free + γ).
-    for r in 0..nc {
-        cdata.lambda[r] = -cdata.gamma[r];
-    }
-    for k in 0..nv {
-        axpy(-cdata.ddq[k], &cdata.jc[k * nc..(k + 1) * nc], &mut cdata.lambda);
-    }
-    cholesky_solve(nc, &cdata.delassus, &mut cdata.lambda);
-    // ddq = ddq_free + M⁻¹ Jcᵀ λ.
-    for k in 0..nv {
-        let s: f64 = cdata.jcminv[k * nc..(k + 1) * nc]
-            .iter()
-            .zip(&cdata.lambda)
-            .map(|(a, b)| a * b)
-            .sum();
-        cdata.ddq[k] += s;
-    }
-    check_result_vec("constrained ddq", &cdata.ddq)?;
-    check_result_vec("contact forces lambda", &cdata.lambda)?;
-    data.ddq.copy_from_slice(&cdata.ddq);
-    cdata.solved = true;
     Ok(())
 }
 
