@@ -7,7 +7,7 @@ use gharial::solvers::altro::AltroOptions;
 use gharial::solvers::bcl_ddp::{BclDdpOptions, Multipliers, PenaltyUpdate, Schedule};
 use gharial::solvers::csqp::CsqpOptions;
 use gharial::solvers::ddp::DdpOptions;
-use gharial::solvers::proxddp::{Merit, ProxDdpOptions, Rollout, StepAcceptance};
+use gharial::solvers::proxddp::{DynamicsStep, Merit, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::solvers::{HessianApprox, SolverOptions};
 use pyo3::IntoPyObjectExt;
 use pyo3::prelude::*;
@@ -68,6 +68,8 @@ pub enum Field<'a> {
     Acceptance(&'a mut StepAcceptance),
     /// ProxDDP's merit function.
     Merit(&'a mut Merit),
+    /// ProxDDP's treatment of the dynamics in the Newton step.
+    DynamicsStep(&'a mut DynamicsStep),
     /// The Hessian approximation.
     Hessian(&'a mut HessianApprox),
     /// BCL-DDP's multipliers.
@@ -95,6 +97,7 @@ const PROXDDP: &[&str] = &[
     "rollout",
     "step_acceptance",
     "merit",
+    "dynamics_step",
     "hessian",
     "ls_c1",
     "ls_alpha_min",
@@ -131,6 +134,7 @@ fn proxddp_field<'a>(o: &'a mut ProxDdpOptions, name: &str) -> Option<Field<'a>>
         "rollout" => Field::Rollout(&mut o.rollout),
         "step_acceptance" => Field::Acceptance(&mut o.step_acceptance),
         "merit" => Field::Merit(&mut o.merit),
+        "dynamics_step" => Field::DynamicsStep(&mut o.dynamics_step),
         "hessian" => Field::Hessian(&mut o.hessian),
         "ls_c1" => Field::F64(&mut o.linesearch.c1),
         "ls_alpha_min" => Field::F64(&mut o.linesearch.alpha_min),
@@ -406,6 +410,11 @@ const ACCEPTANCES: &[(&str, StepAcceptance)] = &[
     ("nonmonotone", StepAcceptance::NonmonotoneLinesearch),
 ];
 const MERITS: &[(&str, Merit)] = &[("primal-dual", Merit::PrimalDual), ("primal", Merit::Primal)];
+const DYNAMICS_STEPS: &[(&str, DynamicsStep)] = &[
+    ("auto", DynamicsStep::Auto),
+    ("proximal", DynamicsStep::Proximal),
+    ("exact", DynamicsStep::Exact),
+];
 const MULTIPLIERS: &[(&str, Multipliers)] = &[("constant", Multipliers::Constant), ("affine", Multipliers::Affine)];
 const PENALTIES: &[(&str, PenaltyUpdate)] = &[("factor", PenaltyUpdate::Factor), ("adaptive", PenaltyUpdate::Adaptive)];
 const SCHEDULES: &[(&str, Schedule)] = &[("bcl", Schedule::Bcl), ("every-iteration", Schedule::EveryIteration)];
@@ -431,6 +440,7 @@ impl Field<'_> {
             Field::Rollout(v) => name_of(**v, ROLLOUTS).into_py_any(py),
             Field::Acceptance(v) => name_of(**v, ACCEPTANCES).into_py_any(py),
             Field::Merit(v) => name_of(**v, MERITS).into_py_any(py),
+            Field::DynamicsStep(v) => name_of(**v, DYNAMICS_STEPS).into_py_any(py),
             Field::Hessian(v) => name_of(**v, HESSIANS).into_py_any(py),
             Field::Multipliers(v) => name_of(**v, MULTIPLIERS).into_py_any(py),
             Field::Penalty(v) => name_of(**v, PENALTIES).into_py_any(py),
@@ -458,6 +468,7 @@ impl Field<'_> {
             Field::Rollout(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, ROLLOUTS)?,
             Field::Acceptance(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, ACCEPTANCES)?,
             Field::Merit(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, MERITS)?,
+            Field::DynamicsStep(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, DYNAMICS_STEPS)?,
             Field::Hessian(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, HESSIANS)?,
             Field::Multipliers(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, MULTIPLIERS)?,
             Field::Penalty(v) => **v = pick(name, &value.extract::<String>().map_err(bad)?, PENALTIES)?,

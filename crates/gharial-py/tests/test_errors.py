@@ -68,6 +68,11 @@ def test_options_are_checked_attributes():
     assert s.tol == 1e-6  # the bad value was not kept
     with pytest.raises(ValueError, match="unknown value `sideways`"):
         s.rollout = "sideways"
+    assert s.dynamics_step == "auto"
+    s.dynamics_step = "proximal"
+    assert s.dynamics_step == "proximal"
+    with pytest.raises(ValueError, match="unknown value `hard`"):
+        s.dynamics_step = "hard"
     with pytest.raises(ValueError, match="max_iters"):
         s.max_iters = "many"
     with pytest.raises(ValueError, match="unknown solver `ipopt`"):

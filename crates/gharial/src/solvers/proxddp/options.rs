@@ -47,7 +47,11 @@ pub use crate::solvers::HessianApprox;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DynamicsStep {
     /// [`Exact`](Self::Exact) on problems without path or terminal constraints,
-    /// [`Proximal`](Self::Proximal) otherwise (the default).
+    /// [`Proximal`](Self::Proximal) otherwise (the default). A solve that starts with the
+    /// exact step switches to the proximal one for its remaining iterations at the first
+    /// exact step that does not descend the merit (co-states far from their estimates
+    /// `λ_e + f / mu_d`, as on a floating base without contacts), where `Exact` alone
+    /// regularises until the line search fails.
     #[default]
     Auto,
     /// The proximal step of the paper, (42): the dynamics rows carry the dual

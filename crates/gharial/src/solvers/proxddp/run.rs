@@ -132,6 +132,7 @@ impl State {
         let mu = opts.mu_init;
         let mu_d = opts.dyn_al_scale * mu;
         cx.filter.clear();
+        cx.ws.reset_dynamics_step();
         let (status, cost) = match cx.ws.evaluate_current(cx.problem) {
             Some(c) => (Status::MaxIterations, c),
             None => (Status::NonFinite, f64::NAN),
@@ -271,7 +272,12 @@ impl State {
             if !d.is_finite() {
                 return Err(Status::NonFinite);
             }
-            // Not a descent direction: regularise the primal block and retry.
+            // Not a descent direction: the proximal step if the exact one was taken by
+            // default, else regularise the primal block and retry.
+            if d > 0.0 && ws.fall_back_to_proximal() {
+                ws.build_lq(problem, opts, mu, mu_d);
+                continue;
+            }
             if d > 0.0 && self.preg < opts.preg_max {
                 self.preg = (self.preg * opts.preg_increase).max(opts.preg_min);
                 continue;

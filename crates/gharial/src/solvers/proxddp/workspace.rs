@@ -129,8 +129,11 @@ pub(super) struct Workspace {
     knot_constants: bool,
     /// Every path and terminal constraint, in knot order: one walk over all of them.
     cons: Vec<ConstraintEntry>,
-    /// Whether the Newton step treats the dynamics exactly ([`DynamicsStep`]).
+    /// Whether the Newton step treats the dynamics exactly ([`DynamicsStep`]); with
+    /// `Auto`, until the exact step fails to descend the merit in a solve.
     exact_dynamics: bool,
+    /// `DynamicsStep::Auto` chose the exact step for this problem.
+    auto_exact: bool,
     pub lq: LqProblem,
     pub step: LqSolution,
     pub riccati: LqSolver,
@@ -169,6 +172,9 @@ impl Workspace {
         let min_scale = constraints.map(|c| c.scale).fold(1.0_f64, f64::min);
         let vecs = |sizes: &[usize]| sizes.iter().map(|&k| vec![0.0; k]).collect::<Vec<_>>();
         let nus_sizes: Vec<usize> = ncs.clone();
+        let auto_exact = opts.dynamics_step == DynamicsStep::Auto
+            && (0..=n).all(|t| problem.constraints(t).is_empty())
+            && queue.iter().all(|s| s.constraints().is_empty());
         let mut ws = Self {
             trial: cur.clone(),
             best: cur.clone(),
@@ -200,11 +206,9 @@ impl Workspace {
             exact_dynamics: match opts.dynamics_step {
                 DynamicsStep::Exact => true,
                 DynamicsStep::Proximal => false,
-                DynamicsStep::Auto => {
-                    (0..=n).all(|t| problem.constraints(t).is_empty())
-                        && queue.iter().all(|s| s.constraints().is_empty())
-                }
+                DynamicsStep::Auto => auto_exact,
             },
+            auto_exact,
             lq,
             step,
             riccati,
@@ -496,6 +500,26 @@ impl Workspace {
             self.add_second_order(problem);
         }
         self.knot_constants = true;
+    }
+
+    /// Back to the dynamics step of the options, at the start of a solve.
+    pub fn reset_dynamics_step(&mut self) {
+        if self.auto_exact {
+            self.exact_dynamics = true;
+        }
+    }
+
+    /// With [`DynamicsStep::Auto`], replaces the exact dynamics step by the proximal one
+    /// (42) for the rest of the solve; `true` if it did. The exact step solves the
+    /// linearised dynamics with the current co-states, which need not descend the
+    /// proximal merit when they are far from the estimates `λ_e + f / mu_d` (a floating
+    /// base without contacts); the proximal step is its Newton step and descends it.
+    pub fn fall_back_to_proximal(&mut self) -> bool {
+        let switch = self.auto_exact && self.exact_dynamics;
+        if switch {
+            self.exact_dynamics = false;
+        }
+        switch
     }
 
     /// The shifted constraint values `z` of the constraint rows, the estimates
