@@ -255,127 +255,174 @@ fn weights(position: f64) -> Vec<f64> {
 /// # Errors
 /// Never for these fixed numbers.
 pub fn build(variant: QuadrotorVariant) -> Result<Example> {
-    let space = space();
-    let nu = 4;
     let ode = QuadrotorOde::hector()?;
     let hover = ode.hover_thrust();
-    let ode = Arc::new(AutoDiff::ode(space.clone(), ode)?);
-    let dynamics = Dynamics::Explicit(Arc::new(ExplicitRungeKutta::euler(ode, DT)?));
-    let u_cost: Arc<QuadraticControlCost> = Arc::new(QuadraticControlCost::diagonal(
-        space.as_ref(),
-        &[0.0; 4],
-        &[1e-2 * DT; 4],
-    )?);
-    let stage_with = |target: &[f64], w: &[f64]| -> Result<StageModel> {
-        let cost = CostStack::new(space.as_ref(), nu)
-            .with(
-                "x_reg",
-                Arc::new(QuadraticStateCost::diagonal(space.clone(), target, w, nu)?),
-                1.0,
-            )?
-            .with("u_reg", u_cost.clone(), 1.0)?;
-        StageModel::new(Arc::new(cost), dynamics.clone())
+    let stages = Stages::new(ode)?;
+    let v = match variant {
+        QuadrotorVariant::ThrustLimits => waypoints(&stages)?,
+        QuadrotorVariant::Slalom => slalom(&stages)?,
     };
     let x0 = at([0.0, 0.0, 0.2]);
-    let (name, description, stages, target, w_term, rollout_kind, mu_init) = match variant {
-        QuadrotorVariant::ThrustLimits => {
-            let switch = (0.7 * HORIZON as f64) as usize;
-            let (t1, t2) = (at([0.9, 0.8, 1.0]), at([1.4, -0.6, 1.0]));
-            let (w1, w2) = (weights(4.0), weights(1.0));
-            let mut stages = Vec::with_capacity(HORIZON);
-            for t in 0..HORIZON {
-                let (target, w): (&[f64], Vec<f64>) = if t < switch {
-                    (&t1, w1.iter().map(|v| v * DT).collect())
-                } else if t == switch {
-                    (&t1, w1.clone())
-                } else {
-                    (&t2, w2.iter().map(|v| v * DT).collect())
-                };
-                let stage =
-                    stage_with(target, &w)?.with_constraint(control_box(space.as_ref(), nu, THRUST_MAX, 10.0)?)?;
-                stages.push(stage);
-            }
-            (
-                "quadrotor",
-                "Quadrotor on SE(3) x R^6 (ProxDDP paper Fig. 10): two waypoints, thrust limits |u_i| <= 4.5 \
-                 (AL scale 10); Euler, dt = 0.033, N = 60.",
-                stages,
-                t2,
-                w2,
-                Rollout::Nonlinear,
-                0.1,
-            )
-        }
-        QuadrotorVariant::Slalom => {
-            let t3 = at([-0.3, 2.5, 1.0]);
-            let w = weights(1.0);
-            let wdt: Vec<f64> = w.iter().map(|v| v * DT).collect();
-            let mut stages = Vec::with_capacity(HORIZON);
-            let height = Arc::new(Unary::new(
-                Arc::new(AutoDiff::unary(space.clone(), HeightBounds { z_min: 0.0, z_max: 2.0 })?),
-                nu,
-            ));
-            let cylinders = CYLINDERS
-                .iter()
-                .map(|c| {
-                    Ok(Arc::new(Unary::new(
-                        Arc::new(AutoDiff::unary(
-                            space.clone(),
-                            CylinderClearance {
-                                center: *c,
-                                distance: CYLINDER_RADIUS + QUAD_RADIUS,
-                            },
-                        )?),
-                        nu,
-                    )))
-                })
-                .collect::<Result<Vec<_>>>()?;
-            for _ in 0..HORIZON {
-                let mut stage = stage_with(&t3, &wdt)?;
-                stage.add_constraint(StageConstraint::new(
-                    "height",
-                    height.clone(),
-                    Arc::new(NegativeOrthant),
-                ))?;
-                for (i, c) in cylinders.iter().enumerate() {
-                    stage.add_constraint(
-                        StageConstraint::new(format!("cylinder_{i}"), c.clone(), Arc::new(NegativeOrthant))
-                            .with_scale(0.1),
-                    )?;
-                }
-                stages.push(stage);
-            }
-            (
-                "quadrotor-slalom",
-                "Quadrotor on SE(3) x R^6 slaloming between two cylinders (ProxDDP paper Fig. 11): sphere / \
-                 cylinder clearance inequalities (AL scale 0.1), floor and ceiling, terminal state constraint; \
-                 Euler, dt = 0.033, N = 60, linear rollout.",
-                stages,
-                t3,
-                w,
-                Rollout::Linear,
-                1.0,
-            )
-        }
-    };
-    let term_cost = Arc::new(QuadraticStateCost::diagonal(space.clone(), &target, &w_term, 0)?);
-    let mut problem = Problem::new(&x0, stages, term_cost)?;
+    let term_cost = Arc::new(QuadraticStateCost::diagonal(
+        stages.space.clone(),
+        &v.target,
+        &v.w_term,
+        0,
+    )?);
+    let mut problem = Problem::new(&x0, v.stages, term_cost)?;
     if variant == QuadrotorVariant::Slalom {
-        problem.add_terminal_constraint(terminal_state(space.clone(), &target)?)?;
+        problem.add_terminal_constraint(terminal_state(stages.space.clone(), &v.target)?)?;
     }
-    let us0 = vec![vec![hover; nu]; HORIZON];
+    let us0 = vec![vec![hover; NU]; HORIZON];
     let xs0 = rollout(&problem, &us0)?;
     Ok(Example {
-        name,
+        name: v.name,
         problem,
         xs0,
         us0,
         dt: Some(DT),
         proxddp: ProxDdpOptions::default().with(|o| {
-            o.mu_init = mu_init;
-            o.rollout = rollout_kind;
+            o.mu_init = v.mu_init;
+            o.rollout = v.rollout;
             o.max_iters = 300;
         }),
-        description,
+        description: v.description,
+    })
+}
+
+/// Thrust inputs.
+const NU: usize = 4;
+
+/// The pieces every stage of both variants shares: the space, the Euler step of the
+/// Hector's dynamics and the control regularisation.
+struct Stages {
+    space: Arc<dyn Manifold>,
+    dynamics: Dynamics,
+    u_cost: Arc<QuadraticControlCost>,
+}
+
+impl Stages {
+    fn new(ode: QuadrotorOde) -> Result<Self> {
+        let space = space();
+        let ode = Arc::new(AutoDiff::ode(space.clone(), ode)?);
+        let dynamics = Dynamics::Explicit(Arc::new(ExplicitRungeKutta::euler(ode, DT)?));
+        let u_cost = Arc::new(QuadraticControlCost::diagonal(
+            space.as_ref(),
+            &[0.0; NU],
+            &[1e-2 * DT; NU],
+        )?);
+        Ok(Self {
+            space,
+            dynamics,
+            u_cost,
+        })
+    }
+
+    /// A stage regularised towards `target` with state weights `w`.
+    fn towards(&self, target: &[f64], w: &[f64]) -> Result<StageModel> {
+        let cost = CostStack::new(self.space.as_ref(), NU)
+            .with(
+                "x_reg",
+                Arc::new(QuadraticStateCost::diagonal(self.space.clone(), target, w, NU)?),
+                1.0,
+            )?
+            .with("u_reg", self.u_cost.clone(), 1.0)?;
+        StageModel::new(Arc::new(cost), self.dynamics.clone())
+    }
+}
+
+/// What distinguishes the two variants.
+struct Variant {
+    name: &'static str,
+    description: &'static str,
+    stages: Vec<StageModel>,
+    /// Terminal target and weights.
+    target: Vec<f64>,
+    w_term: Vec<f64>,
+    rollout: Rollout,
+    mu_init: f64,
+}
+
+/// Fig. 10: two waypoints, the first weighted 4x until 70 % of the horizon, thrust limits.
+fn waypoints(s: &Stages) -> Result<Variant> {
+    let switch = (0.7 * HORIZON as f64) as usize;
+    let (t1, t2) = (at([0.9, 0.8, 1.0]), at([1.4, -0.6, 1.0]));
+    let (w1, w2) = (weights(4.0), weights(1.0));
+    let mut stages = Vec::with_capacity(HORIZON);
+    for t in 0..HORIZON {
+        let (target, w): (&[f64], Vec<f64>) = if t < switch {
+            (&t1, w1.iter().map(|v| v * DT).collect())
+        } else if t == switch {
+            (&t1, w1.clone())
+        } else {
+            (&t2, w2.iter().map(|v| v * DT).collect())
+        };
+        let stage = s
+            .towards(target, &w)?
+            .with_constraint(control_box(s.space.as_ref(), NU, THRUST_MAX, 10.0)?)?;
+        stages.push(stage);
+    }
+    Ok(Variant {
+        name: "quadrotor",
+        description: "Quadrotor on SE(3) x R^6 (ProxDDP paper Fig. 10): two waypoints, thrust limits |u_i| <= 4.5 \
+                      (AL scale 10); Euler, dt = 0.033, N = 60.",
+        stages,
+        target: t2,
+        w_term: w2,
+        rollout: Rollout::Nonlinear,
+        mu_init: 0.1,
+    })
+}
+
+/// Fig. 11: between two cylinders to a goal, under a ceiling and above the floor.
+fn slalom(s: &Stages) -> Result<Variant> {
+    let t3 = at([-0.3, 2.5, 1.0]);
+    let w = weights(1.0);
+    let wdt: Vec<f64> = w.iter().map(|v| v * DT).collect();
+    let height = Arc::new(Unary::new(
+        Arc::new(AutoDiff::unary(
+            s.space.clone(),
+            HeightBounds { z_min: 0.0, z_max: 2.0 },
+        )?),
+        NU,
+    ));
+    let cylinders = CYLINDERS
+        .iter()
+        .map(|c| {
+            let clearance = CylinderClearance {
+                center: *c,
+                distance: CYLINDER_RADIUS + QUAD_RADIUS,
+            };
+            Ok(Arc::new(Unary::new(
+                Arc::new(AutoDiff::unary(s.space.clone(), clearance)?),
+                NU,
+            )))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let mut stages = Vec::with_capacity(HORIZON);
+    for _ in 0..HORIZON {
+        let mut stage = s.towards(&t3, &wdt)?;
+        stage.add_constraint(StageConstraint::new(
+            "height",
+            height.clone(),
+            Arc::new(NegativeOrthant),
+        ))?;
+        for (i, c) in cylinders.iter().enumerate() {
+            stage.add_constraint(
+                StageConstraint::new(format!("cylinder_{i}"), c.clone(), Arc::new(NegativeOrthant)).with_scale(0.1),
+            )?;
+        }
+        stages.push(stage);
+    }
+    Ok(Variant {
+        name: "quadrotor-slalom",
+        description: "Quadrotor on SE(3) x R^6 slaloming between two cylinders (ProxDDP paper Fig. 11): sphere / \
+                      cylinder clearance inequalities (AL scale 0.1), floor and ceiling, terminal state constraint; \
+                      Euler, dt = 0.033, N = 60, linear rollout.",
+        stages,
+        target: t3,
+        w_term: w,
+        rollout: Rollout::Linear,
+        mu_init: 1.0,
     })
 }
