@@ -235,7 +235,31 @@ struct Phases<'a> {
     fly: Dynamics,
 }
 
-impl Phases<'_> {
+impl<'a> Phases<'a> {
+    /// The phases' dynamics: the welded mug's and the free flight's semi-implicit Euler
+    /// steps, and the release map between them.
+    fn new(
+        attached: &'a Arc<MultibodyPhaseSpace>,
+        flight: &'a Arc<MultibodyPhaseSpace>,
+        weld: &Arc<MultibodyWeldFwdDynamics>,
+        release: Release,
+        dt: f64,
+    ) -> Result<Self> {
+        let free = Arc::new(MultibodyFreeFwdDynamics::new(
+            flight.clone(),
+            Actuation::dofs(flight.model(), &ARM_DOFS)?,
+        )?);
+        let hold = SemiImplicitEuler::new(weld.clone(), attached.configuration().clone(), dt)?;
+        let fly = SemiImplicitEuler::new(free, flight.configuration().clone(), dt)?;
+        Ok(Self {
+            attached,
+            flight,
+            hold: Dynamics::Explicit(Arc::new(hold)),
+            release: Dynamics::Explicit(Arc::new(release)),
+            fly: Dynamics::Explicit(Arc::new(fly)),
+        })
+    }
+
     /// The problem: held stages, the release stage, flight stages (each with its costs
     /// around `x0` or its flight image `x0_flight` and the torque limits), the terminal
     /// cost and the terminal constraint on the mug's position.
@@ -267,6 +291,54 @@ impl Phases<'_> {
     }
 }
 
+/// The actuated dofs: the arm's.
+const ARM_DOFS: [usize; NA] = [0, 1, 2, 3, 4, 5];
+
+/// The phase spaces of the arm with the mug held at the tool (grasp offset along its z)
+/// and with the mug flying.
+fn phase_spaces(params: &Ur10BallisticParams) -> Result<(Arc<MultibodyPhaseSpace>, Arc<MultibodyPhaseSpace>)> {
+    let arm = Model::from_urdf_str(UR10_URDF, RootJoint::Fixed)
+        .map_err(|e| Error::InvalidModel(format!("ur10-ballistic model: {e}")))?;
+    let tool = arm.frames()[arm.frame_id("tool0").map_err(|e| Error::InvalidModel(e.to_string()))?].clone();
+    let grasp = tool
+        .placement
+        .compose(&Se3::new(Mat3::identity(), Vec3::new(0.0, 0.0, params.grasp_offset)));
+    let attached = Arc::new(MultibodyPhaseSpace::new(Arc::new(model_with_mug(
+        params,
+        Mount::Held(tool.parent_joint, grasp),
+    )?)));
+    let flight = Arc::new(MultibodyPhaseSpace::new(Arc::new(model_with_mug(
+        params,
+        Mount::Flying,
+    )?)));
+    Ok((attached, flight))
+}
+
+/// The catalogue entry: the cold start (`x0` held, its flight image after the release,
+/// the quasi-static torque) and the paper's settings.
+fn example(params: &Ur10BallisticParams, problem: Problem, x0: &[f64], x0_flight: &[f64], tau0: &[f64]) -> Example {
+    let nc = params.contact_stages;
+    let xs0 = (0..=params.horizon)
+        .map(|t| if t < nc { x0.to_vec() } else { x0_flight.to_vec() })
+        .collect();
+    Example {
+        name: "ur10-ballistic",
+        problem,
+        xs0,
+        us0: vec![tau0.to_vec(); params.horizon],
+        dt: Some(params.dt),
+        proxddp: ProxDdpOptions::default().with(|o| {
+            o.tol = 1e-6;
+            o.mu_init = 1e-4;
+            o.rollout = Rollout::Linear;
+            o.max_iters = 300;
+        }),
+        description: "ProxDDP paper's UR10 ballistic task (VII-B): throw a mug (0.3 kg) held by a 6D \
+                      constraint until t_c = 0.81 s so that it lands at (3.4, -0.2, 0) at T = 2 s; torque \
+                      limits, terminal position constraint only; cold start from the quasi-static torque.",
+    }
+}
+
 impl Ur10Ballistic {
     /// Builds the task from `params`.
     ///
@@ -283,32 +355,14 @@ impl Ur10Ballistic {
                 ),
             ));
         }
-        let arm = Model::from_urdf_str(UR10_URDF, RootJoint::Fixed)
-            .map_err(|e| Error::InvalidModel(format!("ur10-ballistic model: {e}")))?;
-        let tool = arm.frames()[arm.frame_id("tool0").map_err(|e| Error::InvalidModel(e.to_string()))?].clone();
-        let grasp = tool
-            .placement
-            .compose(&Se3::new(Mat3::identity(), Vec3::new(0.0, 0.0, params.grasp_offset)));
-        let attached = Arc::new(MultibodyPhaseSpace::new(Arc::new(model_with_mug(
-            &params,
-            Mount::Held(tool.parent_joint, grasp),
-        )?)));
-        let flight = Arc::new(MultibodyPhaseSpace::new(Arc::new(model_with_mug(
-            &params,
-            Mount::Flying,
-        )?)));
-        let arm_dofs: Vec<usize> = (0..NA).collect();
+        let (attached, flight) = phase_spaces(&params)?;
         let (kp, kd) = params.gains;
         let weld = Arc::new(MultibodyWeldFwdDynamics::new(
             attached.clone(),
-            Actuation::dofs(attached.model(), &arm_dofs)?,
+            Actuation::dofs(attached.model(), &ARM_DOFS)?,
             MUG_JOINT,
             kp,
             kd,
-        )?);
-        let free = Arc::new(MultibodyFreeFwdDynamics::new(
-            flight.clone(),
-            Actuation::dofs(flight.model(), &arm_dofs)?,
         )?);
         let x0: Vec<f64> = params
             .q0
@@ -320,44 +374,9 @@ impl Ur10Ballistic {
         let tau0 = weld.quasi_static_torque(&x0[..NA + 7])?.u;
         let release = Release::new(weld.clone(), attached.clone(), flight.clone(), params.dt)?;
         let x0_flight = release.release_state(&x0)?;
-        let hold = Dynamics::Explicit(Arc::new(SemiImplicitEuler::new(
-            weld.clone(),
-            attached.configuration().clone(),
-            params.dt,
-        )?));
-        let fly = Dynamics::Explicit(Arc::new(SemiImplicitEuler::new(
-            free,
-            flight.configuration().clone(),
-            params.dt,
-        )?));
-        let phases = Phases {
-            attached: &attached,
-            flight: &flight,
-            hold,
-            release: Dynamics::Explicit(Arc::new(release)),
-            fly,
-        };
+        let phases = Phases::new(&attached, &flight, &weld, release, params.dt)?;
         let problem = phases.problem(&params, &x0, &x0_flight, &tau0)?;
-        let nc = params.contact_stages;
-        let xs0 = (0..=params.horizon)
-            .map(|t| if t < nc { x0.clone() } else { x0_flight.clone() })
-            .collect();
-        let example = Example {
-            name: "ur10-ballistic",
-            problem,
-            xs0,
-            us0: vec![tau0.clone(); params.horizon],
-            dt: Some(params.dt),
-            proxddp: ProxDdpOptions::default().with(|o| {
-                o.tol = 1e-6;
-                o.mu_init = 1e-4;
-                o.rollout = Rollout::Linear;
-                o.max_iters = 300;
-            }),
-            description: "ProxDDP paper's UR10 ballistic task (VII-B): throw a mug (0.3 kg) held by a 6D \
-                          constraint until t_c = 0.81 s so that it lands at (3.4, -0.2, 0) at T = 2 s; torque \
-                          limits, terminal position constraint only; cold start from the quasi-static torque.",
-        };
+        let example = example(&params, problem, &x0, &x0_flight, &tau0);
         Ok(Self {
             params,
             attached,
