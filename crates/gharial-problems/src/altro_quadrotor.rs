@@ -173,41 +173,24 @@ pub fn maze() -> Result<Example> {
 
 fn build(with_maze: bool) -> Result<Example> {
     let space = space();
-    let (nu, dt) = (4, DURATION / HORIZON as f64);
+    let dt = DURATION / HORIZON as f64;
     let ode = model();
     let hover = ode.hover_thrust();
     let ode = Arc::new(AutoDiff::ode(space.clone(), ode)?);
     let dynamics = Dynamics::Explicit(Arc::new(ExplicitRungeKutta::rk4(ode, dt)?));
     let xf = at([0.0, 60.0, 10.0]);
-    let mut w = vec![1e-3 * dt; 12];
-    w[3..6].fill(1e-2 * dt);
-    let cost = CostStack::new(space.as_ref(), nu)
-        .with(
-            "x",
-            Arc::new(QuadraticStateCost::diagonal(space.clone(), &xf, &w, nu)?),
-            1.0,
-        )?
-        .with(
-            "u",
-            Arc::new(QuadraticControlCost::diagonal(
-                space.as_ref(),
-                &[0.0; 4],
-                &[1e-4 * dt; 4],
-            )?),
-            1.0,
-        )?;
+    let first = StageModel::new(Arc::new(running_cost(&space, &xf, dt)?), dynamics)?;
     let u_max = if with_maze { 100.0 } else { f64::INFINITY };
     let thrust = StageConstraint::new(
         "thrust",
-        Arc::new(ControlError::new(space.as_ref(), &[0.0; 4])?),
-        Arc::new(gharial::constraints::BoxConstraint::new(&[0.0; 4], &[u_max; 4])?),
+        Arc::new(ControlError::new(space.as_ref(), &[0.0; NU])?),
+        Arc::new(gharial::constraints::BoxConstraint::new(&[0.0; NU], &[u_max; NU])?),
     );
-    let first = StageModel::new(Arc::new(cost), dynamics)?.with_constraint(thrust)?;
-    let mut stages = vec![first.clone(); HORIZON];
+    let mut stages = vec![first.with_constraint(thrust)?; HORIZON];
     if with_maze {
         let maze = Arc::new(Unary::new(
             Arc::new(AutoDiff::unary(space.clone(), Maze(maze_cylinders()))?),
-            nu,
+            NU,
         ));
         let c = StageConstraint::new("maze", maze, Arc::new(NegativeOrthant));
         for s in &mut stages[1..] {
@@ -221,7 +204,30 @@ fn build(with_maze: bool) -> Result<Example> {
     ));
     let problem = Problem::new(&at([0.0, 0.0, 10.0]), stages, terminal)?
         .with_terminal_constraint(StageConstraint::new("goal", goal, Arc::new(EqualityConstraintSet)))?;
-    let us0 = vec![vec![hover; nu]; HORIZON];
+    example(problem, with_maze, hover, dt)
+}
+
+/// Thrust inputs.
+const NU: usize = 4;
+
+/// `dt · ½ (1e-3 |x - x_f|² (1e-2 on the orientation) + 1e-4 |u|²)`.
+fn running_cost(space: &Arc<dyn gharial::spaces::Manifold>, xf: &[f64], dt: f64) -> Result<CostStack> {
+    let mut w = vec![1e-3 * dt; 12];
+    w[3..6].fill(1e-2 * dt);
+    let control = QuadraticControlCost::diagonal(space.as_ref(), &[0.0; NU], &[1e-4 * dt; NU])?;
+    CostStack::new(space.as_ref(), NU)
+        .with(
+            "x",
+            Arc::new(QuadraticStateCost::diagonal(space.clone(), xf, &w, NU)?),
+            1.0,
+        )?
+        .with("u", Arc::new(control), 1.0)
+}
+
+/// The catalogue entry: the maze starts from its interpolated (infeasible) guess, the line
+/// from the hover rollout; ProxDDP's settings for both.
+fn example(problem: Problem, with_maze: bool, hover: f64, dt: f64) -> Result<Example> {
+    let us0 = vec![vec![hover; NU]; HORIZON];
     let (name, xs0, description) = if with_maze {
         (
             "quadrotor-maze",
