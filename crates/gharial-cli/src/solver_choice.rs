@@ -17,7 +17,7 @@ use gharial::solvers::bcl_ddp::BclDdpOptions;
 use gharial::solvers::csqp::CsqpOptions;
 use gharial::solvers::ddp::{DdpOptions, DdpVariant};
 use gharial::solvers::log::Table;
-use gharial::solvers::proxddp::{ACTIVE_SET_ITERS_MAX, Merit, ProxDdpOptions, Rollout, StepAcceptance};
+use gharial::solvers::proxddp::{ACTIVE_SET_ITERS_MAX, DynamicsStep, Merit, ProxDdpOptions, Rollout, StepAcceptance};
 use gharial::solvers::{HessianApprox, SolverOptions};
 use gharial_problems::Example;
 use serde_json::{Value, json};
@@ -214,6 +214,28 @@ impl From<MeritArg> for Merit {
     }
 }
 
+/// How ProxDDP's Newton step treats the dynamics.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum DynamicsStepArg {
+    /// Exact without path or terminal constraints (until an exact step fails to descend
+    /// the merit), proximal otherwise.
+    Auto,
+    /// The paper's proximal step (42).
+    Proximal,
+    /// The linearised dynamics solved exactly.
+    Exact,
+}
+
+impl From<DynamicsStepArg> for DynamicsStep {
+    fn from(d: DynamicsStepArg) -> Self {
+        match d {
+            DynamicsStepArg::Auto => DynamicsStep::Auto,
+            DynamicsStepArg::Proximal => DynamicsStep::Proximal,
+            DynamicsStepArg::Exact => DynamicsStep::Exact,
+        }
+    }
+}
+
 /// Options every solver takes.
 #[derive(clap::Args, Debug, Clone, Default)]
 #[command(next_help_heading = "Options of every solver")]
@@ -290,6 +312,9 @@ pub struct ProxDdpArgs {
     /// Merit function of the step acceptance.
     #[arg(long, value_enum)]
     pub merit: Option<MeritArg>,
+    /// How the Newton step treats the dynamics.
+    #[arg(long, value_enum)]
+    pub dynamics_step: Option<DynamicsStepArg>,
 }
 
 impl ProxDdpArgs {
@@ -313,6 +338,9 @@ impl ProxDdpArgs {
         }
         if let Some(v) = self.merit {
             o.merit = v.into();
+        }
+        if let Some(v) = self.dynamics_step {
+            o.dynamics_step = v.into();
         }
     }
 }
@@ -563,6 +591,11 @@ const PROXDDP_FIELDS: &[Field<ProxDdpOptions>] = &[
         name: "merit",
         value: |o| Setting::Name(format!("{:?}", o.merit)),
         flag: Some(("--merit", |a| a.proxddp.merit.is_some())),
+    },
+    Field {
+        name: "dynamics_step",
+        value: |o| Setting::Name(format!("{:?}", o.dynamics_step)),
+        flag: Some(("--dynamics-step", |a| a.proxddp.dynamics_step.is_some())),
     },
     Field {
         name: "active_set_iters",

@@ -121,7 +121,7 @@ fn an_unconverged_solve_exits_with_code_one() {
 }
 
 #[test]
-fn step_acceptance_merit_and_dynamics_scale_overrides_reach_the_solver() {
+fn step_acceptance_merit_and_dynamics_overrides_reach_the_solver() {
     let path = std::env::temp_dir().join(format!("gharial-cli-accept-{}.json", std::process::id()));
     let path_str = path.to_str().expect("UTF-8 temp path");
     let o = gharial(&[
@@ -133,6 +133,8 @@ fn step_acceptance_merit_and_dynamics_scale_overrides_reach_the_solver() {
         "primal",
         "--dyn-al-scale",
         "0.5",
+        "--dynamics-step",
+        "exact",
         "--output",
         path_str,
     ]);
@@ -142,6 +144,7 @@ fn step_acceptance_merit_and_dynamics_scale_overrides_reach_the_solver() {
     assert_eq!(doc["settings"]["step_acceptance"], "NonmonotoneLinesearch");
     assert_eq!(doc["settings"]["merit"], "Primal");
     assert_eq!(doc["settings"]["dyn_al_scale"], 0.5);
+    assert_eq!(doc["settings"]["dynamics_step"], "Exact");
     assert_eq!(doc["converged"], true);
     let ex = gharial_problems::build("lqr-bounds-term").unwrap();
     let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
