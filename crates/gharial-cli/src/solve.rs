@@ -58,30 +58,10 @@ pub fn list() {
 
 /// Runs `gharial solve`; returns the process exit code.
 pub fn run(args: &SolveArgs) -> i32 {
-    if let Err(e) = args.solver.check() {
-        eprintln!("gharial solve: {e}");
-        return 2;
-    }
-    let example = match gharial_problems::build(&args.problem) {
-        Ok(e) => e,
-        Err(e) => {
-            eprintln!("gharial solve: {e}");
-            return 2;
-        }
-    };
-    // Unwritable outputs are invalid input: refuse them before the solve.
-    let mut output = match crate::Output::create("solve", args.output.as_deref()) {
-        Ok(o) => o,
+    let (example, mut output) = match prepare(args) {
+        Ok(v) => v,
         Err(code) => return code,
     };
-    for (option, dir) in [("--figures", &args.figures), ("--plot", &args.plot)] {
-        if let Some(dir) = dir
-            && !std::path::Path::new(dir).is_dir()
-        {
-            eprintln!("gharial solve: {option} {dir}: not a directory");
-            return 2;
-        }
-    }
     let mut config = args.solver.config(&example);
     if args.verbose {
         config.options.set_log(LogSink::Stderr);
@@ -118,9 +98,52 @@ pub fn run(args: &SolveArgs) -> i32 {
         print_table(table, &sol.history);
     }
     print_summary(config.kind, sol);
-    let doc = (output.is_some() || args.plot.is_some()).then(|| solution_json(&example, &config, sol));
+    if !write_outputs(args, &example, &config, sol, output.as_mut()) {
+        return 1;
+    }
+    let code = if sol.status.converged() { 0 } else { 1 };
+    // Everything is written: exit without freeing the problem and the solver one
+    // allocation at a time (seconds for horizons of 10^5 stages).
+    std::io::stdout().flush().ok();
+    std::process::exit(code)
+}
+
+/// Checks the invocation before any work: the solver's options, the problem's name, an
+/// output file that can be written and the directories of `--figures` and `--plot`.
+/// `Err` holds the exit code (the message is printed).
+fn prepare(args: &SolveArgs) -> Result<(Example, Option<crate::Output<'_>>), i32> {
+    if let Err(e) = args.solver.check() {
+        eprintln!("gharial solve: {e}");
+        return Err(2);
+    }
+    let example = gharial_problems::build(&args.problem).map_err(|e| {
+        eprintln!("gharial solve: {e}");
+        2
+    })?;
+    // Unwritable outputs are invalid input: refuse them before the solve.
+    let output = crate::Output::create("solve", args.output.as_deref())?;
+    for (option, dir) in [("--figures", &args.figures), ("--plot", &args.plot)] {
+        if let Some(dir) = dir
+            && !std::path::Path::new(dir).is_dir()
+        {
+            eprintln!("gharial solve: {option} {dir}: not a directory");
+            return Err(2);
+        }
+    }
+    Ok((example, output))
+}
+
+/// Writes the solution's JSON, plots and figure files that were asked for; `false` (with
+/// a message) if one of them failed.
+fn write_outputs(
+    args: &SolveArgs,
+    example: &Example,
+    config: &SolverConfig,
+    sol: &Solution,
+    output: Option<&mut crate::Output>,
+) -> bool {
+    let doc = (output.is_some() || args.plot.is_some()).then(|| solution_json(example, config, sol));
     let written = output
-        .as_mut()
         .zip(doc.as_ref())
         .is_none_or(|(o, doc)| o.write_json("solve", "solution", doc));
     let plotted = args
@@ -132,14 +155,7 @@ pub fn run(args: &SolveArgs) -> i32 {
         .figures
         .as_ref()
         .is_none_or(|dir| write_figures(example.name, sol, dir));
-    if !(written && figures && plotted) {
-        return 1;
-    }
-    let code = if sol.status.converged() { 0 } else { 1 };
-    // Everything is written: exit without freeing the problem and the solver one
-    // allocation at a time (seconds for horizons of 10^5 stages).
-    std::io::stdout().flush().ok();
-    std::process::exit(code)
+    written && figures && plotted
 }
 
 /// Writes the figure files of `name` into `dir`; `false` (with a message) if that fails.
