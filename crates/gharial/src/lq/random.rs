@@ -226,6 +226,36 @@ impl Default for VariedOptions {
 /// (strictly convex), dynamics `A = I + 0.3 W/√nx`, `B = W/√nu`, and the options'
 /// constraint structure.
 pub fn varied_problem(rng: &mut SplitMix64, opts: &VariedOptions) -> LqProblem {
+    let dims = varied_dims(rng, opts);
+    let n_knots = dims.len();
+    let xs_ref: Vec<Col<f64>> = dims
+        .iter()
+        .map(|d| Col::from_fn(d.0, |_| rng.uniform(-1.0, 1.0)))
+        .collect();
+    let us_ref: Vec<Col<f64>> = dims
+        .iter()
+        .map(|d| Col::from_fn(d.1, |_| rng.uniform(-1.0, 1.0)))
+        .collect();
+    let mut knots = Vec::with_capacity(n_knots);
+    for t in 0..n_knots {
+        let ny = if t + 1 < n_knots { dims[t + 1].0 } else { 0 };
+        knots.push(varied_knot(rng, opts, dims[t], ny));
+    }
+    for t in 0..n_knots {
+        let next = xs_ref.get(t + 1).map(slice);
+        affine_terms(rng, opts, &mut knots[t], (slice(&xs_ref[t]), slice(&us_ref[t]), next));
+    }
+    let (G0, g0) = initial_rows(rng, opts, slice(&xs_ref[0]));
+    LqProblem {
+        knots,
+        G0,
+        g0,
+        mu0: opts.mu0,
+    }
+}
+
+/// The `(nx, nu, nc)` of every knot (`nu = 0` at the last), drawn once or per knot.
+fn varied_dims(rng: &mut SplitMix64, opts: &VariedOptions) -> Vec<(usize, usize, usize)> {
     let n_knots = opts.horizon + 1;
     let draw = |rng: &mut SplitMix64, r: (usize, usize)| rng.int(r.0, r.1);
     let fixed = (draw(rng, opts.nx), draw(rng, opts.nu), draw(rng, opts.nc));
@@ -238,122 +268,133 @@ pub fn varied_problem(rng: &mut SplitMix64, opts: &VariedOptions) -> LqProblem {
         };
         dims.push((nx, if t + 1 < n_knots { nu } else { 0 }, nc));
     }
-    let xs_ref: Vec<Col<f64>> = dims
-        .iter()
-        .map(|d| Col::from_fn(d.0, |_| rng.uniform(-1.0, 1.0)))
-        .collect();
-    let us_ref: Vec<Col<f64>> = dims
-        .iter()
-        .map(|d| Col::from_fn(d.1, |_| rng.uniform(-1.0, 1.0)))
-        .collect();
-    let mut knots = Vec::with_capacity(n_knots);
-    for t in 0..n_knots {
-        let (nx, nu, nc) = dims[t];
-        let ny = if t + 1 < n_knots { dims[t + 1].0 } else { 0 };
-        let n = nx + nu;
-        let mut k = LqKnot::new(nx, nu, nc, ny);
-        let l = rand_mat(rng, n, n, 1.0);
-        let mut h = Mat::<f64>::zeros(n, n);
-        for i in 0..n {
-            h[(i, i)] = 0.1;
-        }
-        matmul(h.as_mut(), Accum::Add, l.as_ref(), l.transpose(), 1.0 / n as f64);
-        k.Q = h.as_ref().submatrix(0, 0, nx, nx).to_owned();
-        k.S = h.as_ref().submatrix(0, nx, nx, nu).to_owned();
-        k.R = h.as_ref().submatrix(nx, nx, nu, nu).to_owned();
-        k.q = Col::from_fn(nx, |_| rng.uniform(-1.0, 1.0));
-        k.r = Col::from_fn(nu, |_| rng.uniform(-1.0, 1.0));
-        if ny > 0 {
-            k.A = rand_mat(rng, ny, nx, 0.3 / (nx as f64).sqrt());
-            for i in 0..ny.min(nx) {
-                k.A[(i, i)] += 1.0;
-            }
-            k.B = rand_mat(rng, ny, nu, 1.0 / (nu.max(1) as f64).sqrt());
-            if opts.general_e {
-                let kb = if opts.e_block == 0 { ny } else { opts.e_block.min(ny) };
-                let block = rand_mat(rng, kb, kb, 0.3 / (kb as f64).sqrt());
-                k.E.as_mut().submatrix_mut(0, 0, kb, kb).copy_from(&block);
-                for i in 0..kb {
-                    k.E[(i, i)] -= 1.0;
-                }
-            }
-            k.mu_dyn = opts.mu_dyn;
-        }
-        // Constraint rows: hard rows first, then the (possibly rank-deficient) others.
-        // Hard rows leave at least one control free: with all controls fixed by constraints
-        // the closed loop can be unstable and the value function grow without bound.
-        let n_hard = if opts.hard_rows {
-            nc.min(nu.saturating_sub(1)).min(2)
-        } else {
-            0
-        };
-        let sc = 1.0 / (n as f64).sqrt();
-        let mut cd = rand_mat(rng, nc, n, sc);
-        if opts.rank_deficient && nc > n_hard {
-            let soft = nc - n_hard;
-            let rank = rng.int(0, soft.min(n).saturating_sub(1));
-            let u = rand_mat(rng, soft, rank, 1.0);
-            let v = rand_mat(rng, rank, n, sc);
-            let mut low = Mat::<f64>::zeros(soft, n);
-            matmul(low.as_mut(), Accum::Replace, u.as_ref(), v.as_ref(), 1.0);
-            // A repeated row and a zero row on top of the low-rank block.
-            if soft >= 2 {
-                let src = cd.as_ref().row(n_hard).to_owned();
-                low.as_mut().row_mut(0).copy_from(&src);
-                low.as_mut().row_mut(soft - 1).copy_from(&src);
-            }
-            if soft >= 3 {
-                low.as_mut().row_mut(1).fill(0.0);
-            }
-            cd.as_mut().submatrix_mut(n_hard, 0, soft, n).copy_from(&low);
-        }
-        k.C = cd.as_ref().submatrix(0, 0, nc, nx).to_owned();
-        k.D = cd.as_ref().submatrix(0, nx, nc, nu).to_owned();
-        k.mu_c = Col::from_fn(nc, |i| {
-            if i < n_hard {
-                0.0
-            } else {
-                rng.log_uniform(opts.mu_c.0, opts.mu_c.1)
-            }
-        });
-        knots.push(k);
+    dims
+}
+
+/// One knot without its affine terms: a positive definite `[Q S; Sᵀ R]` with gradients,
+/// the dynamics to a next state of size `ny`, and the constraint rows.
+fn varied_knot(rng: &mut SplitMix64, opts: &VariedOptions, (nx, nu, nc): (usize, usize, usize), ny: usize) -> LqKnot {
+    let n = nx + nu;
+    let mut k = LqKnot::new(nx, nu, nc, ny);
+    let l = rand_mat(rng, n, n, 1.0);
+    let mut h = Mat::<f64>::zeros(n, n);
+    for i in 0..n {
+        h[(i, i)] = 0.1;
     }
-    // Affine terms.
-    for t in 0..n_knots {
-        let k = &mut knots[t];
-        if opts.consistent {
-            let (x, u) = (slice(&xs_ref[t]), slice(&us_ref[t]));
-            let d = slice_mut(&mut k.d);
-            matvec(d, Accum::Replace, k.C.as_ref(), x, -1.0);
-            matvec(d, Accum::Add, k.D.as_ref(), u, -1.0);
-            if k.nx_next > 0 {
-                let f = slice_mut(&mut k.f);
-                matvec(f, Accum::Replace, k.A.as_ref(), x, -1.0);
-                matvec(f, Accum::Add, k.B.as_ref(), u, -1.0);
-                matvec(f, Accum::Add, k.E.as_ref(), slice(&xs_ref[t + 1]), -1.0);
-            }
-        } else {
-            k.d = Col::from_fn(k.nc, |_| rng.uniform(-1.0, 1.0));
-            k.f = Col::from_fn(k.nx_next, |_| rng.uniform(-1.0, 1.0));
+    matmul(h.as_mut(), Accum::Add, l.as_ref(), l.transpose(), 1.0 / n as f64);
+    k.Q = h.as_ref().submatrix(0, 0, nx, nx).to_owned();
+    k.S = h.as_ref().submatrix(0, nx, nx, nu).to_owned();
+    k.R = h.as_ref().submatrix(nx, nx, nu, nu).to_owned();
+    k.q = Col::from_fn(nx, |_| rng.uniform(-1.0, 1.0));
+    k.r = Col::from_fn(nu, |_| rng.uniform(-1.0, 1.0));
+    if ny > 0 {
+        k.A = rand_mat(rng, ny, nx, 0.3 / (nx as f64).sqrt());
+        for i in 0..ny.min(nx) {
+            k.A[(i, i)] += 1.0;
         }
+        k.B = rand_mat(rng, ny, nu, 1.0 / (nu.max(1) as f64).sqrt());
+        if opts.general_e {
+            let kb = if opts.e_block == 0 { ny } else { opts.e_block.min(ny) };
+            let block = rand_mat(rng, kb, kb, 0.3 / (kb as f64).sqrt());
+            k.E.as_mut().submatrix_mut(0, 0, kb, kb).copy_from(&block);
+            for i in 0..kb {
+                k.E[(i, i)] -= 1.0;
+            }
+        }
+        k.mu_dyn = opts.mu_dyn;
     }
-    let nx0 = dims[0].0;
+    constraint_rows(rng, opts, &mut k);
+    k
+}
+
+/// The constraint rows `[C D]` and `mu_c` of a knot: hard rows (`mu_c = 0`) first, then
+/// the others, possibly rank-deficient (with a repeated and a zero row). Hard rows leave
+/// at least one control free: with all controls fixed by constraints the closed loop can
+/// be unstable and the value function grow without bound.
+fn constraint_rows(rng: &mut SplitMix64, opts: &VariedOptions, k: &mut LqKnot) {
+    let (nx, nu, nc) = (k.nx, k.nu, k.nc);
+    let n = nx + nu;
+    let n_hard = if opts.hard_rows {
+        nc.min(nu.saturating_sub(1)).min(2)
+    } else {
+        0
+    };
+    let sc = 1.0 / (n as f64).sqrt();
+    let mut cd = rand_mat(rng, nc, n, sc);
+    if opts.rank_deficient && nc > n_hard {
+        let soft = nc - n_hard;
+        let rank = rng.int(0, soft.min(n).saturating_sub(1));
+        let u = rand_mat(rng, soft, rank, 1.0);
+        let v = rand_mat(rng, rank, n, sc);
+        let mut low = Mat::<f64>::zeros(soft, n);
+        matmul(low.as_mut(), Accum::Replace, u.as_ref(), v.as_ref(), 1.0);
+        // A repeated row and a zero row on top of the low-rank block.
+        if soft >= 2 {
+            let src = cd.as_ref().row(n_hard).to_owned();
+            low.as_mut().row_mut(0).copy_from(&src);
+            low.as_mut().row_mut(soft - 1).copy_from(&src);
+        }
+        if soft >= 3 {
+            low.as_mut().row_mut(1).fill(0.0);
+        }
+        cd.as_mut().submatrix_mut(n_hard, 0, soft, n).copy_from(&low);
+    }
+    k.C = cd.as_ref().submatrix(0, 0, nc, nx).to_owned();
+    k.D = cd.as_ref().submatrix(0, nx, nc, nu).to_owned();
+    k.mu_c = Col::from_fn(nc, |i| {
+        if i < n_hard {
+            0.0
+        } else {
+            rng.log_uniform(opts.mu_c.0, opts.mu_c.1)
+        }
+    });
+}
+
+/// The affine terms `d`, `f` of a knot: consistent with the reference point
+/// `(x, u, x_next)` (every row satisfied there), or random.
+fn affine_terms(
+    rng: &mut SplitMix64,
+    opts: &VariedOptions,
+    k: &mut LqKnot,
+    (x, u, next): (&[f64], &[f64], Option<&[f64]>),
+) {
+    if !opts.consistent {
+        k.d = Col::from_fn(k.nc, |_| rng.uniform(-1.0, 1.0));
+        k.f = Col::from_fn(k.nx_next, |_| rng.uniform(-1.0, 1.0));
+        return;
+    }
+    let d = slice_mut(&mut k.d);
+    matvec(d, Accum::Replace, k.C.as_ref(), x, -1.0);
+    matvec(d, Accum::Add, k.D.as_ref(), u, -1.0);
+    if k.nx_next > 0 {
+        let f = slice_mut(&mut k.f);
+        matvec(f, Accum::Replace, k.A.as_ref(), x, -1.0);
+        matvec(f, Accum::Add, k.B.as_ref(), u, -1.0);
+        matvec(
+            f,
+            Accum::Add,
+            k.E.as_ref(),
+            next.expect("a knot with dynamics has a next state"),
+            -1.0,
+        );
+    }
+}
+
+/// The initial constraint `G0 x_0 + g0 = 0`: `x_0` fixed (`G0 = I`) or some random rows,
+/// satisfied by `x0_ref` when consistent.
+fn initial_rows(rng: &mut SplitMix64, opts: &VariedOptions, x0_ref: &[f64]) -> (Mat<f64>, Col<f64>) {
+    let nx0 = x0_ref.len();
     let G0 = match opts.initial_rows {
         None => Mat::identity(nx0, nx0),
         Some(m) => rand_mat(rng, m.min(nx0), nx0, 1.0),
     };
     let mut g0 = Col::<f64>::zeros(G0.nrows());
     if opts.consistent {
-        matvec(slice_mut(&mut g0), Accum::Replace, G0.as_ref(), slice(&xs_ref[0]), -1.0);
+        matvec(slice_mut(&mut g0), Accum::Replace, G0.as_ref(), x0_ref, -1.0);
     } else {
         g0 = Col::from_fn(G0.nrows(), |_| rng.uniform(-1.0, 1.0));
     }
-    LqProblem {
-        knots,
-        G0,
-        g0,
-        mu0: opts.mu0,
-    }
+    (G0, g0)
 }
 
 /// A `rows x cols` matrix with entries `s U(-1, 1)`, drawn column by column.
