@@ -74,40 +74,13 @@ pub fn peers_problem(nx: usize, nu: usize, nc: usize, horizon: usize, seed: u64,
     for t in 0..=horizon {
         let nut = if t < horizon { nu } else { 0 };
         let ny = if t < horizon { nx } else { 0 };
-        let n = nx + nut;
         let mut k = LqKnot::new(nx, nut, nc, ny);
-        // 1. H = L Lᵀ / n + 0.1 I.
-        let l: Vec<f64> = (0..n * n).map(|_| rng.uniform(-1.0, 1.0)).collect();
-        let h = |i: usize, j: usize| {
-            let mut s = 0.0;
-            for m in 0..n {
-                s += l[i * n + m] * l[j * n + m];
-            }
-            s / n as f64 + if i == j { 0.1 } else { 0.0 }
-        };
-        k.Q = Mat::from_fn(nx, nx, &h);
-        k.S = Mat::from_fn(nx, nut, |i, j| h(i, nx + j));
-        k.R = Mat::from_fn(nut, nut, |i, j| h(nx + i, nx + j));
-        // 2. gradients.
-        k.q = Col::from_fn(nx, |_| rng.uniform(-1.0, 1.0));
-        k.r = Col::from_fn(nut, |_| rng.uniform(-1.0, 1.0));
-        // 3. dynamics, row-major.
+        peers_cost(&mut rng, &mut k);
         if t < horizon {
-            let sa = 0.1 / (nx as f64).sqrt();
-            let sb = 0.1 / (nu as f64).sqrt();
-            for i in 0..nx {
-                for j in 0..nx {
-                    k.A[(i, j)] = if i == j { 1.0 } else { 0.0 } + sa * rng.uniform(-1.0, 1.0);
-                }
-            }
-            for i in 0..nx {
-                for j in 0..nu {
-                    k.B[(i, j)] = if i == j { 1.0 } else { 0.0 } + sb * rng.uniform(-1.0, 1.0);
-                }
-            }
+            peers_dynamics(&mut rng, &mut k);
         }
         // 4. constraint rows.
-        let sc = 1.0 / (n as f64).sqrt();
+        let sc = 1.0 / ((nx + nut) as f64).sqrt();
         for i in 0..nc {
             for j in 0..nx {
                 k.C[(i, j)] = sc * rng.uniform(-1.0, 1.0);
@@ -126,30 +99,8 @@ pub fn peers_problem(nx: usize, nu: usize, nc: usize, horizon: usize, seed: u64,
     }
     // Affine terms: the reference trajectory is feasible.
     for t in 0..=horizon {
-        let k = &mut knots[t];
-        let (x, u) = (&xs_ref[t], &us_ref[t]);
-        if t < horizon {
-            for i in 0..nx {
-                let (mut ax, mut bu) = (0.0, 0.0);
-                for j in 0..nx {
-                    ax += k.A[(i, j)] * x[j];
-                }
-                for j in 0..nu {
-                    bu += k.B[(i, j)] * u[j];
-                }
-                k.f[i] = xs_ref[t + 1][i] - ax - bu;
-            }
-        }
-        for i in 0..nc {
-            let (mut cx, mut du) = (0.0, 0.0);
-            for j in 0..nx {
-                cx += k.C[(i, j)] * x[j];
-            }
-            for j in 0..k.nu {
-                du += k.D[(i, j)] * u[j];
-            }
-            k.d[i] = -(cx + du);
-        }
+        let next = xs_ref.get(t + 1);
+        peers_affine_terms(&mut knots[t], &xs_ref[t], &us_ref[t], next);
     }
     us_ref.pop();
     let problem = LqProblem {
@@ -162,6 +113,71 @@ pub fn peers_problem(nx: usize, nu: usize, nc: usize, horizon: usize, seed: u64,
         problem,
         xs_ref,
         us_ref,
+    }
+}
+
+/// Steps 1-2 of the peers' generator: `[Q S; Sᵀ R] = L Lᵀ / n + 0.1 I` (`L` drawn row by
+/// row) and the gradients.
+fn peers_cost(rng: &mut SplitMix64, k: &mut LqKnot) {
+    let (nx, nu) = (k.nx, k.nu);
+    let n = nx + nu;
+    let l: Vec<f64> = (0..n * n).map(|_| rng.uniform(-1.0, 1.0)).collect();
+    let h = |i: usize, j: usize| {
+        let mut s = 0.0;
+        for m in 0..n {
+            s += l[i * n + m] * l[j * n + m];
+        }
+        s / n as f64 + if i == j { 0.1 } else { 0.0 }
+    };
+    k.Q = Mat::from_fn(nx, nx, &h);
+    k.S = Mat::from_fn(nx, nu, |i, j| h(i, nx + j));
+    k.R = Mat::from_fn(nu, nu, |i, j| h(nx + i, nx + j));
+    k.q = Col::from_fn(nx, |_| rng.uniform(-1.0, 1.0));
+    k.r = Col::from_fn(nu, |_| rng.uniform(-1.0, 1.0));
+}
+
+/// Step 3: `A = I + 0.1/√nx U`, `B = [I 0] + 0.1/√nu U`, drawn row by row.
+fn peers_dynamics(rng: &mut SplitMix64, k: &mut LqKnot) {
+    let (nx, nu) = (k.nx, k.nu);
+    let sa = 0.1 / (nx as f64).sqrt();
+    let sb = 0.1 / (nu as f64).sqrt();
+    for i in 0..nx {
+        for j in 0..nx {
+            k.A[(i, j)] = if i == j { 1.0 } else { 0.0 } + sa * rng.uniform(-1.0, 1.0);
+        }
+    }
+    for i in 0..nx {
+        for j in 0..nu {
+            k.B[(i, j)] = if i == j { 1.0 } else { 0.0 } + sb * rng.uniform(-1.0, 1.0);
+        }
+    }
+}
+
+/// `f = x' - A x - B u` and `d = -(C x + D u)`: the reference point satisfies the rows
+/// (the peers' loops, in their order of summation).
+fn peers_affine_terms(k: &mut LqKnot, x: &Col<f64>, u: &Col<f64>, next: Option<&Col<f64>>) {
+    let (nx, nu, nc) = (k.nx, k.nu, k.nc);
+    if let Some(x_next) = next.filter(|_| k.nx_next > 0) {
+        for i in 0..nx {
+            let (mut ax, mut bu) = (0.0, 0.0);
+            for j in 0..nx {
+                ax += k.A[(i, j)] * x[j];
+            }
+            for j in 0..nu {
+                bu += k.B[(i, j)] * u[j];
+            }
+            k.f[i] = x_next[i] - ax - bu;
+        }
+    }
+    for i in 0..nc {
+        let (mut cx, mut du) = (0.0, 0.0);
+        for j in 0..nx {
+            cx += k.C[(i, j)] * x[j];
+        }
+        for j in 0..nu {
+            du += k.D[(i, j)] * u[j];
+        }
+        k.d[i] = -(cx + du);
     }
 }
 
