@@ -1312,6 +1312,74 @@ mod tests {
         hi
     }
 
+    /// A workspace of `p` at a random point, estimates and step, the step turned into a
+    /// descent direction for `merit` and scaled so that the model slope's root lands at a
+    /// random point of (0.1, 0.9).
+    fn random_descent(p: &Problem, merit: Merit, (mu, mu_d): (f64, f64), rng: &mut SplitMix64) -> Workspace {
+        let mut ws = Workspace::new(p, &ProxDdpOptions::default(), None).unwrap();
+        let cur = &mut ws.cur;
+        for v in cur
+            .xs
+            .iter_mut()
+            .chain(&mut cur.us)
+            .chain(&mut cur.lams)
+            .chain(&mut cur.nus)
+        {
+            fill(v, rng);
+        }
+        for v in ws.lams_e.iter_mut().chain(&mut ws.nus_e) {
+            fill(v, rng);
+        }
+        ws.evaluate_current(p).unwrap();
+        let st = &mut ws.step;
+        for c in st
+            .xs
+            .iter_mut()
+            .chain(&mut st.us)
+            .chain(&mut st.lambdas)
+            .chain(&mut st.nus)
+        {
+            fill(slice_mut(c), rng);
+        }
+        ws.prepare_model(p);
+        if ws.model_slope(p, merit, mu, mu_d, 0.0) > 0.0 {
+            scale_step(&mut ws.step, -1.0);
+            ws.prepare_model(p);
+        }
+        assert!(ws.model_slope(p, merit, mu, mu_d, 0.0) < 0.0, "not a descent step");
+        let mut top = 1.0;
+        while ws.model_slope(p, merit, mu, mu_d, top) <= 0.0 {
+            top *= 2.0;
+        }
+        let r0 = fine_root(&mut ws, p, merit, mu, mu_d, top);
+        scale_step(&mut ws.step, r0 / rng.uniform(0.1, 0.9));
+        ws.prepare_model(p);
+        ws
+    }
+
+    /// Plain bisection of the model slope on (0, 1), every midpoint evaluated, to the
+    /// model step's relative accuracy: the upper end.
+    fn bisection(ws: &mut Workspace, p: &Problem, merit: Merit, (mu, mu_d): (f64, f64), alpha_min: f64) -> f64 {
+        let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+        while hi - lo > 1e-3 * hi.max(alpha_min) {
+            let mid = 0.5 * (lo + hi);
+            if ws.model_slope(p, merit, mu, mu_d, mid) <= 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        hi
+    }
+
+    /// Whether the model's curvature differs at the two ends of (0, 1): a kink inside.
+    fn has_kink(ws: &mut Workspace, p: &Problem, merit: Merit, (mu, mu_d): (f64, f64)) -> bool {
+        let h = 1e-7;
+        let mut curv = |a: f64| (ws.model_slope(p, merit, mu, mu_d, a + h) - ws.model_slope(p, merit, mu, mu_d, a)) / h;
+        let (k0, k1) = (curv(0.0), curv(1.0 - h));
+        (k1 - k0).abs() > 1e-4 * k0.abs().max(k1.abs())
+    }
+
     /// The model step against plain bisection of the full model slope (every midpoint
     /// evaluated) and against the root to 1e-13, and the active curvature against
     /// central differences, at random points and steps scaled so
@@ -1335,60 +1403,10 @@ mod tests {
                 } else {
                     Merit::Primal
                 };
-                let mut ws = Workspace::new(&p, &ProxDdpOptions::default(), None).unwrap();
-                let cur = &mut ws.cur;
-                for v in cur
-                    .xs
-                    .iter_mut()
-                    .chain(&mut cur.us)
-                    .chain(&mut cur.lams)
-                    .chain(&mut cur.nus)
-                {
-                    fill(v, &mut rng);
-                }
-                for v in ws.lams_e.iter_mut().chain(&mut ws.nus_e) {
-                    fill(v, &mut rng);
-                }
-                ws.evaluate_current(&p).unwrap();
-                let st = &mut ws.step;
-                for c in st
-                    .xs
-                    .iter_mut()
-                    .chain(&mut st.us)
-                    .chain(&mut st.lambdas)
-                    .chain(&mut st.nus)
-                {
-                    fill(slice_mut(c), &mut rng);
-                }
-                ws.prepare_model(&p);
-                if ws.model_slope(&p, merit, mu, mu_d, 0.0) > 0.0 {
-                    scale_step(&mut ws.step, -1.0);
-                    ws.prepare_model(&p);
-                }
-                assert!(
-                    ws.model_slope(&p, merit, mu, mu_d, 0.0) < 0.0,
-                    "{name}: not a descent step"
-                );
-                // Scale the step so that the root lands at a random point of (0.1, 0.9).
-                let mut top = 1.0;
-                while ws.model_slope(&p, merit, mu, mu_d, top) <= 0.0 {
-                    top *= 2.0;
-                }
-                let r0 = fine_root(&mut ws, &p, merit, mu, mu_d, top);
-                scale_step(&mut ws.step, r0 / rng.uniform(0.1, 0.9));
-                ws.prepare_model(&p);
-
+                let mut ws = random_descent(&p, merit, (mu, mu_d), &mut rng);
                 let dphi0 = ws.model_slope(&p, merit, mu, mu_d, 0.0);
                 let got = ws.model_step(&p, merit, mu, mu_d, dphi0, alpha_min);
-                let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
-                while hi - lo > 1e-3 * hi.max(alpha_min) {
-                    let mid = 0.5 * (lo + hi);
-                    if ws.model_slope(&p, merit, mu, mu_d, mid) <= 0.0 {
-                        lo = mid;
-                    } else {
-                        hi = mid;
-                    }
-                }
+                let hi = bisection(&mut ws, &p, merit, (mu, mu_d), alpha_min);
                 assert_eq!(got, hi, "{name} trial {trial}: model step differs from bisection");
                 let root = fine_root(&mut ws, &p, merit, mu, mu_d, 1.0);
                 assert!(
@@ -1407,13 +1425,7 @@ mod tests {
                         "{name} trial {trial}: curvature {dd} vs finite difference {fd} at {a}"
                     );
                 }
-                // Kinks inside (0, 1): the model's curvature differs at the two ends.
-                let h = 1e-7;
-                let curv = |ws: &mut Workspace, a: f64| {
-                    (ws.model_slope(&p, merit, mu, mu_d, a + h) - ws.model_slope(&p, merit, mu, mu_d, a)) / h
-                };
-                let (k0, k1) = (curv(&mut ws, 0.0), curv(&mut ws, 1.0 - h));
-                if (k1 - k0).abs() > 1e-4 * k0.abs().max(k1.abs()) {
+                if has_kink(&mut ws, &p, merit, (mu, mu_d)) {
                     kinked += 1;
                 }
             }
