@@ -14,7 +14,7 @@ use gharial::functions::Unary;
 use gharial::problem::{Problem, StageModel, kkt_residuals};
 use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::proxddp::{DynamicsStep, ProxDdp, ProxDdpOptions};
-use gharial::solvers::{InitialGuess, Solver, Status};
+use gharial::solvers::{InitialGuess, Solution, Solver, Status};
 use gharial::spaces::Manifold;
 use gharial_multibody::{Model, RootJoint, forward_kinematics_placements};
 use gharial_problems::robots::SOLO_URDF;
@@ -64,17 +64,22 @@ fn falling_solo() -> (Problem, Vec<Vec<f64>>) {
     (problem, vec![vec![0.0; nu]; N])
 }
 
+/// A solve of `solver` from `(xs, us)`, after its setup.
+fn solve(solver: &mut dyn Solver, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Solution {
+    solver.setup(problem).unwrap();
+    solver.solve(problem, InitialGuess::primal(xs, us)).unwrap().clone()
+}
+
 #[test]
 fn proxddp_converges_on_a_falling_floating_base() {
     let (problem, us) = falling_solo();
     let xs = gharial_problems::rollout(&problem, &us).unwrap();
-    let mut fddp = Ddp::new(DdpOptions::default().with(|o| {
+    let fddp = DdpOptions::default().with(|o| {
         o.variant = DdpVariant::Fddp;
         o.tol = 1e-6;
         o.max_iters = 200;
-    }));
-    fddp.setup(&problem).unwrap();
-    let reference = fddp.solve(&problem, InitialGuess::primal(&xs, &us)).unwrap().clone();
+    });
+    let reference = solve(&mut Ddp::new(fddp), &problem, &xs, &us);
     assert_eq!(reference.status, Status::Converged);
     let options = |step: DynamicsStep| {
         ProxDdpOptions::default().with(|o| {
@@ -85,26 +90,11 @@ fn proxddp_converges_on_a_falling_floating_base() {
         })
     };
     // The exact step alone (the former default) fails; the default falls back and converges.
-    let mut exact = ProxDdp::new(options(DynamicsStep::Exact));
-    exact.setup(&problem).unwrap();
-    let failed = exact.solve(&problem, InitialGuess::primal(&xs, &us)).unwrap();
-    assert_eq!(
-        failed.status,
-        Status::LinesearchFailure,
-        "{:?} after {}",
-        failed.status,
-        failed.iterations
-    );
-    let mut solver = ProxDdp::new(options(DynamicsStep::Auto));
-    solver.setup(&problem).unwrap();
-    let sol = solver.solve(&problem, InitialGuess::primal(&xs, &us)).unwrap();
-    assert_eq!(
-        sol.status,
-        Status::Converged,
-        "{:?} after {}",
-        sol.status,
-        sol.iterations
-    );
+    let failed = solve(&mut ProxDdp::new(options(DynamicsStep::Exact)), &problem, &xs, &us);
+    let what = |s: &Solution| format!("{:?} after {}", s.status, s.iterations);
+    assert_eq!(failed.status, Status::LinesearchFailure, "{}", what(&failed));
+    let sol = solve(&mut ProxDdp::new(options(DynamicsStep::Auto)), &problem, &xs, &us);
+    assert_eq!(sol.status, Status::Converged, "{}", what(&sol));
     let kkt = kkt_residuals(&problem, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
     assert!(
         kkt.dynamics.max(kkt.initial) <= 1e-5 && kkt.stationarity <= 1e-5,

@@ -138,17 +138,15 @@ fn peers_cost(rng: &mut SplitMix64, k: &mut LqKnot) {
 
 /// Step 3: `A = I + 0.1/√nx U`, `B = [I 0] + 0.1/√nu U`, drawn row by row.
 fn peers_dynamics(rng: &mut SplitMix64, k: &mut LqKnot) {
-    let (nx, nu) = (k.nx, k.nu);
-    let sa = 0.1 / (nx as f64).sqrt();
-    let sb = 0.1 / (nu as f64).sqrt();
-    for i in 0..nx {
-        for j in 0..nx {
-            k.A[(i, j)] = if i == j { 1.0 } else { 0.0 } + sa * rng.uniform(-1.0, 1.0);
-        }
-    }
-    for i in 0..nx {
-        for j in 0..nu {
-            k.B[(i, j)] = if i == j { 1.0 } else { 0.0 } + sb * rng.uniform(-1.0, 1.0);
+    identity_plus_noise(rng, &mut k.A, 0.1 / (k.nx as f64).sqrt());
+    identity_plus_noise(rng, &mut k.B, 0.1 / (k.nu as f64).sqrt());
+}
+
+/// `m = [I 0] + s U(-1, 1)`, drawn row by row.
+fn identity_plus_noise(rng: &mut SplitMix64, m: &mut Mat<f64>, s: f64) {
+    for i in 0..m.nrows() {
+        for j in 0..m.ncols() {
+            m[(i, j)] = if i == j { 1.0 } else { 0.0 } + s * rng.uniform(-1.0, 1.0);
         }
     }
 }
@@ -156,29 +154,19 @@ fn peers_dynamics(rng: &mut SplitMix64, k: &mut LqKnot) {
 /// `f = x' - A x - B u` and `d = -(C x + D u)`: the reference point satisfies the rows
 /// (the peers' loops, in their order of summation).
 fn peers_affine_terms(k: &mut LqKnot, x: &Col<f64>, u: &Col<f64>, next: Option<&Col<f64>>) {
-    let (nx, nu, nc) = (k.nx, k.nu, k.nc);
     if let Some(x_next) = next.filter(|_| k.nx_next > 0) {
-        for i in 0..nx {
-            let (mut ax, mut bu) = (0.0, 0.0);
-            for j in 0..nx {
-                ax += k.A[(i, j)] * x[j];
-            }
-            for j in 0..nu {
-                bu += k.B[(i, j)] * u[j];
-            }
-            k.f[i] = x_next[i] - ax - bu;
+        for i in 0..k.nx {
+            k.f[i] = x_next[i] - row_dot(&k.A, i, x) - row_dot(&k.B, i, u);
         }
     }
-    for i in 0..nc {
-        let (mut cx, mut du) = (0.0, 0.0);
-        for j in 0..nx {
-            cx += k.C[(i, j)] * x[j];
-        }
-        for j in 0..nu {
-            du += k.D[(i, j)] * u[j];
-        }
-        k.d[i] = -(cx + du);
+    for i in 0..k.nc {
+        k.d[i] = -(row_dot(&k.C, i, x) + row_dot(&k.D, i, u));
     }
+}
+
+/// `m[i, :] · v`, summed in column order.
+fn row_dot(m: &Mat<f64>, i: usize, v: &Col<f64>) -> f64 {
+    (0..m.ncols()).fold(0.0, |s, j| s + m[(i, j)] * v[j])
 }
 
 /// Options of [`varied_problem`]. Ranges are inclusive.
