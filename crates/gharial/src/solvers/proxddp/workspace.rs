@@ -203,11 +203,7 @@ impl Workspace {
             min_scale,
             knot_constants: false,
             cons: constraint_index(problem),
-            exact_dynamics: match opts.dynamics_step {
-                DynamicsStep::Exact => true,
-                DynamicsStep::Proximal => false,
-                DynamicsStep::Auto => auto_exact,
-            },
+            exact_dynamics: auto_exact || opts.dynamics_step == DynamicsStep::Exact,
             auto_exact,
             lq,
             step,
