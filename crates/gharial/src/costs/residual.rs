@@ -780,40 +780,52 @@ mod tests {
                     assert_close("luu", &luu, &lower_plus(&huu, s, &(ju.transpose() * (w * &ju))), tol);
                 }
             }
-            // The barrier on the same residual: `s` times the blocks it writes itself.
-            let barrier = LogBarrierCost::new(f.clone(), 0.7, 0.5).unwrap();
-            let (x, u) = (random_vec(&mut g, ndx, 1.0), random_vec(&mut g, nu, 1.0));
-            let (mut own, mut d) = (barrier.create_data(), barrier.create_data());
-            barrier.evaluate(&x, &u, &mut own);
-            barrier.derivatives(&x, &u, &mut own);
-            barrier.evaluate(&x, &u, &mut d);
-            let (mut lx, mut lu) = (Mat::zeros(ndx, 1), Mat::zeros(nu, 1));
-            let (mut lxx, mut lxu, mut luu) = (Mat::zeros(ndx, ndx), Mat::zeros(ndx, nu), Mat::zeros(nu, nu));
-            let out = DerivativesMut {
-                lx: crate::linalg::col_of_mut(&mut lx, 0),
-                lu: crate::linalg::col_of_mut(&mut lu, 0),
-                hessian: Some(HessianMut::of(&mut lxx, &mut lxu, &mut luu)),
-            };
-            barrier.add_derivatives(&x, &u, &mut d, false, 2.5, out);
-            let zero_upper =
-                |m: &Mat<f64>| Mat::from_fn(m.nrows(), m.ncols(), |i, j| if i >= j { m[(i, j)] } else { 0.0 });
-            assert_close("barrier lx", &lx, &(2.5 * own.lx.as_mat().to_owned()), 1e-12);
-            assert_close("barrier lu", &lu, &(2.5 * own.lu.as_mat().to_owned()), 1e-12);
-            assert_close("barrier lxx", &lxx, &(2.5 * zero_upper(&own.lxx)), 1e-12);
-            assert_close("barrier lxu", &lxu, &(2.5 * &own.lxu), 1e-12);
-            assert_close("barrier luu", &luu, &(2.5 * zero_upper(&own.luu)), 1e-12);
-            // The barrier's Hessian itself: Jᵀ diag(w β''(-r)) J.
-            let mut fd = f.create_data();
-            f.evaluate(&x, &u, &mut fd);
-            let h = Mat::from_fn(nr, nr, |i, j| {
-                if i == j {
-                    0.7 * relaxed_log(-fd.value()[i], 0.5).2
-                } else {
-                    0.0
-                }
-            });
-            assert_close("barrier GN", &own.lxx, &(jx.transpose() * (&h * &jx)), 1e-12);
+            check_barrier_blocks(&f, &jx, (ndx, nu), &mut g);
         }
+    }
+
+    /// The log barrier on the residual `f` (Jacobian `jx` in `x`): `add_derivatives`
+    /// adds `s` times the blocks it writes itself, and its Hessian is
+    /// `Jᵀ diag(w β''(-r)) J`.
+    fn check_barrier_blocks(
+        f: &Arc<dyn StageFunction>,
+        jx: &Mat<f64>,
+        (ndx, nu): (usize, usize),
+        g: &mut rand::rngs::SmallRng,
+    ) {
+        let nr = f.nr();
+        // The barrier on the same residual: `s` times the blocks it writes itself.
+        let barrier = LogBarrierCost::new(f.clone(), 0.7, 0.5).unwrap();
+        let (x, u) = (random_vec(g, ndx, 1.0), random_vec(g, nu, 1.0));
+        let (mut own, mut d) = (barrier.create_data(), barrier.create_data());
+        barrier.evaluate(&x, &u, &mut own);
+        barrier.derivatives(&x, &u, &mut own);
+        barrier.evaluate(&x, &u, &mut d);
+        let (mut lx, mut lu) = (Mat::zeros(ndx, 1), Mat::zeros(nu, 1));
+        let (mut lxx, mut lxu, mut luu) = (Mat::zeros(ndx, ndx), Mat::zeros(ndx, nu), Mat::zeros(nu, nu));
+        let out = DerivativesMut {
+            lx: crate::linalg::col_of_mut(&mut lx, 0),
+            lu: crate::linalg::col_of_mut(&mut lu, 0),
+            hessian: Some(HessianMut::of(&mut lxx, &mut lxu, &mut luu)),
+        };
+        barrier.add_derivatives(&x, &u, &mut d, false, 2.5, out);
+        let zero_upper = |m: &Mat<f64>| Mat::from_fn(m.nrows(), m.ncols(), |i, j| if i >= j { m[(i, j)] } else { 0.0 });
+        assert_close("barrier lx", &lx, &(2.5 * own.lx.as_mat().to_owned()), 1e-12);
+        assert_close("barrier lu", &lu, &(2.5 * own.lu.as_mat().to_owned()), 1e-12);
+        assert_close("barrier lxx", &lxx, &(2.5 * zero_upper(&own.lxx)), 1e-12);
+        assert_close("barrier lxu", &lxu, &(2.5 * &own.lxu), 1e-12);
+        assert_close("barrier luu", &luu, &(2.5 * zero_upper(&own.luu)), 1e-12);
+        // The barrier's Hessian itself: Jᵀ diag(w β''(-r)) J.
+        let mut fd = f.create_data();
+        f.evaluate(&x, &u, &mut fd);
+        let h = Mat::from_fn(nr, nr, |i, j| {
+            if i == j {
+                0.7 * relaxed_log(-fd.value()[i], 0.5).2
+            } else {
+                0.0
+            }
+        });
+        assert_close("barrier GN", &own.lxx, &(jx.transpose() * (&h * jx)), 1e-12);
     }
 
     fn state_ref<D: DualNum<Primitive = f64> + Copy>(z: &[D], x_ref: &[f64], w: &Mat<f64>) -> D {

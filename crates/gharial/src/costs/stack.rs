@@ -369,29 +369,32 @@ mod tests {
     /// stack), weights changing between calls and a component switched on after the
     /// first call: its derivatives with `reuse` equal the weighted sum of the components'
     /// own derivatives, written fresh each time.
-    #[test]
-    fn mixed_stack_equals_the_weighted_sum_of_fresh_component_derivatives() {
+    /// The components of the mixed stack, with their weights: a nonlinear residual with its
+    /// exact Hessian, a linear one (constant Hessian, weight 0), a state cost, a barrier, a
+    /// general quadratic and a nested stack.
+    fn mixed_components(
+        g: &mut rand::rngs::SmallRng,
+        space: &Arc<dyn Manifold>,
+    ) -> Vec<(&'static str, Arc<dyn Cost>, f64)> {
         use crate::costs::{LogBarrierCost, QuadraticCost, QuadraticResidualCost};
-        use crate::functions::testing::{TestFunction, assert_close, random_mat};
+        use crate::functions::testing::{TestFunction, random_mat};
         use crate::functions::{LinearFunction, StageFunction};
-        let mut g = rng(51);
-        let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(3));
         let f: Arc<dyn StageFunction> = Arc::new(TestFunction);
-        let w = random_mat(&mut g, 3, 3, 1.0);
+        let w = random_mat(g, 3, 3, 1.0);
         let lin: Arc<dyn StageFunction> = Arc::new(
             LinearFunction::new(
-                random_mat(&mut g, 4, 3, 1.0).as_ref(),
-                random_mat(&mut g, 4, 2, 1.0).as_ref(),
+                random_mat(g, 4, 3, 1.0).as_ref(),
+                random_mat(g, 4, 2, 1.0).as_ref(),
                 &[0.1; 4],
             )
             .unwrap(),
         );
-        let q = random_mat(&mut g, 3, 3, 1.0);
-        let r = random_mat(&mut g, 2, 2, 1.0);
+        let q = random_mat(g, 3, 3, 1.0);
+        let r = random_mat(g, 2, 2, 1.0);
         let (q, r) = (&q * q.transpose(), &r * r.transpose());
         let quad = QuadraticCost::new(
             q.as_ref(),
-            random_mat(&mut g, 3, 2, 0.3).as_ref(),
+            random_mat(g, 3, 2, 0.3).as_ref(),
             r.as_ref(),
             &[0.2; 3],
             &[0.1; 2],
@@ -400,7 +403,7 @@ mod tests {
         let nested = CostStack::new(space.as_ref(), 2)
             .with("control", Arc::new(control), 0.7)
             .unwrap();
-        let components: Vec<(&str, Arc<dyn Cost>, f64)> = vec![
+        vec![
             (
                 "nonlinear",
                 Arc::new(
@@ -423,7 +426,37 @@ mod tests {
             ("barrier", Arc::new(LogBarrierCost::new(f, 0.4, 0.5).unwrap()), 0.6),
             ("quadratic", Arc::new(quad.unwrap()), 0.9),
             ("nested", Arc::new(nested), 1.1),
-        ];
+        ]
+    }
+
+    /// `Σ w_k` times the derivatives of each component computed afresh in its own data,
+    /// with the stack's current weights.
+    fn weighted_sum(
+        stack: &CostStack,
+        components: &[(&str, Arc<dyn Cost>, f64)],
+        own: &mut [CostData],
+        (x, u): (&[f64], &[f64]),
+    ) -> CostData {
+        let mut sum = CostData::new(3, 2, crate::functions::no_workspace());
+        for ((name, c, _), o) in components.iter().zip(own.iter_mut()) {
+            let wk = stack.weight(name).unwrap();
+            c.evaluate(x, u, o);
+            c.derivatives(x, u, o);
+            sum.lx += wk * &o.lx;
+            sum.lu += wk * &o.lu;
+            sum.lxx += wk * &o.lxx;
+            sum.lxu += wk * &o.lxu;
+            sum.luu += wk * &o.luu;
+        }
+        sum
+    }
+
+    #[test]
+    fn mixed_stack_equals_the_weighted_sum_of_fresh_component_derivatives() {
+        use crate::functions::testing::assert_close;
+        let mut g = rng(51);
+        let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(3));
+        let components = mixed_components(&mut g, &space);
         assert!(components[1].1.hessian_is_constant() && !components[0].1.hessian_is_constant());
         let mut stack = CostStack::new(space.as_ref(), 2);
         for (name, c, w) in &components {
@@ -440,17 +473,7 @@ mod tests {
             let (x, u) = (random_vec(&mut g, 3, 1.0), random_vec(&mut g, 2, 1.0));
             stack.evaluate(&x, &u, &mut d);
             stack.derivatives_reusing(&x, &u, &mut d, step > 0);
-            let mut sum = CostData::new(3, 2, crate::functions::no_workspace());
-            for ((name, c, _), o) in components.iter().zip(own.iter_mut()) {
-                let wk = stack.weight(name).unwrap();
-                c.evaluate(&x, &u, o);
-                c.derivatives(&x, &u, o);
-                sum.lx += wk * &o.lx;
-                sum.lu += wk * &o.lu;
-                sum.lxx += wk * &o.lxx;
-                sum.lxu += wk * &o.lxu;
-                sum.luu += wk * &o.luu;
-            }
+            let sum = weighted_sum(&stack, &components, &mut own, (&x, &u));
             let tol = 1e-13;
             assert_close("lx", &d.lx.as_mat().to_owned(), &sum.lx.as_mat().to_owned(), tol);
             assert_close("lu", &d.lu.as_mat().to_owned(), &sum.lu.as_mat().to_owned(), tol);
