@@ -41,6 +41,9 @@
 //! 1-norm of the gaps) (Section V-C; with the default memory of 1: if it lowers the cost
 //! or the gaps); and the solve has converged when the KKT residual (20),
 //! `max(|∇L|_∞, |gaps|_∞)` with the co-states `λ⁺` of the last step, is below `tol`.
+//! That test needs the derivatives at the point and `λ⁺` only, so after a step it comes
+//! before the backward pass (as in mim_solvers): a converged solve skips the last pass
+//! (half the work on an LQ), and its gains are those of the step that reached the point.
 //!
 //! DDP, FDDP and SQP refuse problems with constraints; the box variants accept bounds on the
 //! controls only (recognised among the path constraints as [`crate::constraints::ConstraintSet::box_bounds`] describes), anything else is refused with an error naming the
@@ -265,6 +268,17 @@ struct Loop {
 }
 
 impl Loop {
+    /// The stopping test on the measures of now (`applies`: the point qualifies, e.g. it
+    /// is feasible): converged, or stalled when the regularisation is still raised.
+    fn converged(&self, opts: &DdpOptions, applies: bool) -> Option<Status> {
+        let status = if self.reg <= opts.reg_converged {
+            Status::Converged
+        } else {
+            Status::Stalled
+        };
+        (applies && self.m.stop < self.th_stop).then_some(status)
+    }
+
     /// One iteration: backward pass, stopping tests, line search, regularisation update,
     /// callback. Returns a status when the solve stops.
     fn iteration(
@@ -276,27 +290,38 @@ impl Loop {
         start: Instant,
         callback: &mut Option<&mut dyn Callback>,
     ) -> Option<Status> {
+        let sqp = opts.variant.linear_rollout();
+        // SQP's KKT residual (20), which includes the gaps, needs the point's derivatives
+        // and the multipliers of the last LQ step only: after a step it is tested before
+        // the backward pass (as mim_solvers does), which a converged point does not need.
+        let mut kkt = None;
+        if sqp && self.iter > 0 {
+            let (dual, residual) = ws.kkt(problem);
+            self.m = Measures {
+                gaps: ws.max_gap(),
+                dual,
+                stop: residual,
+            };
+            if let Some(s) = self.converged(opts, true) {
+                return Some(s);
+            }
+            kkt = Some(residual);
+        }
         let (e, dual) = match backward(ws, problem, opts, &mut self.reg, self.rebuild) {
             Ok(e) => e,
             Err(s) => return Some(s),
         };
-        let sqp = opts.variant.linear_rollout();
         self.m = Measures {
             gaps: ws.max_gap(),
             dual,
-            // SQP's KKT residual (20) includes the gaps.
             stop: if sqp {
-                ws.kkt(problem)
+                kkt.unwrap_or_else(|| ws.kkt(problem).1)
             } else {
                 (e.dg + 0.5 * e.dq).abs()
             },
         };
-        if (ws.feasible || sqp) && self.m.stop < self.th_stop {
-            return Some(if self.reg <= opts.reg_converged {
-                Status::Converged
-            } else {
-                Status::Stalled
-            });
+        if let Some(s) = self.converged(opts, ws.feasible || sqp) {
+            return Some(s);
         }
         // The full step cannot change the cost by more than its rounding: a tolerance
         // below that floor is out of reach.

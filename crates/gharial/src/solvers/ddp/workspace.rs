@@ -570,12 +570,13 @@ impl Workspace {
     }
 
     /// SQP's KKT residual (20) at the current point: the largest entry of the
-    /// Lagrangian's gradient with the co-states of the last LQ step, and of the gaps.
-    pub fn kkt(&mut self, problem: &Problem) -> f64 {
+    /// Lagrangian's gradient with the co-states of the last LQ step (returned first), and
+    /// the residual, which also takes the gaps.
+    pub fn kkt(&mut self, problem: &Problem) -> (f64, f64) {
         self.data
             .lagrangian_gradient(problem, &self.lams, &self.no_nus, &mut self.gx, &mut self.gu);
         let dual = self.gx.iter().chain(&self.gu).map(|g| norm_inf(g)).fold(0.0, f64::max);
-        dual.max(self.max_gap())
+        (dual, dual.max(self.max_gap()))
     }
 
     /// The sum of the gaps' 1-norms of the current point (SQP's filter measure).
