@@ -13,8 +13,8 @@ use super::e_factor::EFactor;
 use super::riccati::Outputs;
 use super::{KnotDims, KnotVectors, LqError, LqKnot, blame};
 use crate::linalg::{
-    self, BunchKaufman, FactorError, Inertia, Ldlt, Llt, Lu, col_of, col_of_mut, matmul, matmul_lower, matvec,
-    matvec_t, slice, slice_mut, sum_is_finite,
+    self, BunchKaufman, FactorError, Inertia, Ldlt, Llt, Lu, col_of, col_of_mut, matmul, matmul_lower_upper_free,
+    matvec, matvec_t, slice, slice_mut, sum_is_finite,
 };
 
 /// Which gains beyond `k, K, ζ, Z` a stage computes.
@@ -278,12 +278,12 @@ impl RiccatiStage {
         let mut q = self.qmat.as_mut();
         if let Some(ab) = contiguous {
             matmul(w.rb_mut(), Accum::Replace, pt, ab, 1.0);
-            matmul_lower(q, Accum::Add, ab.transpose(), w.as_ref(), 1.0);
+            matmul_lower_upper_free(q, Accum::Add, ab.transpose(), w.as_ref(), 1.0);
             return;
         }
         let (a, b) = (knot.A.as_ref(), knot.B.as_ref());
         matmul(w.rb_mut().subcols_mut(0, nx), Accum::Replace, pt, a, 1.0);
-        matmul_lower(
+        matmul_lower_upper_free(
             q.rb_mut().submatrix_mut(0, 0, nx, nx),
             Accum::Add,
             a.transpose(),
@@ -299,7 +299,7 @@ impl RiccatiStage {
                 w.as_ref().subcols(0, nx),
                 1.0,
             );
-            matmul_lower(
+            matmul_lower_upper_free(
                 q.rb_mut().submatrix_mut(nx, nx, nu, nu),
                 Accum::Add,
                 b.transpose(),
@@ -612,7 +612,7 @@ impl RiccatiStage {
         linalg::copy(self.P.as_mut(), self.qmat.as_ref().submatrix(0, 0, nx, nx));
         let fb = self.gains.as_ref().submatrix(0, 1, nu + nc, nx);
         if nu > 0 {
-            matmul_lower(
+            matmul_lower_upper_free(
                 self.P.as_mut(),
                 Accum::Add,
                 self.qmat.as_ref().submatrix(0, nx, nx, nu),
@@ -621,7 +621,7 @@ impl RiccatiStage {
             );
         }
         if nc > 0 && !self.c_is_zero {
-            matmul_lower(self.P.as_mut(), Accum::Add, knot.C.transpose(), fb.subrows(nu, nc), 1.0);
+            matmul_lower_upper_free(self.P.as_mut(), Accum::Add, knot.C.transpose(), fb.subrows(nu, nc), 1.0);
         }
         linalg::symmetrize_from_lower(self.P.as_mut());
         if !sum_is_finite(self.P.as_ref()) {
