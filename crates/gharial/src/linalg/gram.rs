@@ -46,6 +46,11 @@ struct Rows {
     span: Vec<Range<usize>>,
     /// Whether `at` holds the rows (the Jacobian was sparse).
     copied: bool,
+    /// Whether every row is zero.
+    zero: bool,
+    /// `Some(c)` when the rows are those of the identity shifted by `c` columns (row `r`
+    /// is `e_{c + r}ᵀ`: a state or control error).
+    unit: Option<usize>,
     /// The loaded shape.
     nr: usize,
     n: usize,
@@ -57,6 +62,8 @@ impl Rows {
             at: vec![0.0; nr * n],
             span: vec![0..0; nr],
             copied: false,
+            zero: true,
+            unit: None,
             nr: 0,
             n: 0,
         }
@@ -87,6 +94,12 @@ impl Rows {
                 *s = 0..0;
             }
         }
+        self.zero = span.iter().all(|s| s.is_empty());
+        self.unit = span.first().map(|s| s.start).filter(|&c| {
+            span.iter()
+                .enumerate()
+                .all(|(r, s)| *s == (c + r..c + r + 1) && a[(r, c + r)] == 1.0)
+        });
         self.copied = copy(span.iter().map(|s| triangle(s.len())).sum());
         if self.copied {
             for (r, s) in span.iter().enumerate() {
@@ -133,13 +146,23 @@ impl GramScratch {
 
     /// Whether the loaded Jacobian is zero.
     pub(crate) fn is_zero(&self) -> bool {
-        self.a.span[..self.a.nr].iter().all(|s| s.is_empty())
+        self.a.zero
     }
 
     /// `y += alpha aᵀ g` for the loaded `a`.
     pub(crate) fn matvec_t_add(&self, y: &mut [f64], a: MatRef<'_, f64>, g: &[f64], alpha: f64) {
         if !self.a.copied {
             return matvec_t(y, Accum::Add, a, g, alpha);
+        }
+        if self.a.zero {
+            return;
+        }
+        if let Some(c) = self.a.unit {
+            // The loop below with one entry 1.0 per row: the same sums.
+            for (yc, gr) in y[c..c + self.a.nr].iter_mut().zip(g) {
+                *yc += alpha * gr;
+            }
+            return;
         }
         for (r, s) in self.a.span[..self.a.nr].iter().enumerate() {
             let h = alpha * g[r];

@@ -206,8 +206,8 @@ fn bunch_kaufman_inertia_of_sparse_kkt_matrices() {
 
 /// The Gram kernel adds `aᵀ W a` to the lower triangle and leaves the upper one alone,
 /// equal to the entry-by-entry product, for dense matrices (faer's product from a size
-/// on), matrices with zero rows, zero columns and identity-like sparsity, one row, and
-/// diagonal weights with zeros: the skipped zeros change nothing.
+/// on), matrices with zero rows, zero columns and identity-like sparsity, a shifted
+/// identity, one row, and diagonal weights with zeros: the skipped zeros change nothing.
 #[test]
 fn gram_lower_add_matches_the_naive_product() {
     use super::{GramScratch, GramWeight};
@@ -216,7 +216,10 @@ fn gram_lower_add_matches_the_naive_product() {
         .enumerate()
     {
         let mut scratch = GramScratch::new(nr, n);
-        for pattern in 0..5 {
+        for pattern in 0..6 {
+            if pattern == 5 && nr > n {
+                continue;
+            }
             let mut a = filled(nr, n, case + pattern);
             match pattern {
                 1 => a.as_mut().row_mut(nr / 2).fill(0.0),
@@ -227,6 +230,8 @@ fn gram_lower_add_matches_the_naive_product() {
                 }
                 3 => a = Mat::from_fn(nr, n, |r, c| if r == c || (r < 3 && c < 3) { a[(r, c)] } else { 0.0 }),
                 4 => a.fill(0.0),
+                // The identity shifted to the last columns (a velocity error).
+                5 => a = Mat::from_fn(nr, n, |r, c| if c == r + n - nr { 1.0 } else { 0.0 }),
                 _ => {}
             }
             // A diagonal weight with a zero entry, and a full symmetric one.
