@@ -8,7 +8,7 @@ use faer::{Mat, MatMut};
 use super::{Cost, CostData, CostParts, DerivativesMut, HessianMut};
 use crate::functions::Workspace;
 use crate::functions::util::downcast;
-use crate::linalg::{copy, copy_lower, fill_lower, is_zero, symmetrize_from_lower};
+use crate::linalg::{copy, is_zero, symmetrize_from_lower};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
@@ -212,9 +212,11 @@ impl Cost for CostStack {
         lx.fill(0.0);
         lu.fill(0.0);
         let ([cxx, cxu, cuu], [nxx, nxu, nuu]) = (&ws.constant, ws.constant_nonzero);
-        start_from(hessian.lxx.rb_mut(), cxx, nxx, true);
-        start_from(hessian.lxu.rb_mut(), cxu, nxu, false);
-        start_from(hessian.luu.rb_mut(), cuu, nuu, true);
+        // Whole blocks (fixed-size column copies): the upper triangles of `lxx` and `luu`
+        // are mirrored from the lower ones below.
+        start_from(hessian.lxx.rb_mut(), cxx, nxx);
+        start_from(hessian.lxu.rb_mut(), cxu, nxu);
+        start_from(hessian.luu.rb_mut(), cuu, nuu);
         for (k, (c, d)) in self.costs.iter().zip(ws.datas.iter_mut()).enumerate() {
             let w = self.weights.get(k);
             if w == 0.0 {
@@ -267,13 +269,12 @@ impl CostStack {
 }
 
 /// Starts a block of the stack's derivatives from its block of the constant Hessian sum
-/// (`nonzero`) or from zero: its lower triangle if `lower`, all of it otherwise.
-fn start_from(mut dst: MatMut<'_, f64>, constant: &Mat<f64>, nonzero: bool, lower: bool) {
-    match (nonzero, lower) {
-        (true, true) => copy_lower(dst, constant.as_ref()),
-        (true, false) => copy(dst, constant.as_ref()),
-        (false, true) => fill_lower(dst, 0.0),
-        (false, false) => dst.fill(0.0),
+/// (`nonzero`) or from zero.
+fn start_from(mut dst: MatMut<'_, f64>, constant: &Mat<f64>, nonzero: bool) {
+    if nonzero {
+        copy(dst, constant.as_ref());
+    } else {
+        dst.fill(0.0);
     }
 }
 

@@ -90,7 +90,7 @@ pub use matvec::matvec;
 pub use views::{slice, slice_mut};
 
 pub(crate) use bunch_kaufman::BunchKaufman;
-pub(crate) use copy::{copy_lower, copy_transposed};
+pub(crate) use copy::copy_transposed;
 pub(crate) use gram::{GramScratch, GramWeight, scale_rows};
 pub(crate) use ldlt::Ldlt;
 pub(crate) use llt::Llt;
