@@ -7,6 +7,7 @@ use faer::prelude::ReborrowMut;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::reduce::{dot, dot_fixed};
+use super::views::col_fixed;
 
 /// Products with at most this many multiply-adds use the loops of [`small_matmul`]: faer's
 /// fixed cost per call (dispatch, blocking) dominates below it (measured: `Aᵀ B` for 4 x 4
@@ -88,6 +89,67 @@ pub(crate) fn matmul_lower_upper_free(
         return faer::linalg::matmul::matmul(dst, accum, lhs, rhs, alpha, Par::Seq);
     }
     matmul_lower(dst, accum, lhs, rhs, alpha);
+}
+
+/// Lower triangle of `q += [A B]ᵀ P [A B]` (`P`: `ny × ny`, `A`: `ny × nx`, `B`: `ny × nu`,
+/// `q`: `(nx + nu)²`, all with unit row stride) in one pass when the products are small
+/// enough for the loop kernels (`ny² (nx + nu)` at most [`SMALL_PRODUCT`] multiply-adds,
+/// `nx + nu` at most 16): `P [A B]` column by column in registers, then the dot products,
+/// in the order of [`matmul`] then [`matmul_lower`] on a copied `[A B]` (the same sums),
+/// without the copy, the intermediate matrix and their per-call costs. Returns `false`
+/// (and does nothing) otherwise.
+pub(crate) fn add_sandwich_lower(
+    q: MatMut<'_, f64>,
+    p: MatRef<'_, f64>,
+    a: MatRef<'_, f64>,
+    b: MatRef<'_, f64>,
+) -> bool {
+    let (ny, n) = (p.nrows(), a.ncols() + b.ncols());
+    let strides = [q.row_stride(), p.row_stride(), a.row_stride(), b.row_stride()];
+    if ny * ny * n > SMALL_PRODUCT || n > MAX_SMALL_DIM || strides.iter().any(|&s| s != 1) {
+        return false;
+    }
+    with_fixed_len!(ny, sandwich_fixed, (q, p, a, b))
+}
+
+/// [`add_sandwich_lower`] for `ny = M`.
+#[inline]
+fn sandwich_fixed<const M: usize>(mut q: MatMut<'_, f64>, p: MatRef<'_, f64>, a: MatRef<'_, f64>, b: MatRef<'_, f64>) {
+    let nx = a.ncols();
+    let n = nx + b.ncols();
+    let zero = [0.0; M];
+    let mut ab = [&zero; MAX_SMALL_DIM];
+    for (j, c) in ab.iter_mut().enumerate().take(n) {
+        *c = if j < nx {
+            col_fixed::<M>(a, j)
+        } else {
+            col_fixed::<M>(b, j - nx)
+        };
+    }
+    let pc: [&[f64; M]; M] = std::array::from_fn(|l| col_fixed::<M>(p, l));
+    // w_j = P [A B]_j, the axpy form of `small_matmul` (zero factors skipped).
+    let mut w = [[0.0; M]; MAX_SMALL_DIM];
+    for (wj, c) in w.iter_mut().zip(&ab).take(n) {
+        for (l, &s) in c.iter().enumerate() {
+            if s == 0.0 {
+                continue;
+            }
+            for i in 0..M {
+                wj[i] += s * pc[l][i];
+            }
+        }
+    }
+    for (j, wj) in w.iter().enumerate().take(n) {
+        let d = &mut q
+            .rb_mut()
+            .col_mut(j)
+            .try_as_col_major_mut()
+            .expect("checked")
+            .as_slice_mut()[j..n];
+        for (di, ai) in d.iter_mut().zip(&ab[j..n]) {
+            *di += dot_fixed(ai, wj);
+        }
+    }
 }
 
 /// The smallest `k` such that `m = diag(m_b, s I)` with `m_b` of size `k × k` (`0`: `m`
@@ -224,8 +286,56 @@ fn dots_fixed<const K: usize>(d: &mut [f64], rows: &[&[f64]], b: &[f64], alpha: 
 mod tests {
     use faer::Accum;
 
-    use super::{matmul, matmul_lower, matmul_lower_upper_free};
+    use faer::Mat;
+
+    use super::{add_sandwich_lower, matmul, matmul_lower, matmul_lower_upper_free};
     use crate::linalg::tests::{filled, naive};
+
+    /// The one-pass `[A B]ᵀ P [A B]` equals, bit for bit, the two products on a copied
+    /// `[A B]` it replaces, and matches the naive product; it declines large sizes.
+    #[test]
+    fn sandwich_is_the_two_products_bit_for_bit() {
+        for (ny, nx, nu) in [
+            (1, 1, 0),
+            (2, 2, 1),
+            (4, 4, 2),
+            (3, 6, 2),
+            (5, 4, 3),
+            (2, 12, 4),
+            (8, 8, 4),
+            (4, 16, 2),
+        ] {
+            let n = nx + nu;
+            let p = filled(ny, ny, 1);
+            let mut a = filled(ny, nx, 2);
+            a[(0, 0)] = 0.0;
+            let b = filled(ny, nu, 3);
+            let ab = Mat::from_fn(ny, n, |i, j| if j < nx { a[(i, j)] } else { b[(i, j - nx)] });
+            let init = filled(n, n, 4);
+            let mut q = init.clone();
+            let done = add_sandwich_lower(q.as_mut(), p.as_ref(), a.as_ref(), b.as_ref());
+            assert_eq!(done, ny * ny * n <= 512 && n <= 16, "{ny} {nx} {nu}");
+            if !done {
+                assert_eq!(q, init);
+                continue;
+            }
+            let mut w = Mat::<f64>::zeros(ny, n);
+            matmul(w.as_mut(), Accum::Replace, p.as_ref(), ab.as_ref(), 1.0);
+            let mut r = init.clone();
+            matmul_lower(r.as_mut(), Accum::Add, ab.transpose(), w.as_ref(), 1.0);
+            let reference = naive(ab.transpose(), naive(p.as_ref(), ab.as_ref()).as_ref());
+            for j in 0..n {
+                for i in 0..n {
+                    if i >= j {
+                        assert_eq!(q[(i, j)].to_bits(), r[(i, j)].to_bits(), "{ny} {nx} {nu}: ({i}, {j})");
+                        assert!((q[(i, j)] - init[(i, j)] - reference[(i, j)]).abs() < 1e-12);
+                    } else {
+                        assert_eq!(q[(i, j)], init[(i, j)]);
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn products_match_the_naive_product_for_every_layout_and_size() {

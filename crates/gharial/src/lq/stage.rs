@@ -263,6 +263,11 @@ impl RiccatiStage {
         } else {
             P_next
         };
+        if self.e_fac.is_minus_identity()
+            && linalg::add_sandwich_lower(self.qmat.as_mut(), pt, knot.A.as_ref(), knot.B.as_ref())
+        {
+            return;
+        }
         let n = nx + nu;
         let contiguous = if !self.e_fac.is_minus_identity() {
             Some(self.ab_tilde.as_ref())
