@@ -152,6 +152,63 @@ fn sandwich_fixed<const M: usize>(mut q: MatMut<'_, f64>, p: MatRef<'_, f64>, a:
     }
 }
 
+/// `dst = base + lhs rhs` (`dst`, `base`: `m × n` with `m` at most 16; `lhs`: `m × k`,
+/// `k` at most 16; all column-major) in one pass when the product is small enough for
+/// the loop kernels: each column of `dst` starts from `base`'s in registers and takes the
+/// axpys of [`small_matmul`] (the same sums as [`copy`](super::copy) then
+/// [`matmul_lower`] in the lower triangle), without the copy's and the product's
+/// per-call costs. Returns `false` (and does nothing) otherwise.
+pub(crate) fn copy_add_product(
+    dst: MatMut<'_, f64>,
+    base: MatRef<'_, f64>,
+    lhs: MatRef<'_, f64>,
+    rhs: MatRef<'_, f64>,
+) -> bool {
+    let (m, n, k) = (dst.nrows(), dst.ncols(), lhs.ncols());
+    let strides = [dst.row_stride(), base.row_stride(), lhs.row_stride(), rhs.row_stride()];
+    if m * n * k > SMALL_LOWER_PRODUCT || k > MAX_SMALL_DIM || strides.iter().any(|&s| s != 1) {
+        return false;
+    }
+    with_fixed_len!(m, copy_add_product_fixed, (dst, base, lhs, rhs))
+}
+
+/// [`copy_add_product`] for `m = M`.
+#[inline]
+fn copy_add_product_fixed<const M: usize>(
+    mut dst: MatMut<'_, f64>,
+    base: MatRef<'_, f64>,
+    lhs: MatRef<'_, f64>,
+    rhs: MatRef<'_, f64>,
+) {
+    let k = lhs.ncols();
+    let zero = [0.0; M];
+    let mut a = [&zero; MAX_SMALL_DIM];
+    for (l, al) in a.iter_mut().enumerate().take(k) {
+        *al = col_fixed::<M>(lhs, l);
+    }
+    for j in 0..dst.ncols() {
+        let mut acc = *col_fixed::<M>(base, j);
+        let s = &rhs.col(j).try_as_col_major().expect("checked").as_slice()[..k];
+        for (al, &sl) in a.iter().zip(s) {
+            if sl == 0.0 {
+                continue;
+            }
+            for i in 0..M {
+                acc[i] += sl * al[i];
+            }
+        }
+        let d: &mut [f64; M] = dst
+            .rb_mut()
+            .col_mut(j)
+            .try_as_col_major_mut()
+            .expect("checked")
+            .as_slice_mut()
+            .try_into()
+            .expect("M rows");
+        *d = acc;
+    }
+}
+
 /// The smallest `k` such that `m = diag(m_b, s I)` with `m_b` of size `k × k` (`0`: `m`
 /// is `s I`): the structure of Jacobians on a Lie group times vector spaces.
 pub(crate) fn identity_block(m: MatRef<'_, f64>, s: f64) -> usize {
@@ -288,8 +345,39 @@ mod tests {
 
     use faer::Mat;
 
-    use super::{add_sandwich_lower, matmul, matmul_lower, matmul_lower_upper_free};
+    use super::{add_sandwich_lower, copy_add_product, matmul, matmul_lower, matmul_lower_upper_free};
     use crate::linalg::tests::{filled, naive};
+
+    /// `base + lhs rhs` in one pass equals, bit for bit in the lower triangle, the copy
+    /// and the lower product it replaces, and the naive sum everywhere; it declines
+    /// large sizes.
+    #[test]
+    fn copy_add_product_is_the_copy_and_the_product() {
+        for (m, k) in [(1, 1), (4, 2), (6, 3), (8, 4), (12, 6), (16, 8), (17, 2), (12, 16)] {
+            let base = filled(m, m, 1);
+            let lhs = filled(m, k, 2);
+            let mut rhs = filled(k, m, 3);
+            rhs[(0, 0)] = 0.0;
+            let mut d = Mat::<f64>::zeros(m, m);
+            let done = copy_add_product(d.as_mut(), base.as_ref(), lhs.as_ref(), rhs.as_ref());
+            assert_eq!(done, m <= 16 && m * m * k <= 2048, "{m} {k}");
+            if !done {
+                assert!(d.col_iter().all(|c| c.iter().all(|v| *v == 0.0)));
+                continue;
+            }
+            let mut r = base.clone();
+            matmul_lower(r.as_mut(), Accum::Add, lhs.as_ref(), rhs.as_ref(), 1.0);
+            let reference = naive(lhs.as_ref(), rhs.as_ref());
+            for j in 0..m {
+                for i in 0..m {
+                    if i >= j {
+                        assert_eq!(d[(i, j)].to_bits(), r[(i, j)].to_bits(), "{m} {k}: ({i}, {j})");
+                    }
+                    assert!((d[(i, j)] - base[(i, j)] - reference[(i, j)]).abs() < 1e-12);
+                }
+            }
+        }
+    }
 
     /// The one-pass `[A B]ᵀ P [A B]` equals, bit for bit, the two products on a copied
     /// `[A B]` it replaces, and matches the naive product; it declines large sizes.

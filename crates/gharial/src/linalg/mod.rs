@@ -94,7 +94,9 @@ pub(crate) use copy::copy_transposed;
 pub(crate) use gram::{GramScratch, GramWeight, scale_rows};
 pub(crate) use ldlt::Ldlt;
 pub(crate) use llt::Llt;
-pub(crate) use matmul::{add_sandwich_lower, identity_block, matmul_identity_block, matmul_lower_upper_free};
+pub(crate) use matmul::{
+    add_sandwich_lower, copy_add_product, identity_block, matmul_identity_block, matmul_lower_upper_free,
+};
 pub(crate) use matvec::matvec_t;
 pub(crate) use psd_sqrt::psd_sqrt;
 pub(crate) use qr::{householder_r, semidefinite_cholesky_upper, upper_solve, upper_t_solve};

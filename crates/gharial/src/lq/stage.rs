@@ -614,16 +614,17 @@ impl RiccatiStage {
     /// triangle, then mirrored.
     fn value_hessian(&mut self, knot: &LqKnot) -> Result<(), LqError> {
         let (nx, nu, nc) = (self.nx, self.nu, self.nc);
-        linalg::copy(self.P.as_mut(), self.qmat.as_ref().submatrix(0, 0, nx, nx));
         let fb = self.gains.as_ref().submatrix(0, 1, nu + nc, nx);
-        if nu > 0 {
-            matmul_lower_upper_free(
-                self.P.as_mut(),
-                Accum::Add,
-                self.qmat.as_ref().submatrix(0, nx, nx, nu),
-                fb.subrows(0, nu),
-                1.0,
-            );
+        let (q_xx, q_xu) = (
+            self.qmat.as_ref().submatrix(0, 0, nx, nx),
+            self.qmat.as_ref().submatrix(0, nx, nx, nu),
+        );
+        // Small stages in one pass; the copy and the product otherwise.
+        if !(nu > 0 && linalg::copy_add_product(self.P.as_mut(), q_xx, q_xu, fb.subrows(0, nu))) {
+            linalg::copy(self.P.as_mut(), q_xx);
+            if nu > 0 {
+                matmul_lower_upper_free(self.P.as_mut(), Accum::Add, q_xu, fb.subrows(0, nu), 1.0);
+            }
         }
         if nc > 0 && !self.c_is_zero {
             matmul_lower_upper_free(self.P.as_mut(), Accum::Add, knot.C.transpose(), fb.subrows(nu, nc), 1.0);
