@@ -304,16 +304,28 @@ impl VectorSpace {
 
     fn integrate_t<T: Scalar>(&self, x: &[T], v: &[T], out: &mut [T]) {
         debug_assert!(x.len() == self.n && v.len() == self.n && out.len() == self.n);
-        for ((o, &a), &b) in out.iter_mut().zip(x).zip(v) {
-            *o = a + b;
-        }
+        add_elementwise(x, v, out);
     }
 
     fn difference_t<T: Scalar>(&self, x0: &[T], x1: &[T], out: &mut [T]) {
         debug_assert!(x0.len() == self.n && x1.len() == self.n && out.len() == self.n);
-        for ((o, &a), &b) in out.iter_mut().zip(x0).zip(x1) {
-            *o = b - a;
-        }
+        sub_elementwise(x0, x1, out);
+    }
+}
+
+/// `out = x + v`: `⊕` of a vector space (and of products and bundles of them).
+#[inline]
+fn add_elementwise<T: Scalar>(x: &[T], v: &[T], out: &mut [T]) {
+    for ((o, &a), &b) in out.iter_mut().zip(x).zip(v) {
+        *o = a + b;
+    }
+}
+
+/// `out = x1 - x0`: `⊖` of a vector space (and of products and bundles of them).
+#[inline]
+fn sub_elementwise<T: Scalar>(x0: &[T], x1: &[T], out: &mut [T]) {
+    for ((o, &a), &b) in out.iter_mut().zip(x0).zip(x1) {
+        *o = b - a;
     }
 }
 

@@ -91,12 +91,18 @@ impl CartesianProduct {
     }
 
     fn integrate_t<T: ManifoldScalar>(&self, x: &[T], v: &[T], out: &mut [T]) {
+        if self.vector_space {
+            return super::add_elementwise(x, v, out);
+        }
         for (i, p) in self.parts.iter().enumerate() {
             T::integrate(p.as_ref(), &x[self.rx(i)], &v[self.rdx(i)], &mut out[self.rx(i)]);
         }
     }
 
     fn difference_t<T: ManifoldScalar>(&self, x0: &[T], x1: &[T], out: &mut [T]) {
+        if self.vector_space {
+            return super::sub_elementwise(x0, x1, out);
+        }
         for (i, p) in self.parts.iter().enumerate() {
             T::difference(p.as_ref(), &x0[self.rx(i)], &x1[self.rx(i)], &mut out[self.rdx(i)]);
         }

@@ -22,12 +22,15 @@ use super::{Arg, Manifold, ManifoldScalar, forward_group_ops, set_identity};
 #[derive(Debug, Clone)]
 pub struct TangentBundle {
     base: Arc<dyn Manifold>,
+    /// Whether `M` is a vector space (then `⊕` and `⊖` are `+` and `-` on all of `x`).
+    vector_space: bool,
 }
 
 impl TangentBundle {
     /// `TM` for `M = base`.
     pub fn new(base: Arc<dyn Manifold>) -> Self {
-        Self { base }
+        let vector_space = base.is_vector_space();
+        Self { base, vector_space }
     }
 
     /// The base space `M`.
@@ -36,6 +39,9 @@ impl TangentBundle {
     }
 
     fn integrate_t<T: ManifoldScalar>(&self, x: &[T], v: &[T], out: &mut [T]) {
+        if self.vector_space {
+            return super::add_elementwise(x, v, out);
+        }
         let (nq, nv) = (self.base.nx(), self.base.ndx());
         T::integrate(self.base.as_ref(), &x[..nq], &v[..nv], &mut out[..nq]);
         for i in 0..nv {
@@ -44,6 +50,9 @@ impl TangentBundle {
     }
 
     fn difference_t<T: ManifoldScalar>(&self, x0: &[T], x1: &[T], out: &mut [T]) {
+        if self.vector_space {
+            return super::sub_elementwise(x0, x1, out);
+        }
         let (nq, nv) = (self.base.nx(), self.base.ndx());
         T::difference(self.base.as_ref(), &x0[..nq], &x1[..nq], &mut out[..nv]);
         for i in 0..nv {
@@ -136,6 +145,6 @@ impl Manifold for TangentBundle {
     }
 
     fn is_vector_space(&self) -> bool {
-        self.base.is_vector_space()
+        self.vector_space
     }
 }

@@ -357,8 +357,23 @@ fn product_of_products() {
 fn vector_products_are_vector_spaces() {
     let m = CartesianProduct::pair(Arc::new(VectorSpace::new(2)), Arc::new(VectorSpace::new(3)));
     assert!(m.is_vector_space());
-    assert!(TangentBundle::new(Arc::new(VectorSpace::new(2))).is_vector_space());
+    let bundle = TangentBundle::new(Arc::new(m.clone()));
+    assert!(bundle.is_vector_space());
     check_space(&m, 9, 10);
+    check_space(&bundle, 11, 10);
+    // ⊕ and ⊖ are + and - on every coordinate.
+    let spaces: [&dyn Manifold; 2] = [&m, &bundle];
+    for space in spaces {
+        let n = space.nx();
+        let x: Vec<f64> = (0..n).map(|i| 0.3 * i as f64 - 1.0).collect();
+        let v: Vec<f64> = (0..n).map(|i| 1.7 - 0.2 * i as f64).collect();
+        let (mut sum, mut diff) = (vec![0.0; n], vec![0.0; n]);
+        space.integrate(&x, &v, &mut sum);
+        space.difference(&x, &v, &mut diff);
+        for i in 0..n {
+            assert_eq!((sum[i], diff[i]), (x[i] + v[i], v[i] - x[i]));
+        }
+    }
 }
 
 /// `x ⊕ v = x · exp(v)` with `exp` the matrix exponential of the twist, for the four
