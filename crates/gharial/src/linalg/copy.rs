@@ -4,6 +4,8 @@
 use faer::prelude::ReborrowMut;
 use faer::{MatMut, MatRef};
 
+use super::views::{col_fixed, col_fixed_mut};
+
 /// `dst = src` (same shape), column by column.
 #[inline]
 pub fn copy(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
@@ -31,22 +33,7 @@ pub fn copy(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
 #[inline]
 fn copy_fixed<const M: usize>(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
     for j in 0..src.ncols() {
-        let s: &[f64; M] = src
-            .col(j)
-            .try_as_col_major()
-            .expect("checked")
-            .as_slice()
-            .try_into()
-            .expect("M rows");
-        let d: &mut [f64; M] = dst
-            .rb_mut()
-            .col_mut(j)
-            .try_as_col_major_mut()
-            .expect("checked")
-            .as_slice_mut()
-            .try_into()
-            .expect("M rows");
-        *d = *s;
+        *col_fixed_mut::<M>(dst.rb_mut(), j) = *col_fixed::<M>(src, j);
     }
 }
 

@@ -7,7 +7,7 @@ use faer::prelude::ReborrowMut;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::reduce::{dot, dot_fixed};
-use super::views::col_fixed;
+use super::views::{col_fixed, col_fixed_mut};
 
 /// Products with at most this many multiply-adds use the loops of [`small_matmul`]: faer's
 /// fixed cost per call (dispatch, blocking) dominates below it (measured: `Aᵀ B` for 4 x 4
@@ -197,15 +197,7 @@ fn copy_add_product_fixed<const M: usize>(
                 acc[i] += sl * al[i];
             }
         }
-        let d: &mut [f64; M] = dst
-            .rb_mut()
-            .col_mut(j)
-            .try_as_col_major_mut()
-            .expect("checked")
-            .as_slice_mut()
-            .try_into()
-            .expect("M rows");
-        *d = acc;
+        *col_fixed_mut::<M>(dst.rb_mut(), j) = acc;
     }
 }
 
