@@ -279,21 +279,18 @@ impl Loop {
         (applies && self.m.stop < self.th_stop).then_some(status)
     }
 
-    /// One iteration: backward pass, stopping tests, line search, regularisation update,
-    /// callback. Returns a status when the solve stops.
-    fn iteration(
+    /// The backward pass and the stopping tests at the current point (SQP's KKT test (20)
+    /// first after a step: it needs the point's derivatives and the multipliers of the
+    /// last LQ step only, so a converged point skips the pass, as in mim_solvers). Returns
+    /// the model of the step's decrease, or the status that ends the solve.
+    fn direction(
         &mut self,
         ws: &mut Workspace,
         problem: &Problem,
         opts: &DdpOptions,
-        sol: &mut Solution,
         start: Instant,
-        callback: &mut Option<&mut dyn Callback>,
-    ) -> Option<Status> {
+    ) -> std::result::Result<Expected, Status> {
         let sqp = opts.variant.linear_rollout();
-        // SQP's KKT residual (20), which includes the gaps, needs the point's derivatives
-        // and the multipliers of the last LQ step only: after a step it is tested before
-        // the backward pass (as mim_solvers does), which a converged point does not need.
         let mut kkt = None;
         if sqp && self.iter > 0 {
             let (dual, residual) = ws.kkt(problem);
@@ -303,14 +300,11 @@ impl Loop {
                 stop: residual,
             };
             if let Some(s) = self.converged(opts, true) {
-                return Some(s);
+                return Err(s);
             }
             kkt = Some(residual);
         }
-        let (e, dual) = match backward(ws, problem, opts, &mut self.reg, self.rebuild) {
-            Ok(e) => e,
-            Err(s) => return Some(s),
-        };
+        let (e, dual) = backward(ws, problem, opts, &mut self.reg, self.rebuild)?;
         self.m = Measures {
             gaps: ws.max_gap(),
             dual,
@@ -321,19 +315,38 @@ impl Loop {
             },
         };
         if let Some(s) = self.converged(opts, ws.feasible || sqp) {
-            return Some(s);
+            return Err(s);
         }
         // The full step cannot change the cost by more than its rounding: a tolerance
         // below that floor is out of reach.
         if !sqp && ws.feasible && self.m.stop <= ROUNDOFF_STOP * f64::EPSILON * (1.0 + ws.cost.abs()) {
-            return Some(Status::Stalled);
+            return Err(Status::Stalled);
         }
         if opts.max_time.is_some_and(|b| start.elapsed() >= b) {
-            return Some(Status::TimeBudget);
+            return Err(Status::TimeBudget);
         }
         if self.iter >= opts.max_iters {
-            return Some(Status::MaxIterations);
+            return Err(Status::MaxIterations);
         }
+        Ok(e)
+    }
+
+    /// One iteration: backward pass and stopping tests ([`Loop::direction`]), line search,
+    /// regularisation update, callback. Returns a status when the solve stops.
+    fn iteration(
+        &mut self,
+        ws: &mut Workspace,
+        problem: &Problem,
+        opts: &DdpOptions,
+        sol: &mut Solution,
+        start: Instant,
+        callback: &mut Option<&mut dyn Callback>,
+    ) -> Option<Status> {
+        let e = match self.direction(ws, problem, opts, start) {
+            Ok(e) => e,
+            Err(s) => return Some(s),
+        };
+        let sqp = opts.variant.linear_rollout();
         let cost = ws.cost;
         let step = if sqp {
             filter_line_search(ws, problem, opts)
