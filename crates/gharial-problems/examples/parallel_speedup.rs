@@ -1,5 +1,5 @@
 //! ProxDDP on one thread against two (the parallel Riccati solver and stage-wise
-//! evaluation on a pool) on long horizons: Solo-12's CoM circle and the peers' LQR with
+//! evaluation on one team of threads) on long horizons: Solo-12's CoM circle and the peers' LQR with
 //! control bounds, N nodes each. Serial and parallel solves alternate round by round, so
 //! that machine load shifts both alike; prints iterations, median and minimum times and
 //! their ratios.

@@ -33,6 +33,7 @@ pub mod param;
 pub mod problem;
 pub mod solvers;
 pub mod spaces;
+mod team;
 
 pub use error::{Error, Result};
 

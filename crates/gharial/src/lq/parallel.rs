@@ -2,19 +2,20 @@
 
 use faer::prelude::ReborrowMut;
 use faer::{Accum, Col, Mat, MatRef};
-use rayon::{ThreadPool, ThreadPoolBuilder};
+use std::sync::Arc;
 
 use super::riccati::{InitialStage, Outputs, Pass, check_primal_reg, rollout, sweep};
 use super::stage::{ExtraGains, RiccatiStage, StageScratch};
 use super::{KnotDims, LqError, LqKnot, LqProblem, LqSolution, LqVectors, check_regularisation, check_same_dims};
 use crate::linalg::{self, BunchKaufman, FactorError, col_of, col_of_mut, matmul, matvec, matvec_t, slice, slice_mut};
+use crate::team::Team;
 
 /// Relative cost of a knot of a parameterised leg with respect to a plain knot, used to
 /// balance the legs' lengths (the parameter adds `Tᵀ Γ̃`, `H_uu` and the `Ω` update).
 const PARAM_COST: f64 = 1.6;
 
-/// The proximal Riccati solver with the horizon split into legs solved on the threads of
-/// a dedicated rayon pool; the same interface and solution as
+/// The proximal Riccati solver with the horizon split into legs solved on a team of
+/// threads; the same interface and solution as
 /// [`RiccatiSolver`](super::RiccatiSolver).
 ///
 /// # Legs
@@ -66,10 +67,9 @@ const PARAM_COST: f64 = 1.6;
 /// solver's, for an ideal speed-up of about 1.6. The condensed system inherits the
 /// `1/mu` scale of the value function: without refinement the solution agrees with the
 /// serial one to about `ε/mu`, with `refinement_steps` as well as the serial one does. The
-/// solver allocates nothing itself; entering the pool goes through rayon's job injector,
-/// which allocates a small block every 63 entries.
+/// solver allocates nothing after construction.
 pub struct ParallelRiccatiSolver {
-    pool: ThreadPool,
+    team: Option<Arc<Team>>,
     dims: Vec<KnotDims>,
     nc0: usize,
     legs: Vec<Leg>,
@@ -82,7 +82,7 @@ pub struct ParallelRiccatiSolver {
 impl std::fmt::Debug for ParallelRiccatiSolver {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ParallelRiccatiSolver")
-            .field("threads", &self.pool.current_num_threads())
+            .field("threads", &self.team.as_ref().map_or(1, |t| t.size()))
             .field(
                 "legs",
                 &self.legs.iter().map(|l| (l.start, l.stages.len())).collect::<Vec<_>>(),
@@ -219,12 +219,31 @@ impl Boundary {
 
 impl ParallelRiccatiSolver {
     /// Allocates a solver for problems with the dimensions of `problem`, split into
-    /// `num_threads` legs (fewer for short horizons) run on a dedicated pool of at most
-    /// the available parallelism ([`crate::pool_threads`]). The legs, not the pool,
-    /// fix the arithmetic, so results do not depend on the machine. Its
-    /// options are those of the serial solver except the rollout gains, which the legs do
-    /// not give for the whole horizon (`refinement_steps` applies).
+    /// `num_threads` legs (fewer for short horizons) run on a team of at most the available
+    /// parallelism ([`crate::pool_threads`]). The legs, not the threads, fix the
+    /// arithmetic, so results do not depend on the machine. Its options are those of the
+    /// serial solver except the rollout gains, which the legs do not give for the whole
+    /// horizon (`refinement_steps` applies).
+    ///
+    /// # Errors
+    /// If `num_threads` is 0, the problem's shapes are inconsistent or a thread cannot be
+    /// started.
     pub fn new(problem: &LqProblem, num_threads: usize, refinement_steps: usize) -> Result<Self, LqError> {
+        let team = Team::for_threads(num_threads).map_err(|_| LqError::Option {
+            name: "num_threads",
+            reason: "a thread could not be started",
+        })?;
+        Self::with_team(problem, num_threads, refinement_steps, team)
+    }
+
+    /// As [`ParallelRiccatiSolver::new`], on the threads of `team` (a solver's stage-wise
+    /// passes and its LQ passes share one team; `None`: the calling thread only).
+    pub(crate) fn with_team(
+        problem: &LqProblem,
+        num_threads: usize,
+        refinement_steps: usize,
+        team: Option<Arc<Team>>,
+    ) -> Result<Self, LqError> {
         if num_threads == 0 {
             return Err(LqError::Option {
                 name: "num_threads",
@@ -232,14 +251,6 @@ impl ParallelRiccatiSolver {
             });
         }
         problem.check_shapes()?;
-        let pool = ThreadPoolBuilder::new()
-            .num_threads(crate::pool_threads(num_threads))
-            .thread_name(|i| format!("gharial-lq-{i}"))
-            .build()
-            .map_err(|_| LqError::Option {
-                name: "num_threads",
-                reason: "the thread pool could not be created",
-            })?;
         let dims = problem.dims();
         let n_knots = dims.len();
         let n_legs = num_threads.min(n_knots);
@@ -259,7 +270,7 @@ impl ParallelRiccatiSolver {
         let refinement =
             (refinement_steps > 0).then(|| (refinement_steps, LqVectors::new(problem), LqSolution::new(problem)));
         Ok(Self {
-            pool,
+            team,
             initial: InitialStage::new(dims[0].nx, problem.nc0()),
             nc0: problem.nc0(),
             dims,
@@ -343,11 +354,13 @@ impl ParallelRiccatiSolver {
         Ok(())
     }
 
-    /// The legs' backward passes on the pool, with the knots' vectors or those of `rhs`.
+    /// The legs' backward passes on the team, with the knots' vectors or those of `rhs`.
     fn legs_backward(&mut self, problem: &LqProblem, rhs: Option<&LqVectors>, pass: Pass) -> Result<(), LqError> {
-        let legs = &mut self.legs;
-        self.pool
-            .install(|| for_each_leg(legs, &|leg| leg.result = leg.backward(problem, rhs, pass)));
+        let f = |leg: &mut Leg| leg.result = leg.backward(problem, rhs, pass);
+        match &self.team {
+            Some(team) => team.for_each(self.legs.iter_mut(), f),
+            None => self.legs.iter_mut().for_each(f),
+        }
         first_error(&mut self.legs)
     }
 
@@ -494,11 +507,19 @@ impl ParallelRiccatiSolver {
                 -1.0,
             );
         }
-        let legs = &mut self.legs;
-        self.pool.install(|| {
-            let LqSolution { xs, us, lambdas, nus } = sol;
-            forward_legs(legs, problem, rhs, xs, us, nus, &mut lambdas[1..], 0)
-        });
+        let LqSolution { xs, us, lambdas, nus } = sol;
+        let pieces = LegPieces {
+            legs: &mut self.legs,
+            xs,
+            us,
+            nus,
+            lambdas: &mut lambdas[1..],
+        };
+        let f = |p: LegPiece<'_>| forward_leg(p, problem, rhs);
+        match &self.team {
+            Some(team) => team.for_each(pieces, f),
+            None => pieces.for_each(f),
+        }
         first_error(&mut self.legs)
     }
 
@@ -674,47 +695,61 @@ fn tilde<'a>(gamma_next: &'a Mat<f64>, gamma_tilde: &'a Mat<f64>, mu: f64) -> Ma
     }
 }
 
-/// Runs `f` on every leg, in parallel on the current pool (binary splitting with
-/// `rayon::join`, which allocates nothing).
-fn for_each_leg(legs: &mut [Leg], f: &(dyn Fn(&mut Leg) + Sync)) {
-    match legs.len() {
-        0 => {}
-        1 => f(&mut legs[0]),
-        n => {
-            let (a, b) = legs.split_at_mut(n / 2);
-            rayon::join(|| for_each_leg(a, f), || for_each_leg(b, f));
+/// A leg with the parts of the solution it writes: `xs, us, nus` from its first knot,
+/// `lambdas[i]` the co-state after its knot `i`.
+struct LegPiece<'a> {
+    leg: &'a mut Leg,
+    xs: &'a mut [Col<f64>],
+    us: &'a mut [Col<f64>],
+    nus: &'a mut [Col<f64>],
+    lambdas: &'a mut [Col<f64>],
+}
+
+/// The legs not handed out yet, with the solution from the first one's first knot on;
+/// yields one [`LegPiece`] at a time (for the team's threads to take in turn).
+struct LegPieces<'a> {
+    legs: &'a mut [Leg],
+    xs: &'a mut [Col<f64>],
+    us: &'a mut [Col<f64>],
+    nus: &'a mut [Col<f64>],
+    lambdas: &'a mut [Col<f64>],
+}
+
+impl<'a> Iterator for LegPieces<'a> {
+    type Item = LegPiece<'a>;
+
+    fn next(&mut self) -> Option<LegPiece<'a>> {
+        let (leg, rest) = std::mem::take(&mut self.legs).split_first_mut()?;
+        // The last leg takes what is left of every array.
+        let len = rest.first().map_or(usize::MAX, |next| next.start - leg.start);
+        fn cut<'b>(v: &mut &'b mut [Col<f64>], len: usize) -> &'b mut [Col<f64>] {
+            let all = std::mem::take(v);
+            let (head, tail) = all.split_at_mut(len.min(all.len()));
+            *v = tail;
+            head
         }
+        let (xs, us, nus) = (cut(&mut self.xs, len), cut(&mut self.us, len), cut(&mut self.nus, len));
+        let lambdas = cut(&mut self.lambdas, len);
+        self.legs = rest;
+        Some(LegPiece {
+            leg,
+            xs,
+            us,
+            nus,
+            lambdas,
+        })
     }
 }
 
-/// Each leg's vector part with its `θ` (for parameterised legs) and its rollout, in
-/// parallel; `xs, us, nus` start at knot `offset` (the first leg's first knot) and
-/// `lambdas[i]` is the co-state after knot `offset + i`.
-fn forward_legs(
-    legs: &mut [Leg],
-    problem: &LqProblem,
-    rhs: Option<&LqVectors>,
-    xs: &mut [Col<f64>],
-    us: &mut [Col<f64>],
-    nus: &mut [Col<f64>],
-    lambdas: &mut [Col<f64>],
-    offset: usize,
-) {
-    if legs.len() > 1 {
-        let mid = legs.len() / 2;
-        let split = legs[mid].start - offset;
-        let (la, lb) = legs.split_at_mut(mid);
-        let (xa, xb) = xs.split_at_mut(split);
-        let (ua, ub) = us.split_at_mut(split);
-        let (na, nb) = nus.split_at_mut(split);
-        let (ca, cb) = lambdas.split_at_mut(split);
-        rayon::join(
-            || forward_legs(la, problem, rhs, xa, ua, na, ca, offset),
-            || forward_legs(lb, problem, rhs, xb, ub, nb, cb, offset + split),
-        );
-        return;
-    }
-    let leg = &mut legs[0];
+/// One leg's vector part with its `θ` (for parameterised legs) and its rollout.
+fn forward_leg(piece: LegPiece<'_>, problem: &LqProblem, rhs: Option<&LqVectors>) {
+    let LegPiece {
+        leg,
+        xs,
+        us,
+        nus,
+        lambdas,
+    } = piece;
     leg.result = (|| {
         let n = leg.stages.len();
         match &mut leg.param {

@@ -28,11 +28,27 @@ impl LqSolver {
     /// # Errors
     /// As [`RiccatiSolver::with_options`] and [`ParallelRiccatiSolver::new`].
     pub fn new(problem: &LqProblem, options: RiccatiOptions, num_threads: usize) -> Result<Self, LqError> {
+        let team = crate::team::Team::for_threads(num_threads).map_err(|_| LqError::Option {
+            name: "num_threads",
+            reason: "a thread could not be started",
+        })?;
+        Self::with_team(problem, options, num_threads, team)
+    }
+
+    /// As [`LqSolver::new`], the parallel solver on the threads of `team` (shared with the
+    /// solver's stage-wise passes).
+    pub(crate) fn with_team(
+        problem: &LqProblem,
+        options: RiccatiOptions,
+        num_threads: usize,
+        team: Option<std::sync::Arc<crate::team::Team>>,
+    ) -> Result<Self, LqError> {
         let parallel = if num_threads > 1 {
-            Some(ParallelRiccatiSolver::new(
+            Some(ParallelRiccatiSolver::with_team(
                 problem,
                 num_threads,
                 options.refinement_steps,
+                team,
             )?)
         } else {
             None

@@ -1,8 +1,9 @@
 //! Evaluation of a [`Problem`]: values, first and second derivatives of every stage,
-//! serial or stage-parallel (rayon), with identical results.
+//! serial or stage-parallel (a team of threads, `crate::team`), with identical results.
+
+use std::sync::Arc;
 
 use faer::{Accum, Col, Mat};
-use rayon::prelude::*;
 
 use super::{InitialCondition, Problem, StageConstraint, StageModel};
 use crate::costs::CostData;
@@ -11,6 +12,7 @@ use crate::error::{Error, Result};
 use crate::functions::StageFunctionData;
 use crate::linalg::{identity_block, matmul_identity_block, matvec_t, slice, slice_mut};
 use crate::spaces::Arg;
+use crate::team::Team;
 
 /// What the dynamics model of a stage writes.
 // One per stage, allocated once: the size difference between the variants is irrelevant.
@@ -387,7 +389,7 @@ pub struct ProblemData {
     /// Jacobians of dynamics and constraints) have been written since the data was made
     /// or last invalidated.
     constants_written: bool,
-    pool: Option<rayon::ThreadPool>,
+    team: Option<Arc<Team>>,
 }
 
 impl std::fmt::Debug for ProblemData {
@@ -399,6 +401,10 @@ impl std::fmt::Debug for ProblemData {
             .finish()
     }
 }
+
+/// Pieces of the horizon per thread in a parallel pass: more than one, so that a thread
+/// that starts late or meets slower stages leaves its share to the others.
+const PIECES_PER_THREAD: usize = 4;
 
 fn constraint_data(cs: &[StageConstraint]) -> Vec<StageFunctionData> {
     cs.iter().map(|c| c.func.create_data()).collect()
@@ -415,17 +421,7 @@ impl ProblemData {
         if num_threads == 0 {
             return Err(Error::option("num_threads", "must be at least 1"));
         }
-        let threads = crate::pool_threads(num_threads);
-        let pool = if threads > 1 {
-            Some(
-                rayon::ThreadPoolBuilder::new()
-                    .num_threads(threads)
-                    .build()
-                    .map_err(|e| Error::option("num_threads", e))?,
-            )
-        } else {
-            None
-        };
+        let team = Team::for_threads(num_threads).map_err(|e| Error::option("num_threads", e))?;
         let s0 = problem.space(0);
         let init = match problem.initial_condition() {
             InitialCondition::Fixed(_) => {
@@ -440,7 +436,7 @@ impl ProblemData {
             init,
             cost: 0.0,
             constants_written: false,
-            pool,
+            team,
         })
     }
 
@@ -456,15 +452,26 @@ impl ProblemData {
 
     /// Number of threads used for stage-wise work.
     pub fn num_threads(&self) -> usize {
-        self.pool.as_ref().map_or(1, |p| p.current_num_threads())
+        self.team.as_ref().map_or(1, |t| t.size())
     }
 
-    /// Runs `f(t, stage_data)` for every stage, in parallel when a pool exists.
+    /// The threads of the stage-wise passes (none: serial), for the parts of a solver
+    /// that share them.
+    pub(crate) fn team(&self) -> Option<Arc<Team>> {
+        self.team.clone()
+    }
+
+    /// Runs `f(t, stage_data)` for every stage, in parallel when a team exists: the
+    /// threads take contiguous pieces, [`PIECES_PER_THREAD`] per thread, in turn.
     fn for_each_stage(&mut self, f: impl Fn(usize, &mut StageData) + Send + Sync) {
-        match &self.pool {
-            Some(pool) => {
-                let stages = &mut self.stages;
-                pool.install(|| stages.par_iter_mut().enumerate().for_each(|(t, sd)| f(t, sd)));
+        match &self.team {
+            Some(team) => {
+                let piece = self.stages.len().div_ceil(PIECES_PER_THREAD * team.size()).max(1);
+                team.for_each(self.stages.chunks_mut(piece).enumerate(), |(k, stages)| {
+                    for (j, sd) in stages.iter_mut().enumerate() {
+                        f(k * piece + j, sd);
+                    }
+                });
             }
             None => self.stages.iter_mut().enumerate().for_each(|(t, sd)| f(t, sd)),
         }

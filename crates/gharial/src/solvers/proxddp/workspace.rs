@@ -158,13 +158,15 @@ impl Workspace {
         let ndxs: Vec<usize> = (0..=n).map(|t| problem.space(t).ndx()).collect();
         let nc0 = problem.nc0();
         let lq = crate::solvers::skeleton::lq_for(problem, true, receding.map(|r| r.max_nc));
-        let riccati = LqSolver::new(
+        let data = ProblemData::new(problem, opts.num_threads)?;
+        let riccati = LqSolver::with_team(
             &lq,
             RiccatiOptions {
                 rollout_gains: true,
                 refinement_steps: 1,
             },
             opts.num_threads,
+            data.team(),
         )?;
         let step = LqSolution::new(&lq);
         let queued = queue.iter().flat_map(|s| s.constraints());
@@ -208,7 +210,7 @@ impl Workspace {
             lq,
             step,
             riccati,
-            data: ProblemData::new(problem, opts.num_threads)?,
+            data,
             cur,
             spare: queue.iter().map(StageData::new).collect(),
             receding,
