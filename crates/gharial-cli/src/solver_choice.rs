@@ -423,11 +423,7 @@ impl SolverArgs {
                 self.common.apply(&mut o.tol, &mut o.max_iters, &mut threads);
                 o.hessian = self.common.hessian.map_or(o.hessian, Into::into);
             }
-            SolverOptions::Csqp(o) => {
-                // Single-threaded: --threads is refused by `check`.
-                let mut threads = 1;
-                self.common.apply(&mut o.tol, &mut o.max_iters, &mut threads);
-            }
+            SolverOptions::Csqp(o) => self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads),
             // A solver without command-line options takes none (`check` refuses them).
             _ => {}
         }
@@ -748,6 +744,11 @@ const CSQP_FIELDS: &[Field<CsqpOptions>] = &[
         name: "max_qp_iters",
         value: |o| Setting::Count(o.admm.max_iters),
         flag: None,
+    },
+    Field {
+        name: "num_threads",
+        value: |o| Setting::Count(o.num_threads),
+        flag: Some(THREADS),
     },
 ];
 

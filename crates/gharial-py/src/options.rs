@@ -228,6 +228,7 @@ const CSQP: &[&str] = &[
     "linesearch_steps",
     "filter_size",
     "max_time",
+    "num_threads",
 ];
 
 const BCL_DDP: &[&str] = &[
@@ -388,6 +389,7 @@ fn csqp_field<'a>(o: &'a mut CsqpOptions, name: &str) -> Option<Field<'a>> {
         "linesearch_steps" => Field::Usize(&mut o.linesearch_steps),
         "filter_size" => Field::Usize(&mut o.filter_size),
         "max_time" => Field::Time(&mut o.max_time),
+        "num_threads" => Field::Usize(&mut o.num_threads),
         _ => return None,
     })
 }

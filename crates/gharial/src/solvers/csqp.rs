@@ -51,6 +51,8 @@ pub struct CsqpOptions {
     pub filter_size: usize,
     /// Wall-time budget (default none).
     pub max_time: Option<Duration>,
+    /// Threads of the stage-wise evaluation and derivatives (default 1).
+    pub num_threads: usize,
     /// Where the iteration log goes (default nowhere).
     pub log: LogSink,
 }
@@ -65,6 +67,7 @@ impl Default for CsqpOptions {
             linesearch_steps: 10,
             filter_size: 1,
             max_time: None,
+            num_threads: 1,
             log: LogSink::default(),
         }
     }
@@ -91,6 +94,9 @@ impl CsqpOptions {
         }
         if !(1..=1000).contains(&self.filter_size) {
             return Err(Error::option("filter_size", "must be in 1..=1000"));
+        }
+        if self.num_threads == 0 {
+            return Err(Error::option("num_threads", "must be at least 1"));
         }
         self.admm.validate()
     }
@@ -208,7 +214,7 @@ impl Workspace {
             r.reserve_rows(&mut s.nus, n);
         }
         let mut ws = Self {
-            data: ProblemData::new(problem, 1)?,
+            data: ProblemData::new(problem, opts.num_threads)?,
             lq,
             admm,
             xs_try: s.xs.clone(),
