@@ -316,6 +316,10 @@ pub struct PeersArgs {
     /// (`<problem>__gharial_<solver>.txt`).
     #[arg(long)]
     pub traj_dir: Option<String>,
+    /// Threads for the stage-wise passes of every solver (the harness leaves
+    /// crocoddyl's shooting problems at their default, two).
+    #[arg(long, default_value_t = 1, value_parser = positive_int)]
+    pub threads: usize,
     // The LQR family's parameters.
     #[command(flatten)]
     pub lqr: LqrArgs,
@@ -394,12 +398,12 @@ fn harness_problem(name: &str, params: &PeersLqrParams) -> Option<gharial::Resul
 /// harness's ProxDDP), `ProxDDP_ls` with the nonmonotone line search, `ProxDDP_as` with
 /// the filter and the active-set prediction of the step, then the DDP family (`DDP`,
 /// `FDDP`, `BoxDDP`, `BoxFDDP`, as the harness names crocoddyl's) at its defaults; all
-/// with the harness's tolerance and iteration limit, on one thread.
+/// with the harness's tolerance and iteration limit, on `--threads` threads.
 fn peers_solvers(args: &PeersArgs) -> Vec<(&'static str, SolverArgs)> {
     let common = CommonArgs {
         tol: Some(args.tol),
         max_iters: Some(args.max_iters),
-        threads: Some(1),
+        threads: Some(args.threads),
         hessian: None,
     };
     let proxddp = |label, acceptance, active_set_iters| {
