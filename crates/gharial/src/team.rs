@@ -28,6 +28,11 @@ pub(crate) const SPIN: Duration = Duration::from_micros(300);
 /// Busy-wait iterations before a waiting thread starts yielding its core.
 const SPIN_LOOPS: u32 = 64;
 
+/// Teams kept for reuse when their solvers are gone (see [`Team::for_threads`]).
+const KEPT_TEAMS: usize = 8;
+
+static KEPT: Mutex<Vec<Arc<Team>>> = Mutex::new(Vec::new());
+
 /// `Slot::turn` when the helper has nothing to do (done, or cancelled before starting).
 const IDLE: usize = 0;
 /// `Slot::turn` while the helper runs the job.
@@ -73,13 +78,27 @@ impl std::fmt::Debug for Team {
 impl Team {
     /// A team of [`crate::pool_threads`]`(threads)` threads, or `None` for one thread.
     ///
+    /// Teams outlive their solvers: one that no solver holds any more is handed to the
+    /// next solver that asks for its size, so that its threads, already placed on their
+    /// cores by the scheduler, serve solve after solve (at most [`KEPT_TEAMS`] are kept;
+    /// beyond them teams end with their last solver).
+    ///
     /// # Errors
     /// If a helper thread cannot be started.
     pub(crate) fn for_threads(threads: usize) -> std::io::Result<Option<Arc<Self>>> {
-        match crate::pool_threads(threads) {
-            1 => Ok(None),
-            size => Self::new(size).map(|t| Some(Arc::new(t))),
+        let size = crate::pool_threads(threads);
+        if size == 1 {
+            return Ok(None);
         }
+        let mut kept = lock(&KEPT);
+        if let Some(t) = kept.iter().find(|t| t.size() == size && Arc::strong_count(t) == 1) {
+            return Ok(Some(Arc::clone(t)));
+        }
+        let team = Arc::new(Self::new(size)?);
+        if kept.len() < KEPT_TEAMS {
+            kept.push(Arc::clone(&team));
+        }
+        Ok(Some(team))
     }
 
     /// Starts `size - 1` helpers (`size >= 2`).
@@ -304,6 +323,23 @@ mod tests {
                 std::thread::sleep(SPIN * 3);
             }
         }
+    }
+
+    #[test]
+    fn a_team_in_use_is_never_handed_out_again() {
+        let Some(a) = Team::for_threads(2).unwrap() else {
+            return; // one core: no team
+        };
+        let held: Vec<_> = (0..3).map(|_| Team::for_threads(2).unwrap().unwrap()).collect();
+        for (i, t) in held.iter().enumerate() {
+            assert!(!Arc::ptr_eq(&a, t), "team {i}");
+            assert!(held[..i].iter().all(|u| !Arc::ptr_eq(u, t)), "team {i}");
+        }
+        // Two solvers' passes at once, each on its own team.
+        std::thread::scope(|s| {
+            s.spawn(|| assert_eq!(sum_in_pieces(&held[0], 50, 3)[49], 148));
+            assert_eq!(sum_in_pieces(&a, 50, 7)[49], 148);
+        });
     }
 
     #[test]
