@@ -7,8 +7,9 @@
 //! calling thread works too, the helpers stay awake for [`SPIN`] after a pass (spinning,
 //! then yielding their core to any other thread that wants it) before they park, and a
 //! helper that has not started when the caller runs out of work is cancelled instead of
-//! waited for. A pass allocates nothing. Passes do not nest: a job must not start another
-//! pass of the same team.
+//! waited for; one that keeps missing passes (its core is taken) is asked only now and
+//! then, so that a busy machine costs little more than one thread. A pass allocates
+//! nothing. Passes do not nest: a job must not start another pass of the same team.
 //!
 //! The one unsafe step is in [`Team::run`]: the job, a reference to the caller's closure,
 //! is handed to the helpers with its lifetime erased. It is sound because `run` does not
@@ -24,6 +25,13 @@ use std::time::{Duration, Instant};
 /// How long an idle helper spins before it parks: longer than the serial work between
 /// two passes of a small problem, short enough not to hold a core after a solve.
 pub(crate) const SPIN: Duration = Duration::from_micros(300);
+
+/// Passes in a row a helper may miss before it is asked only every [`PROBE_EVERY`]th
+/// pass.
+const MISS_LIMIT: usize = 4;
+
+/// How often a helper that keeps missing passes is asked again.
+const PROBE_EVERY: usize = 16;
 
 /// Busy-wait iterations before a waiting thread starts yielding its core.
 const SPIN_LOOPS: u32 = 64;
@@ -48,6 +56,11 @@ struct Slot {
     turn: AtomicUsize,
     /// Set by the helper before it parks.
     parked: AtomicBool,
+    /// Passes in a row the helper was asked to join and was not there before the caller
+    /// had done all the work (kept by the caller).
+    misses: AtomicUsize,
+    /// Whether the current pass asked this helper (kept by the caller).
+    asked: AtomicBool,
 }
 
 #[derive(Default)]
@@ -168,6 +181,14 @@ impl Team {
         self.shared.panicked.store(false, Ordering::Relaxed);
         *pass = if *pass >= RUNNING - 1 { 1 } else { *pass + 1 };
         for (slot, h) in self.shared.slots.iter().zip(&self.helpers) {
+            // A helper that keeps missing passes has no core to run on (another process
+            // holds it, or the scheduler put it beside the caller): ask it only now and
+            // then, so that it parks instead of competing with the caller.
+            let ask = slot.misses.load(Ordering::Relaxed) < MISS_LIMIT || pass.is_multiple_of(PROBE_EVERY);
+            slot.asked.store(ask, Ordering::Relaxed);
+            if !ask {
+                continue;
+            }
             slot.turn.store(*pass, Ordering::SeqCst);
             if slot.parked.load(Ordering::SeqCst) {
                 h.thread().unpark();
@@ -194,13 +215,19 @@ struct Finish<'a> {
 impl Drop for Finish<'_> {
     fn drop(&mut self) {
         for slot in &self.shared.slots {
+            if !slot.asked.load(Ordering::Relaxed) {
+                continue;
+            }
             if slot
                 .turn
                 .compare_exchange(self.pass, IDLE, Ordering::AcqRel, Ordering::Acquire)
                 .is_ok()
             {
+                let m = slot.misses.load(Ordering::Relaxed);
+                slot.misses.store(m.saturating_add(1), Ordering::Relaxed);
                 continue;
             }
+            slot.misses.store(0, Ordering::Relaxed);
             let mut spins = 0u32;
             while slot.turn.load(Ordering::Acquire) != IDLE {
                 spins = spins.saturating_add(1);
