@@ -26,6 +26,18 @@ use std::time::{Duration, Instant};
 /// two passes of a small problem, short enough not to hold a core after a solve.
 pub(crate) const SPIN: Duration = Duration::from_micros(300);
 
+/// A pass shorter than this is not worth waking a helper for.
+const SHORT_PASS: Duration = Duration::from_micros(10);
+
+/// The caller's record of the passes.
+#[derive(Default)]
+struct Passes {
+    /// The number of the last shared pass.
+    number: usize,
+    /// Whether the next pass runs on the caller alone (the last one was short).
+    alone: bool,
+}
+
 /// Passes in a row a helper may miss before it is asked only every [`PROBE_EVERY`]th
 /// pass.
 const MISS_LIMIT: usize = 4;
@@ -78,8 +90,8 @@ struct Shared {
 pub(crate) struct Team {
     shared: Arc<Shared>,
     helpers: Vec<JoinHandle<()>>,
-    /// The number of the last pass; held for the whole of a pass.
-    pass: Mutex<usize>,
+    /// The state of the passes; held for the whole of a pass.
+    passes: Mutex<Passes>,
 }
 
 impl std::fmt::Debug for Team {
@@ -142,7 +154,7 @@ impl Team {
         Ok(Self {
             shared,
             helpers,
-            pass: Mutex::new(0),
+            passes: Mutex::new(Passes::default()),
         })
     }
 
@@ -166,12 +178,26 @@ impl Team {
 
     /// Runs `job` on the calling thread and on every helper that joins before the caller
     /// returns from its own call; `job` must share the work out itself (each call takes
-    /// pieces until none are left), so any number of calls completes it.
+    /// pieces until none are left), so any number of calls completes it. Passes too short
+    /// to share (under [`SHORT_PASS`] on the caller alone, under half of it shared) run on
+    /// the caller alone until one takes longer.
     ///
     /// # Panics
     /// If `job` panicked on a helper (after every helper has stopped using it).
     pub(crate) fn run(&self, job: &(dyn Fn() + Sync)) {
-        let mut pass = lock(&self.pass);
+        let mut passes = lock(&self.passes);
+        let start = Instant::now();
+        if passes.alone {
+            job();
+            passes.alone = start.elapsed() < SHORT_PASS;
+            return;
+        }
+        self.run_shared(job, &mut passes.number);
+        passes.alone = start.elapsed() < SHORT_PASS / 2;
+    }
+
+    /// A pass shared with the helpers (see [`Team::run`]).
+    fn run_shared(&self, job: &(dyn Fn() + Sync), pass: &mut usize) {
         // SAFETY: the reference is only used by helpers between a successful claim of
         // their turn and their reset of it to IDLE; `Finish` (also on unwinding) takes
         // every turn back or waits for that reset before this function ends, so no
@@ -330,6 +356,9 @@ mod tests {
         let mut out = vec![0usize; n];
         team.for_each(out.chunks_mut(chunk).enumerate(), |(k, piece)| {
             for (j, v) in piece.iter_mut().enumerate() {
+                // Some work per item (about a microsecond), so that long passes are
+                // shared and short ones run alone.
+                std::hint::black_box((0..1000).fold(0usize, |a, i| std::hint::black_box(a ^ i)));
                 *v += (k * chunk + j) * 3 + 1;
             }
         });
