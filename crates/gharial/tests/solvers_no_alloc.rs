@@ -103,21 +103,12 @@ fn problem(implicit: bool, constraints: usize) -> Problem {
     p
 }
 
-/// A guess that interpolates the swing-up: it violates the dynamics.
-fn guess(p: &Problem) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    let n = p.horizon();
-    let xs = (0..=n)
-        .map(|t| vec![std::f64::consts::PI * t as f64 / n as f64, 0.0])
-        .collect();
-    (xs, vec![vec![0.0]; n])
-}
-
 #[test]
 fn ddp_family_solve_does_not_allocate_after_setup() {
     for implicit in [false, true] {
         for variant in DdpVariant::ALL {
             let p = problem(implicit, usize::from(variant.control_bounds()));
-            let (xs, us) = guess(&p);
+            let (xs, us) = pendulum::interpolated_guess(&p);
             let mut opts = DdpOptions::new(variant);
             opts.max_iters = 30;
             let mut solver = Ddp::new(opts);
@@ -135,7 +126,7 @@ fn ddp_family_solve_does_not_allocate_after_setup() {
 #[test]
 fn exact_hessian_ddp_solve_does_not_allocate_after_setup() {
     let p = pendulum::euler_swing_up(30, [0.0, 0.0]);
-    let (xs, us) = guess(&p);
+    let (xs, us) = pendulum::interpolated_guess(&p);
     for variant in DdpVariant::ALL.into_iter().filter(|v| *v != DdpVariant::Sqp) {
         let mut opts = DdpOptions::new(variant);
         opts.hessian = HessianApprox::Exact;
@@ -155,7 +146,7 @@ fn exact_hessian_ddp_solve_does_not_allocate_after_setup() {
 fn proxddp_solve_does_not_allocate_after_setup() {
     for implicit in [false, true] {
         let p = problem(implicit, 2);
-        let (xs, us) = guess(&p);
+        let (xs, us) = pendulum::interpolated_guess(&p);
         for rollout in [Rollout::Linear, Rollout::Nonlinear] {
             for step_acceptance in [
                 StepAcceptance::Linesearch,
@@ -228,7 +219,7 @@ fn bcl_ddp_solve_does_not_allocate_after_setup() {
         for c in p.terminal_constraints() {
             q.add_terminal_constraint(c.clone()).unwrap();
         }
-        let (xs, us) = guess(&q);
+        let (xs, us) = pendulum::interpolated_guess(&q);
         for multipliers in [Multipliers::Constant, Multipliers::Affine] {
             for penalty in [PenaltyUpdate::Factor, PenaltyUpdate::Adaptive] {
                 for schedule in [Schedule::Bcl, Schedule::EveryIteration] {
@@ -268,7 +259,7 @@ fn altro_solve_does_not_allocate_after_setup() {
         (false, false, true),
     ] {
         let p = problem(implicit, 2);
-        let (xs, us) = guess(&p);
+        let (xs, us) = pendulum::interpolated_guess(&p);
         let mut solver = Altro::new(AltroOptions::default().with(|o| {
             o.infeasible_start = infeasible;
             o.square_root = square_root;
@@ -292,7 +283,7 @@ fn altro_solve_does_not_allocate_after_setup() {
 fn proxnlp_solve_does_not_allocate_after_setup() {
     for implicit in [false, true] {
         let p = problem(implicit, 2);
-        let (xs, us) = guess(&p);
+        let (xs, us) = pendulum::interpolated_guess(&p);
         for (hessian, kkt) in [HessianApprox::GaussNewton, HessianApprox::Exact]
             .into_iter()
             .flat_map(|h| [KktSolver::Dense, KktSolver::Sparse].map(|k| (h, k)))
@@ -353,7 +344,7 @@ fn mpc_allocations<S: Solver>(mut mpc: Mpc<S>, cycles: usize) -> usize {
 fn mpc_cycles_do_not_allocate_after_construction() {
     for implicit in [false, true] {
         let (p, queue) = mixed_horizon(implicit, false);
-        let (xs, us) = guess(&p);
+        let (xs, us) = pendulum::interpolated_guess(&p);
         // Serial: a thread pool's job queue takes a block from the heap every few dozen
         // jobs handed to it (README, "Parallel stages").
         let solver = ProxDdp::new(ProxDdpOptions::default());

@@ -16,18 +16,10 @@ use gharial::solvers::{InitialGuess, Solver};
 #[global_allocator]
 static GLOBAL: counting_alloc::Counting = counting_alloc::Counting;
 
-fn guess(p: &Problem) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    let n = p.horizon();
-    let xs = (0..=n)
-        .map(|t| vec![std::f64::consts::PI * t as f64 / n as f64, 0.0])
-        .collect();
-    (xs, vec![vec![0.0]; n])
-}
-
 /// Allocations of every thread in five solves after a warm-up one, and the solution's
 /// (iterations, cost bits, last control bits).
 fn solve_counting(solver: &mut dyn Solver, p: &Problem) -> (usize, (usize, u64, u64)) {
-    let (xs, us) = guess(p);
+    let (xs, us) = pendulum::interpolated_guess(p);
     solver.setup(p).unwrap();
     solver.solve(p, InitialGuess::primal(&xs, &us)).unwrap();
     let count = counting_alloc::allocations_during(|| {

@@ -76,3 +76,13 @@ pub fn euler_swing_up(n: usize, x0: [f64; 2]) -> gharial::problem::Problem {
     let term = Arc::new(QuadraticStateCost::diagonal(space, &target, &[10.0, 10.0], 0).unwrap());
     gharial::problem::Problem::new(&x0, vec![stage; n], term).unwrap()
 }
+
+/// A guess that interpolates the swing-up from 0 to π (it violates the dynamics), with
+/// zero controls.
+pub fn interpolated_guess(p: &gharial::problem::Problem) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let n = p.horizon();
+    let xs = (0..=n)
+        .map(|t| vec![std::f64::consts::PI * t as f64 / n as f64, 0.0])
+        .collect();
+    (xs, vec![vec![0.0]; n])
+}
