@@ -232,6 +232,26 @@ impl Team {
     }
 }
 
+/// Pieces of an array per thread in [`for_each_indexed`]: more than one, so that a
+/// thread that starts late or meets slower items leaves its share to the others.
+const PIECES_PER_THREAD: usize = 4;
+
+/// Runs `f(i, &mut items[i])` for every item: on `team` in contiguous pieces,
+/// [`PIECES_PER_THREAD`] per thread, taken in turn; in order on the caller without a team.
+pub(crate) fn for_each_indexed<T: Send>(team: Option<&Team>, items: &mut [T], f: impl Fn(usize, &mut T) + Sync) {
+    match team {
+        Some(team) => {
+            let piece = items.len().div_ceil(PIECES_PER_THREAD * team.size()).max(1);
+            team.for_each(items.chunks_mut(piece).enumerate(), |(k, chunk)| {
+                for (j, item) in chunk.iter_mut().enumerate() {
+                    f(k * piece + j, item);
+                }
+            });
+        }
+        None => items.iter_mut().enumerate().for_each(|(i, item)| f(i, item)),
+    }
+}
+
 /// Ends a pass: cancels the helpers that have not started and waits for the others.
 struct Finish<'a> {
     shared: &'a Shared,

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::functions::StageFunctionData;
 use crate::linalg::{identity_block, matmul_identity_block, matvec_t, slice, slice_mut};
 use crate::spaces::Arg;
-use crate::team::Team;
+use crate::team::{Team, for_each_indexed};
 
 /// What the dynamics model of a stage writes.
 // One per stage, allocated once: the size difference between the variants is irrelevant.
@@ -402,10 +402,6 @@ impl std::fmt::Debug for ProblemData {
     }
 }
 
-/// Pieces of the horizon per thread in a parallel pass: more than one, so that a thread
-/// that starts late or meets slower stages leaves its share to the others.
-const PIECES_PER_THREAD: usize = 4;
-
 fn constraint_data(cs: &[StageConstraint]) -> Vec<StageFunctionData> {
     cs.iter().map(|c| c.func.create_data()).collect()
 }
@@ -457,24 +453,13 @@ impl ProblemData {
 
     /// The threads of the stage-wise passes (none: serial), for the parts of a solver
     /// that share them.
-    pub(crate) fn team(&self) -> Option<Arc<Team>> {
-        self.team.clone()
+    pub(crate) fn team(&self) -> Option<&Arc<Team>> {
+        self.team.as_ref()
     }
 
-    /// Runs `f(t, stage_data)` for every stage, in parallel when a team exists: the
-    /// threads take contiguous pieces, [`PIECES_PER_THREAD`] per thread, in turn.
+    /// Runs `f(t, stage_data)` for every stage, on the team when there is one.
     fn for_each_stage(&mut self, f: impl Fn(usize, &mut StageData) + Send + Sync) {
-        match &self.team {
-            Some(team) => {
-                let piece = self.stages.len().div_ceil(PIECES_PER_THREAD * team.size()).max(1);
-                team.for_each(self.stages.chunks_mut(piece).enumerate(), |(k, stages)| {
-                    for (j, sd) in stages.iter_mut().enumerate() {
-                        f(k * piece + j, sd);
-                    }
-                });
-            }
-            None => self.stages.iter_mut().enumerate().for_each(|(t, sd)| f(t, sd)),
-        }
+        for_each_indexed(self.team.as_deref(), &mut self.stages, f);
     }
 
     /// Evaluates costs, dynamics residuals `f(x_t, u_t, x_{t+1})`, constraint values and

@@ -166,7 +166,7 @@ impl Workspace {
                 refinement_steps: 1,
             },
             opts.num_threads,
-            data.team(),
+            data.team().cloned(),
         )?;
         let step = LqSolution::new(&lq);
         let queued = queue.iter().flat_map(|s| s.constraints());
