@@ -10,12 +10,11 @@ use super::options::{DdpOptions, DdpVariant};
 use crate::dynamics::Dynamics;
 use crate::error::{Error, Result};
 use crate::linalg::{dot, matvec, norm_inf, slice, slice_mut};
-use crate::lq::{LqError, LqKnot, LqProblem, LqSolution, RiccatiSolver, RiccatiStage};
+use crate::lq::{LqError, LqProblem, LqSolution, RiccatiSolver, RiccatiStage};
 use crate::problem::{DynamicsData, InitialCondition, Problem, ProblemData, StageData, StageModel};
 use crate::solvers::boxqp::{BoxQp, BoxQpOptions};
 use crate::solvers::skeleton::{Receding, SqpFilter, copy_stage_model, copy_trajectory, lq_for};
 use crate::solvers::{HessianApprox, InitialGuess};
-use crate::team::for_each_indexed;
 
 /// The terms of the expected improvement of FDDP (Mastalli et al. 2020, (19)-(20)) that do
 /// not depend on the trial: `Δ_g` and `Δ_q` (crocoddyl's `dg`, `dq`).
@@ -334,10 +333,30 @@ impl Workspace {
         } else {
             g0.copy_from_slice(self.data.init.value());
         }
-        let (data, al, feasible) = (&self.data, self.al.as_ref(), self.feasible);
-        for_each_indexed(data.team().map(|t| &**t), &mut self.lq.knots, |t, knot| {
-            fill_knot(knot, t, n, data, al, feasible, reg);
-        });
+        for t in 0..=n {
+            let knot = &mut self.lq.knots[t];
+            if t < n {
+                let sd = &self.data.stages[t];
+                copy_stage_model(knot, sd, true, true);
+                slice_mut(&mut knot.q).copy_from_slice(sd.cost.lx());
+                slice_mut(&mut knot.r).copy_from_slice(sd.cost.lu());
+                let f = slice_mut(&mut knot.f);
+                if self.feasible {
+                    f.fill(0.0);
+                } else {
+                    f.copy_from_slice(sd.dyn_value());
+                }
+            } else {
+                crate::linalg::copy(knot.Q.as_mut(), self.data.terminal_cost.lxx.as_ref());
+                slice_mut(&mut knot.q).copy_from_slice(self.data.terminal_cost.lx());
+            }
+            if let Some(al) = &self.al {
+                al.fill_knot(t, knot, self.data.constraint_data(t));
+            }
+            for i in 0..knot.nx {
+                knot.Q[(i, i)] += reg;
+            }
+        }
         self.knot_reg = reg;
     }
 
@@ -735,39 +754,4 @@ fn checked_bounds(
         }
     }
     Ok(bounds)
-}
-
-/// Knot `t` of the LQ at the current point ([`Workspace::build_lq`]): cost derivatives,
-/// dynamics Jacobians, the gap unless the point is `feasible`, the augmented-Lagrangian
-/// terms, `reg` on `Q`.
-fn fill_knot(
-    knot: &mut LqKnot,
-    t: usize,
-    n: usize,
-    data: &ProblemData,
-    al: Option<&Augmented>,
-    feasible: bool,
-    reg: f64,
-) {
-    if t < n {
-        let sd = &data.stages[t];
-        copy_stage_model(knot, sd, true, true);
-        slice_mut(&mut knot.q).copy_from_slice(sd.cost.lx());
-        slice_mut(&mut knot.r).copy_from_slice(sd.cost.lu());
-        let f = slice_mut(&mut knot.f);
-        if feasible {
-            f.fill(0.0);
-        } else {
-            f.copy_from_slice(sd.dyn_value());
-        }
-    } else {
-        crate::linalg::copy(knot.Q.as_mut(), data.terminal_cost.lxx.as_ref());
-        slice_mut(&mut knot.q).copy_from_slice(data.terminal_cost.lx());
-    }
-    if let Some(al) = al {
-        al.fill_knot(t, knot, data.constraint_data(t));
-    }
-    for i in 0..knot.nx {
-        knot.Q[(i, i)] += reg;
-    }
 }
