@@ -29,13 +29,12 @@ pub(crate) const SPIN: Duration = Duration::from_micros(300);
 /// A pass shorter than this is not worth waking a helper for.
 const SHORT_PASS: Duration = Duration::from_micros(10);
 
-/// The caller's record of the passes.
-#[derive(Default)]
-struct Passes {
-    /// The number of the last shared pass.
-    number: usize,
-    /// Whether the next pass runs on the caller alone (the last one was short).
-    alone: bool,
+/// One kind of pass of a solver (stage evaluation, stage derivatives, Riccati legs):
+/// whether the last pass of this kind was too short to share, so that the next runs on
+/// the caller alone. Owned by the code that runs the passes.
+#[derive(Debug, Default)]
+pub(crate) struct PassKind {
+    alone: AtomicBool,
 }
 
 /// Passes in a row a helper may miss before it is asked only every [`PROBE_EVERY`]th
@@ -90,8 +89,8 @@ struct Shared {
 pub(crate) struct Team {
     shared: Arc<Shared>,
     helpers: Vec<JoinHandle<()>>,
-    /// The state of the passes; held for the whole of a pass.
-    passes: Mutex<Passes>,
+    /// The number of the last shared pass; held for the whole of a pass.
+    pass: Mutex<usize>,
 }
 
 impl std::fmt::Debug for Team {
@@ -154,7 +153,7 @@ impl Team {
         Ok(Self {
             shared,
             helpers,
-            passes: Mutex::new(Passes::default()),
+            pass: Mutex::new(0),
         })
     }
 
@@ -165,9 +164,9 @@ impl Team {
 
     /// Runs `f` on every item of `items`, the team's threads taking the next item in
     /// turn (the calling thread included).
-    pub(crate) fn for_each<I: Iterator + Send>(&self, items: I, f: impl Fn(I::Item) + Sync) {
+    pub(crate) fn for_each<I: Iterator + Send>(&self, kind: &PassKind, items: I, f: impl Fn(I::Item) + Sync) {
         let items = Mutex::new(items);
-        self.run(&|| {
+        self.run(kind, &|| {
             loop {
                 let next = lock(&items).next();
                 let Some(item) = next else { break };
@@ -178,22 +177,21 @@ impl Team {
 
     /// Runs `job` on the calling thread and on every helper that joins before the caller
     /// returns from its own call; `job` must share the work out itself (each call takes
-    /// pieces until none are left), so any number of calls completes it. Passes too short
-    /// to share (under [`SHORT_PASS`] on the caller alone, under half of it shared) run on
-    /// the caller alone until one takes longer.
+    /// pieces until none are left), so any number of calls completes it. A pass of a
+    /// `kind` whose last pass was too short to share (under [`SHORT_PASS`] on the caller
+    /// alone, under half of it shared) runs on the caller alone.
     ///
     /// # Panics
     /// If `job` panicked on a helper (after every helper has stopped using it).
-    pub(crate) fn run(&self, job: &(dyn Fn() + Sync)) {
-        let mut passes = lock(&self.passes);
+    pub(crate) fn run(&self, kind: &PassKind, job: &(dyn Fn() + Sync)) {
         let start = Instant::now();
-        if passes.alone {
+        if kind.alone.load(Ordering::Relaxed) {
             job();
-            passes.alone = start.elapsed() < SHORT_PASS;
+            kind.alone.store(start.elapsed() < SHORT_PASS, Ordering::Relaxed);
             return;
         }
-        self.run_shared(job, &mut passes.number);
-        passes.alone = start.elapsed() < SHORT_PASS / 2;
+        self.run_shared(job, &mut lock(&self.pass));
+        kind.alone.store(start.elapsed() < SHORT_PASS / 2, Ordering::Relaxed);
     }
 
     /// A pass shared with the helpers (see [`Team::run`]).
@@ -238,11 +236,16 @@ const PIECES_PER_THREAD: usize = 4;
 
 /// Runs `f(i, &mut items[i])` for every item: on `team` in contiguous pieces,
 /// [`PIECES_PER_THREAD`] per thread, taken in turn; in order on the caller without a team.
-pub(crate) fn for_each_indexed<T: Send>(team: Option<&Team>, items: &mut [T], f: impl Fn(usize, &mut T) + Sync) {
+pub(crate) fn for_each_indexed<T: Send>(
+    team: Option<&Team>,
+    kind: &PassKind,
+    items: &mut [T],
+    f: impl Fn(usize, &mut T) + Sync,
+) {
     match team {
         Some(team) => {
             let piece = items.len().div_ceil(PIECES_PER_THREAD * team.size()).max(1);
-            team.for_each(items.chunks_mut(piece).enumerate(), |(k, chunk)| {
+            team.for_each(kind, items.chunks_mut(piece).enumerate(), |(k, chunk)| {
                 for (j, item) in chunk.iter_mut().enumerate() {
                     f(k * piece + j, item);
                 }
@@ -374,7 +377,7 @@ mod tests {
     /// Shares `0..n` out in pieces of `chunk`, as the stage passes do.
     fn sum_in_pieces(team: &Team, n: usize, chunk: usize) -> Vec<usize> {
         let mut out = vec![0usize; n];
-        team.for_each(out.chunks_mut(chunk).enumerate(), |(k, piece)| {
+        team.for_each(&PassKind::default(), out.chunks_mut(chunk).enumerate(), |(k, piece)| {
             for (j, v) in piece.iter_mut().enumerate() {
                 // Some work per item (about a microsecond), so that long passes are
                 // shared and short ones run alone.
@@ -423,7 +426,7 @@ mod tests {
         let team = Team::new(2).unwrap();
         let calls = AtomicUsize::new(0);
         let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            team.run(&|| {
+            team.run(&PassKind::default(), &|| {
                 calls.fetch_add(1, Ordering::SeqCst);
                 panic!("boom");
             });

@@ -8,7 +8,7 @@ use super::riccati::{InitialStage, Outputs, Pass, check_primal_reg, rollout, swe
 use super::stage::{ExtraGains, RiccatiStage, StageScratch};
 use super::{KnotDims, LqError, LqKnot, LqProblem, LqSolution, LqVectors, check_regularisation, check_same_dims};
 use crate::linalg::{self, BunchKaufman, FactorError, col_of, col_of_mut, matmul, matvec, matvec_t, slice, slice_mut};
-use crate::team::Team;
+use crate::team::{PassKind, Team};
 
 /// Relative cost of a knot of a parameterised leg with respect to a plain knot, used to
 /// balance the legs' lengths (the parameter adds `Tᵀ Γ̃`, `H_uu` and the `Ω` update).
@@ -70,6 +70,8 @@ const PARAM_COST: f64 = 1.6;
 /// solver allocates nothing after construction.
 pub struct ParallelRiccatiSolver {
     team: Option<Arc<Team>>,
+    /// The legs' backward and forward passes.
+    kinds: [PassKind; 2],
     dims: Vec<KnotDims>,
     nc0: usize,
     legs: Vec<Leg>,
@@ -271,6 +273,7 @@ impl ParallelRiccatiSolver {
             (refinement_steps > 0).then(|| (refinement_steps, LqVectors::new(problem), LqSolution::new(problem)));
         Ok(Self {
             team,
+            kinds: Default::default(),
             initial: InitialStage::new(dims[0].nx, problem.nc0()),
             nc0: problem.nc0(),
             dims,
@@ -358,7 +361,7 @@ impl ParallelRiccatiSolver {
     fn legs_backward(&mut self, problem: &LqProblem, rhs: Option<&LqVectors>, pass: Pass) -> Result<(), LqError> {
         let f = |leg: &mut Leg| leg.result = leg.backward(problem, rhs, pass);
         match &self.team {
-            Some(team) => team.for_each(self.legs.iter_mut(), f),
+            Some(team) => team.for_each(&self.kinds[0], self.legs.iter_mut(), f),
             None => self.legs.iter_mut().for_each(f),
         }
         first_error(&mut self.legs)
@@ -517,7 +520,7 @@ impl ParallelRiccatiSolver {
         };
         let f = |p: LegPiece<'_>| forward_leg(p, problem, rhs);
         match &self.team {
-            Some(team) => team.for_each(pieces, f),
+            Some(team) => team.for_each(&self.kinds[1], pieces, f),
             None => pieces.for_each(f),
         }
         first_error(&mut self.legs)

@@ -12,7 +12,7 @@ use crate::error::{Error, Result};
 use crate::functions::StageFunctionData;
 use crate::linalg::{identity_block, matmul_identity_block, matvec_t, slice, slice_mut};
 use crate::spaces::Arg;
-use crate::team::{Team, for_each_indexed};
+use crate::team::{PassKind, Team, for_each_indexed};
 
 /// What the dynamics model of a stage writes.
 // One per stage, allocated once: the size difference between the variants is irrelevant.
@@ -390,6 +390,8 @@ pub struct ProblemData {
     /// or last invalidated.
     constants_written: bool,
     team: Option<Arc<Team>>,
+    /// The kinds of stage passes: evaluation, derivatives, second derivatives.
+    kinds: [PassKind; 3],
 }
 
 impl std::fmt::Debug for ProblemData {
@@ -400,6 +402,15 @@ impl std::fmt::Debug for ProblemData {
             .field("threads", &self.num_threads())
             .finish()
     }
+}
+
+/// The kinds of stage-wise passes, each with its own record of whether it is worth
+/// sharing ([`PassKind`]).
+#[derive(Clone, Copy)]
+enum StagePass {
+    Evaluate,
+    Derivatives,
+    SecondDerivatives,
 }
 
 fn constraint_data(cs: &[StageConstraint]) -> Vec<StageFunctionData> {
@@ -433,6 +444,7 @@ impl ProblemData {
             cost: 0.0,
             constants_written: false,
             team,
+            kinds: Default::default(),
         })
     }
 
@@ -458,8 +470,9 @@ impl ProblemData {
     }
 
     /// Runs `f(t, stage_data)` for every stage, on the team when there is one.
-    fn for_each_stage(&mut self, f: impl Fn(usize, &mut StageData) + Send + Sync) {
-        for_each_indexed(self.team.as_deref(), &mut self.stages, f);
+    fn for_each_stage(&mut self, kind: StagePass, f: impl Fn(usize, &mut StageData) + Send + Sync) {
+        let kind = &self.kinds[kind as usize];
+        for_each_indexed(self.team.as_deref(), kind, &mut self.stages, f);
     }
 
     /// Evaluates costs, dynamics residuals `f(x_t, u_t, x_{t+1})`, constraint values and
@@ -467,7 +480,7 @@ impl ProblemData {
     /// here (see [`Problem::check_trajectory`]).
     pub fn evaluate(&mut self, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) -> f64 {
         let stages = problem.stages();
-        self.for_each_stage(|t, sd| {
+        self.for_each_stage(StagePass::Evaluate, |t, sd| {
             sd.evaluate(&stages[t], &xs[t], &us[t], &xs[t + 1]);
         });
         self.evaluate_terminal(problem, xs)
@@ -506,7 +519,9 @@ impl ProblemData {
     pub fn compute_derivatives(&mut self, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) {
         let stages = problem.stages();
         let reuse = self.constants_written;
-        self.for_each_stage(|t, sd| sd.derivatives(&stages[t], &xs[t], &us[t], &xs[t + 1], reuse));
+        self.for_each_stage(StagePass::Derivatives, |t, sd| {
+            sd.derivatives(&stages[t], &xs[t], &us[t], &xs[t + 1], reuse)
+        });
         let n = stages.len();
         let terminal_cost = problem.terminal_cost();
         terminal_cost.derivatives_reusing(&xs[n], &[], &mut self.terminal_cost, reuse);
@@ -561,7 +576,7 @@ impl ProblemData {
         nus: &[Vec<f64>],
     ) {
         let stages = problem.stages();
-        self.for_each_stage(|t, sd| {
+        self.for_each_stage(StagePass::SecondDerivatives, |t, sd| {
             sd.second_order(&stages[t], &xs[t], &us[t], &xs[t + 1], &lambdas[t + 1], &nus[t]);
         });
         let n = stages.len();
