@@ -212,12 +212,12 @@ impl StageData {
         y.iter().all(|v| v.is_finite())
     }
 
-    /// One stage of a rollout that also evaluates the stage: the next state `y` as in
-    /// [`StageData::solve_next_state`], then cost, dynamics residual and constraint values
-    /// at `(x, u, y)`, as [`ProblemData::evaluate`] writes them, with explicit dynamics
-    /// evaluated once. Returns `false` as `solve_next_state` does; finish the evaluation
-    /// of the trajectory with [`ProblemData::evaluate_terminal`].
-    pub fn rollout_and_evaluate(
+    /// One stage of a rollout: the next state `y` as in [`StageData::solve_next_state`],
+    /// then the dynamics residual at `(x, u, y)` as [`ProblemData::evaluate`] writes it,
+    /// with explicit dynamics evaluated once. Returns `false` as `solve_next_state` does;
+    /// finish the evaluation of the trajectory (costs and constraints, stage-parallel)
+    /// with [`ProblemData::evaluate_after_rollout`].
+    pub fn rollout_step(
         &mut self,
         stage: &StageModel,
         x: &[f64],
@@ -235,14 +235,8 @@ impl StageData {
                 stage
                     .space_next()
                     .difference(y, d.xnext(), slice_mut(&mut self.dyn_value));
-                stage.cost.evaluate(x, u, &mut self.cost);
-                for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
-                    c.func.evaluate(x, u, cd);
-                }
             }
-            _ => {
-                self.evaluate(stage, x, u, y);
-            }
+            _ => self.evaluate_dynamics(stage, x, u, y),
         }
         true
     }
@@ -261,7 +255,21 @@ impl StageData {
     }
 
     fn evaluate(&mut self, stage: &StageModel, x: &[f64], u: &[f64], y: &[f64]) -> f64 {
+        self.evaluate_dynamics(stage, x, u, y);
+        self.evaluate_cost_and_constraints(stage, x, u)
+    }
+
+    /// Cost and constraint values at `(x, u)`; returns the cost.
+    fn evaluate_cost_and_constraints(&mut self, stage: &StageModel, x: &[f64], u: &[f64]) -> f64 {
         stage.cost.evaluate(x, u, &mut self.cost);
+        for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
+            c.func.evaluate(x, u, cd);
+        }
+        self.cost.value
+    }
+
+    /// The dynamics residual `f(x, u, y)` (21b).
+    fn evaluate_dynamics(&mut self, stage: &StageModel, x: &[f64], u: &[f64], y: &[f64]) {
         match (&stage.dynamics, &mut self.dynamics) {
             (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
                 m.forward(x, u, d);
@@ -276,10 +284,6 @@ impl StageData {
             }
             _ => unreachable!("stage data created for another dynamics kind"),
         }
-        for (c, cd) in stage.constraints().iter().zip(self.constraints.iter_mut()) {
-            c.func.evaluate(x, u, cd);
-        }
-        self.cost.value
     }
 
     /// With `reuse`, the blocks that the models declare constant hold the values of an
@@ -390,8 +394,8 @@ pub struct ProblemData {
     /// or last invalidated.
     constants_written: bool,
     team: Option<Arc<Team>>,
-    /// The kinds of stage passes: evaluation, derivatives, second derivatives.
-    kinds: [PassKind; 3],
+    /// The kinds of stage passes ([`StagePass`]).
+    kinds: [PassKind; 4],
 }
 
 impl std::fmt::Debug for ProblemData {
@@ -409,6 +413,7 @@ impl std::fmt::Debug for ProblemData {
 #[derive(Clone, Copy)]
 enum StagePass {
     Evaluate,
+    Costs,
     Derivatives,
     SecondDerivatives,
 }
@@ -486,9 +491,19 @@ impl ProblemData {
         self.evaluate_terminal(problem, xs)
     }
 
+    /// After a rollout whose steps ([`StageData::rollout_step`]) wrote the dynamics
+    /// residuals: the stages' costs and constraint values (a stage-parallel pass), then as
+    /// [`ProblemData::evaluate_terminal`]; returns the total cost.
+    pub fn evaluate_after_rollout(&mut self, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) -> f64 {
+        let stages = problem.stages();
+        self.for_each_stage(StagePass::Costs, |t, sd| {
+            sd.evaluate_cost_and_constraints(&stages[t], &xs[t], &us[t]);
+        });
+        self.evaluate_terminal(problem, xs)
+    }
+
     /// The part of [`ProblemData::evaluate`] after the stages: terminal cost and
-    /// constraints, the initial residual and the total cost (returned), for solvers whose
-    /// rollouts evaluate the stages one by one ([`StageData::rollout_and_evaluate`]).
+    /// constraints, the initial residual and the total cost (returned).
     pub fn evaluate_terminal(&mut self, problem: &Problem, xs: &[Vec<f64>]) -> f64 {
         let n = problem.horizon();
         problem.terminal_cost().evaluate(&xs[n], &[], &mut self.terminal_cost);

@@ -542,14 +542,14 @@ impl Workspace {
                 // Newton-Raphson starts from the current state.
                 y.copy_from_slice(&self.xs[t + 1]);
             }
-            if !self.data.stages[t].rollout_and_evaluate(stage, &lo[t], u, s, y, opts.implicit) {
+            if !self.data.stages[t].rollout_step(stage, &lo[t], u, s, y, opts.implicit) {
                 return None;
             }
         }
         problem
             .space(n)
             .difference(&self.xs[n], &self.xs_try[n], &mut self.dx[n]);
-        let mut cost = self.data.evaluate_terminal(problem, &self.xs_try);
+        let mut cost = self.data.evaluate_after_rollout(problem, &self.xs_try, &self.us_try);
         if let Some(al) = &mut self.al {
             cost += al.value(&self.data, Some(&self.dx));
         }
