@@ -195,6 +195,37 @@ fn rollout_is_feasible() {
     }
 }
 
+/// A rollout by steps, its costs and constraints evaluated afterwards in a stage pass (on
+/// one and two threads), writes what `evaluate` writes on the rolled-out trajectory, bit
+/// for bit.
+#[test]
+fn rollout_steps_then_costs_equal_a_full_evaluation() {
+    let n = 12;
+    let p = problem(n);
+    let (mut xs, us) = trajectory(n);
+    for threads in [1, 2] {
+        let mut d = ProblemData::new(&p, threads).unwrap();
+        for (t, stage) in p.stages().iter().enumerate() {
+            let (lo, hi) = xs.split_at_mut(t + 1);
+            let solve = ImplicitSolve::default();
+            assert!(d.stages[t].rollout_step(stage, &lo[t], &us[t], None, &mut hi[0], solve));
+        }
+        let cost = d.evaluate_after_rollout(&p, &xs, &us);
+        let mut full = ProblemData::new(&p, 1).unwrap();
+        assert_eq!(cost.to_bits(), full.evaluate(&p, &xs, &us).to_bits());
+        for t in 0..n {
+            let (a, b) = (&d.stages[t], &full.stages[t]);
+            assert_eq!(a.dyn_value(), b.dyn_value());
+            assert!(
+                a.dyn_value().iter().all(|v| v.abs() < 1e-15),
+                "the steps close the gaps"
+            );
+            assert_eq!(a.cost.value.to_bits(), b.cost.value.to_bits());
+            assert_eq!(a.constraints[0].value(), b.constraints[0].value());
+        }
+    }
+}
+
 #[test]
 fn invalid_problems_are_rejected_with_named_errors() {
     let space: Arc<dyn Manifold> = Arc::new(VectorSpace::new(2));
