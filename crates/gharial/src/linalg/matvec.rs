@@ -69,18 +69,14 @@ pub(crate) fn matvec_t(y: &mut [f64], accum: Accum, a: MatRef<'_, f64>, x: &[f64
 fn matvec_fixed<const M: usize>(y: &mut [f64], a: MatRef<'_, f64>, x: &[f64], alpha: f64) {
     let y: &mut [f64; M] = y.try_into().expect("M rows");
     let mut acc = *y;
-    for (j, &xj) in x.iter().enumerate() {
+    // One stride check for the whole matrix; the column iterator checks no index.
+    let a = a.try_as_col_major().expect("checked");
+    for (c, &xj) in a.col_iter().zip(x) {
         let s = alpha * xj;
         if s == 0.0 {
             continue;
         }
-        let c: &[f64; M] = a
-            .col(j)
-            .try_as_col_major()
-            .expect("checked")
-            .as_slice()
-            .try_into()
-            .expect("M rows");
+        let c: &[f64; M] = c.as_slice().try_into().expect("M rows");
         for i in 0..M {
             acc[i] += s * c[i];
         }
@@ -93,14 +89,9 @@ fn matvec_fixed<const M: usize>(y: &mut [f64], a: MatRef<'_, f64>, x: &[f64], al
 #[inline]
 fn matvec_t_fixed<const M: usize>(y: &mut [f64], accum: Accum, a: MatRef<'_, f64>, x: &[f64], alpha: f64) {
     let x: &[f64; M] = x.try_into().expect("M rows");
-    for (j, yj) in y.iter_mut().enumerate() {
-        let c: &[f64; M] = a
-            .col(j)
-            .try_as_col_major()
-            .expect("checked")
-            .as_slice()
-            .try_into()
-            .expect("M rows");
+    let a = a.try_as_col_major().expect("checked");
+    for (yj, c) in y.iter_mut().zip(a.col_iter()) {
+        let c: &[f64; M] = c.as_slice().try_into().expect("M rows");
         let s = dot_fixed(c, x);
         *yj = if accum == Accum::Replace {
             alpha * s
