@@ -24,7 +24,7 @@ use std::time::{Duration, Instant};
 
 /// How long an idle helper spins before it parks: longer than the serial work between
 /// two passes of a small problem, short enough not to hold a core after a solve.
-pub(crate) const SPIN: Duration = Duration::from_micros(300);
+const SPIN: Duration = Duration::from_micros(300);
 
 /// A pass shorter than this is not worth waking a helper for.
 const SHORT_PASS: Duration = Duration::from_micros(10);

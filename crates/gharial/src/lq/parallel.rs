@@ -70,8 +70,10 @@ const PARAM_COST: f64 = 1.6;
 /// solver allocates nothing after construction.
 pub struct ParallelRiccatiSolver {
     team: Option<Arc<Team>>,
-    /// The legs' backward and forward passes.
-    kinds: [PassKind; 2],
+    /// The legs' backward passes.
+    backward_pass: PassKind,
+    /// The legs' forward passes.
+    forward_pass: PassKind,
     dims: Vec<KnotDims>,
     nc0: usize,
     legs: Vec<Leg>,
@@ -219,6 +221,15 @@ impl Boundary {
     }
 }
 
+/// The team of `num_threads` threads of an LQ solver that has none to share
+/// ([`Team::for_threads`]), its error as the LQ solvers report it.
+pub(crate) fn team_for(num_threads: usize) -> Result<Option<Arc<Team>>, LqError> {
+    Team::for_threads(num_threads).map_err(|_| LqError::Option {
+        name: "num_threads",
+        reason: "a thread could not be started",
+    })
+}
+
 impl ParallelRiccatiSolver {
     /// Allocates a solver for problems with the dimensions of `problem`, split into
     /// `num_threads` legs (fewer for short horizons) run on a team of at most the available
@@ -231,11 +242,7 @@ impl ParallelRiccatiSolver {
     /// If `num_threads` is 0, the problem's shapes are inconsistent or a thread cannot be
     /// started.
     pub fn new(problem: &LqProblem, num_threads: usize, refinement_steps: usize) -> Result<Self, LqError> {
-        let team = Team::for_threads(num_threads).map_err(|_| LqError::Option {
-            name: "num_threads",
-            reason: "a thread could not be started",
-        })?;
-        Self::with_team(problem, num_threads, refinement_steps, team)
+        Self::with_team(problem, num_threads, refinement_steps, team_for(num_threads)?)
     }
 
     /// As [`ParallelRiccatiSolver::new`], on the threads of `team` (a solver's stage-wise
@@ -273,7 +280,8 @@ impl ParallelRiccatiSolver {
             (refinement_steps > 0).then(|| (refinement_steps, LqVectors::new(problem), LqSolution::new(problem)));
         Ok(Self {
             team,
-            kinds: Default::default(),
+            backward_pass: PassKind::default(),
+            forward_pass: PassKind::default(),
             initial: InitialStage::new(dims[0].nx, problem.nc0()),
             nc0: problem.nc0(),
             dims,
@@ -361,7 +369,7 @@ impl ParallelRiccatiSolver {
     fn legs_backward(&mut self, problem: &LqProblem, rhs: Option<&LqVectors>, pass: Pass) -> Result<(), LqError> {
         let f = |leg: &mut Leg| leg.result = leg.backward(problem, rhs, pass);
         match &self.team {
-            Some(team) => team.for_each(&self.kinds[0], self.legs.iter_mut(), f),
+            Some(team) => team.for_each(&self.backward_pass, self.legs.iter_mut(), f),
             None => self.legs.iter_mut().for_each(f),
         }
         first_error(&mut self.legs)
@@ -520,7 +528,7 @@ impl ParallelRiccatiSolver {
         };
         let f = |p: LegPiece<'_>| forward_leg(p, problem, rhs);
         match &self.team {
-            Some(team) => team.for_each(&self.kinds[1], pieces, f),
+            Some(team) => team.for_each(&self.forward_pass, pieces, f),
             None => pieces.for_each(f),
         }
         first_error(&mut self.legs)

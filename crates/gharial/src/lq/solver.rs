@@ -28,11 +28,7 @@ impl LqSolver {
     /// # Errors
     /// As [`RiccatiSolver::with_options`] and [`ParallelRiccatiSolver::new`].
     pub fn new(problem: &LqProblem, options: RiccatiOptions, num_threads: usize) -> Result<Self, LqError> {
-        let team = crate::team::Team::for_threads(num_threads).map_err(|_| LqError::Option {
-            name: "num_threads",
-            reason: "a thread could not be started",
-        })?;
-        Self::with_team(problem, options, num_threads, team)
+        Self::with_team(problem, options, num_threads, super::parallel::team_for(num_threads)?)
     }
 
     /// As [`LqSolver::new`], the parallel solver on the threads of `team` (shared with the
