@@ -1,12 +1,13 @@
 //! Solves of the UR5 on two threads allocate nothing after `setup` on any thread (the
 //! count is the process's, hence one test in this binary): FDDP and SQP (stage-wise
 //! derivatives on the team), ProxDDP with the linear rollout (the parallel Riccati legs
-//! on the same team) and with the nonlinear one, box-FDDP on the torque-limited reach;
-//! each reaches the serial solve's cost.
+//! on the same team) and with the nonlinear one, box-FDDP and CSQP on the torque-limited
+//! reach; each reaches the serial solve's cost.
 
 #[path = "../../gharial/tests/support/counting_alloc.rs"]
 mod counting_alloc;
 
+use gharial::solvers::csqp::{Csqp, CsqpOptions};
 use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::proxddp::{ProxDdp, Rollout};
 use gharial::solvers::{InitialGuess, Solver};
@@ -49,6 +50,15 @@ fn two_thread_robot_solves_do_not_allocate() {
         assert_eq!(n, 0, "{}", variant.name());
         assert_eq!(cost.to_bits(), count(&mut ddp(1), ex).1.to_bits(), "{}", variant.name());
     }
+    let csqp = |threads| {
+        Csqp::new(CsqpOptions::default().with(|o| {
+            o.max_iters = 20;
+            o.num_threads = threads;
+        }))
+    };
+    let (n, cost) = count(&mut csqp(2), &ur5_box);
+    assert_eq!(n, 0, "CSQP");
+    assert_eq!(cost.to_bits(), count(&mut csqp(1), &ur5_box).1.to_bits(), "CSQP");
     for rollout in [Rollout::Linear, Rollout::Nonlinear] {
         let proxddp = |threads| {
             let mut o = ur5.proxddp.clone();
