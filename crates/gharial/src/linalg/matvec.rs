@@ -13,7 +13,16 @@ pub fn matvec(y: &mut [f64], accum: Accum, a: MatRef<'_, f64>, x: &[f64], alpha:
     if accum == Accum::Replace {
         y.fill(0.0);
     }
-    if a.row_stride() == 1 && with_fixed_len!(y.len(), matvec_fixed, (y, a, x, alpha)) {
+    if a.row_stride() == 1 {
+        let m = y.len();
+        if with_fixed_len!(m, matvec_fixed, (y, a, x, alpha)) {
+            return;
+        }
+        // Taller: blocks of 16 rows through the fixed-size kernels (the same sums).
+        for i in (0..m).step_by(16) {
+            let rows = 16.min(m - i);
+            with_fixed_len!(rows, matvec_fixed, (&mut y[i..i + rows], a.subrows(i, rows), x, alpha));
+        }
         return;
     }
     // Column-major saxpy loop: faster than a faer call at the small sizes of this library.
@@ -134,7 +143,18 @@ mod tests {
         // Sizes around the four-column blocking, on a submatrix of a larger matrix
         // (contiguous columns, column stride > rows) and on a transposed one (rows
         // strided): both the loop kernels and the strided fallbacks.
-        for (m, n) in [(1, 1), (3, 5), (4, 4), (5, 3), (7, 9), (8, 8), (13, 6), (6, 13)] {
+        for (m, n) in [
+            (1, 1),
+            (3, 5),
+            (4, 4),
+            (5, 3),
+            (7, 9),
+            (8, 8),
+            (13, 6),
+            (6, 13),
+            (24, 12),
+            (37, 5),
+        ] {
             let big = filled(m + 3, n + 2, m + n);
             let bigt = filled(n + 2, m + 3, m * n);
             let x: Vec<f64> = (0..n).map(|i| (i as f64 - 2.5) / 3.0).collect();
