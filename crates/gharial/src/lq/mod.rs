@@ -107,6 +107,7 @@ use crate::linalg::{self, Inertia};
 
 pub mod dense;
 mod e_factor;
+pub(crate) mod offsets;
 mod parallel;
 pub mod random;
 mod riccati;

@@ -348,6 +348,22 @@ impl RiccatiSolver {
     pub fn stage(&self, t: usize) -> &RiccatiStage {
         &self.stages[t]
     }
+
+    /// The workspace of knot `t`, mutable (for its KKT solves).
+    pub(crate) fn stage_mut(&mut self, t: usize) -> &mut RiccatiStage {
+        &mut self.stages[t]
+    }
+
+    /// The initial stage (65) for the value gradient `p0` of knot 0: `x_0` and `λ_0`.
+    pub(crate) fn solve_initial(
+        &mut self,
+        problem: &LqProblem,
+        p0: &[f64],
+        x0: &mut [f64],
+        lambda0: &mut [f64],
+    ) -> Result<(), LqError> {
+        self.initial.solve(problem, slice(&problem.g0), p0, x0, lambda0)
+    }
 }
 
 pub(crate) fn check_primal_reg(primal_reg: f64) -> Result<(), LqError> {

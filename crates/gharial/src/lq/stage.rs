@@ -639,9 +639,14 @@ impl RiccatiStage {
         Ok(())
     }
 
-    /// Solves the factored stage KKT system in place.
-    pub(crate) fn kkt_solve_in_place(&mut self, rhs: MatMut<'_, f64>) {
-        self.kkt.solve_in_place(rhs);
+    /// Solves the factored stage KKT system in place, for any number of right-hand sides
+    /// (in blocks of the columns the factorization's scratch holds).
+    pub(crate) fn kkt_solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
+        let (n, block) = (rhs.ncols(), self.kkt.gather.ncols().max(1));
+        for j in (0..n).step_by(block) {
+            let c = block.min(n - j);
+            self.kkt.solve_in_place(rhs.rb_mut().subcols_mut(j, c));
+        }
     }
 
     /// `T = Ã + B̃K` (feedback of `z`), and with rollout gains `Y = P̃T`, `C = T - GY`,
@@ -1092,6 +1097,16 @@ impl RiccatiStage {
     /// `B̃` (the knot's `B` when `E = -I`).
     pub(crate) fn b_tilde<'a>(&'a self, knot: &'a LqKnot) -> MatRef<'a, f64> {
         ab_of(self.e_fac.is_minus_identity(), &self.ab_tilde, knot).1
+    }
+
+    /// `Ã` (the knot's `A` when `E = -I`).
+    pub(crate) fn a_tilde<'a>(&'a self, knot: &'a LqKnot) -> MatRef<'a, f64> {
+        ab_of(self.e_fac.is_minus_identity(), &self.ab_tilde, knot).0
+    }
+
+    /// `f̃ = -E⁻¹f` of the last vector pass.
+    pub(crate) fn f_tilde(&self) -> &[f64] {
+        slice(&self.f_tilde)
     }
 
     /// `[t0 | T]`: the closed-loop `z = Ã x + B̃ u + f̃ = t0 + T x`.

@@ -14,7 +14,11 @@
 //! The penalty enters the LQ knots as constraint rows with dual regularisation
 //! `mu_c = 1/ρ` and offset `d = y/ρ - z` (the proximal Riccati's rows minimise
 //! `|C δx + D δu + d|² / (2 mu_c)`), so the factorisation is redone only when `ρ`
-//! changes and the other iterations solve for new vectors only. Equality rows take
+//! changes and the other iterations solve for new vectors only: with `mu_dyn = 0` (every
+//! QP of CSQP) by the affine map of the offsets `d` formed with each factorisation
+//! (`lq/offsets.rs`: three small matrix-vector products per knot, which also give
+//! `G δ`), else by the vector pass and rollout of the Riccati recursion; the converged
+//! point's co-states and multipliers come from the full recursion. Equality rows take
 //! `1000 ρ` (OSQP's choice). Stopping: `|G δ - z|_∞ ≤ ε_abs + ε_rel max(|G δ|_∞, |z|_∞)`
 //! and `ρ |Gᵀ (z - z_prev)|_∞ ≤ ε_abs + ε_rel |Gᵀ y|_∞`, checked every
 //! `check_interval` iterations. Every `rho_update_interval`
@@ -24,7 +28,8 @@
 use faer::Accum;
 
 use crate::error::{Error, Result};
-use crate::linalg::{matvec, matvec_t, norm_inf, slice};
+use crate::linalg::{matvec, matvec_t, norm_inf, slice, slice_mut};
+use crate::lq::offsets::OffsetMap;
 use crate::lq::{LqError, LqProblem, LqSolution, Outputs, RiccatiSolver};
 
 /// Options of [`AdmmQp`] (defaults of mim_solvers' CSQP where it has them).
@@ -139,6 +144,10 @@ pub enum AdmmStatus {
 pub struct AdmmQp {
     options: AdmmOptions,
     riccati: RiccatiSolver,
+    /// The x-update as an affine map of the offsets `d`, formed with each factorization
+    /// when it applies (`mu_dyn = 0`; `use_offsets`).
+    offsets: OffsetMap,
+    use_offsets: bool,
     sol: LqSolution,
     /// Splitting variable, scaled duals, last `z`, `G δ` per knot.
     z: Vec<Vec<f64>>,
@@ -182,6 +191,8 @@ impl AdmmQp {
         Ok(Self {
             options,
             riccati,
+            offsets: OffsetMap::new(lq),
+            use_offsets: false,
             sol: LqSolution::new(lq),
             y: z.clone(),
             z_prev: z.clone(),
@@ -251,8 +262,7 @@ impl AdmmQp {
             if check && r.prim <= o.eps_abs + o.eps_rel * r.prim_scale && r.dual <= o.eps_abs + o.eps_rel * r.dual_scale
             {
                 if !last {
-                    // The same rollout (nothing changed since `x_update`), with everything.
-                    self.riccati.forward(lq, &mut self.sol).map_err(lq_error)?;
+                    self.finish(lq)?;
                 }
                 return Ok(AdmmStatus::Converged);
             }
@@ -262,6 +272,18 @@ impl AdmmQp {
             }
         }
         Ok(AdmmStatus::MaxIterations)
+    }
+
+    /// The converged point with its co-states and multipliers: by the full recursion after
+    /// the offset map's x-updates, else the same rollout (nothing changed since
+    /// `x_update`) with everything.
+    fn finish(&mut self, lq: &LqProblem) -> Result<()> {
+        if self.use_offsets {
+            self.riccati.resolve_vectors(lq, &mut self.sol, Outputs::All)
+        } else {
+            self.riccati.forward(lq, &mut self.sol)
+        }
+        .map_err(lq_error)
     }
 
     fn check_bounds(&self, lo: &[Vec<f64>], hi: &[Vec<f64>]) -> Result<()> {
@@ -295,19 +317,30 @@ impl AdmmQp {
     }
 
     fn factor(&mut self, lq: &LqProblem) -> Result<()> {
-        self.riccati.backward(lq, 0.0).map_err(lq_error)
+        self.riccati.backward(lq, 0.0).map_err(lq_error)?;
+        self.use_offsets = OffsetMap::applies(lq);
+        if self.use_offsets {
+            self.offsets.form(&mut self.riccati, lq);
+        }
+        Ok(())
     }
 
     /// `δ⁺` for the current `z`, `y` (new vectors, same factorisation), and `G δ⁺`; the
     /// QP's co-states and multipliers too with `Outputs::All`.
     fn x_update(&mut self, lq: &mut LqProblem, outputs: Outputs) -> Result<()> {
-        for (t, knot) in lq.knots.iter_mut().enumerate() {
-            for i in 0..knot.nc {
-                knot.d[i] = self.y[t][i] * knot.mu_c[i] - self.z[t][i];
+        for ((knot, y), z) in lq.knots.iter_mut().zip(&self.y).zip(&self.z) {
+            let (d, mu_c) = (slice_mut(&mut knot.d), slice(&knot.mu_c));
+            for (((di, yi), zi), mi) in d.iter_mut().zip(y).zip(z).zip(mu_c) {
+                *di = yi * mi - zi;
             }
         }
         // The knots' shapes and regularisations were checked by the factorisation.
-        self.riccati
+        if self.use_offsets && outputs == Outputs::Primal {
+            return (self.offsets)
+                .solve(&mut self.riccati, lq, &mut self.sol, &mut self.gd)
+                .map_err(lq_error);
+        }
+        (self.riccati)
             .resolve_vectors(lq, &mut self.sol, outputs)
             .map_err(lq_error)?;
         for (t, knot) in lq.knots.iter().enumerate() {
@@ -334,24 +367,23 @@ impl AdmmQp {
             prim_scale: 0.0,
             dual_scale: 0.0,
         };
-        for t in 0..self.z.len() {
-            let (z, z_prev, y) = (&mut self.z[t], &mut self.z_prev[t], &mut self.y[t]);
-            let (gd, rho) = (&self.gd[t], &self.rho_rows[t]);
+        let knots = self.z.iter_mut().zip(&mut self.z_prev).zip(&mut self.y);
+        for (t, (((z, z_prev), y), (gd, rho))) in knots.zip(self.gd.iter().zip(&self.rho_rows)).enumerate() {
             z_prev.copy_from_slice(z);
-            for i in 0..z.len() {
-                z[i] = a * gd[i] + (1.0 - a) * z_prev[i] + y[i] / rho[i];
+            for ((zi, zp), (yi, (gi, ri))) in z.iter_mut().zip(z_prev.iter()).zip(y.iter().zip(gd.iter().zip(rho))) {
+                *zi = a * gi + (1.0 - a) * zp + yi / ri;
             }
             sets.project(t, z);
-            for i in 0..z.len() {
+            for ((zi, zp), (yi, (gi, ri))) in z.iter().zip(z_prev.iter()).zip(y.iter_mut().zip(gd.iter().zip(rho))) {
                 // ẑ, the relaxed G δ⁺.
-                let zh = a * gd[i] + (1.0 - a) * z_prev[i];
-                y[i] += rho[i] * (zh - z[i]);
+                let zh = a * gi + (1.0 - a) * zp;
+                *yi += ri * (zh - zi);
             }
             if residuals {
-                for i in 0..z.len() {
-                    r.prim = r.prim.max((gd[i] - z[i]).abs());
-                    r.prim_scale = r.prim_scale.max(gd[i].abs()).max(z[i].abs());
-                    z_prev[i] = rho[i] * (z[i] - z_prev[i]);
+                for ((zi, zp), (gi, ri)) in z.iter().zip(z_prev.iter_mut()).zip(gd.iter().zip(rho)) {
+                    r.prim = r.prim.max((gi - zi).abs());
+                    r.prim_scale = r.prim_scale.max(gi.abs()).max(zi.abs());
+                    *zp = ri * (zi - *zp);
                 }
             }
         }
