@@ -163,6 +163,9 @@ struct Workspace {
     lo: Vec<Vec<f64>>,
     hi: Vec<Vec<f64>>,
     boxed: Vec<Vec<bool>>,
+    /// Per knot: `Some(end)` when every set of the knot is box-shaped, its rows `0..end`
+    /// (projected by one clamp).
+    all_boxed: Vec<Option<usize>>,
     /// Entries of `cons` of each knot: `knot_entries[t]..knot_entries[t + 1]`.
     knot_entries: Vec<usize>,
     gx: Vec<Vec<f64>>,
@@ -228,6 +231,7 @@ impl Workspace {
             w: vec![0.0; max_nr],
             out: vec![0.0; max_nr],
             boxed: rows.iter().map(|r| vec![false; r.len()]).collect(),
+            all_boxed: vec![None; rows.len()],
             lo: rows.clone(),
             hi: rows,
             knot_entries: vec![0; n + 2],
@@ -357,6 +361,11 @@ impl Workspace {
             } else if nr > 0 {
                 self.boxed[t][off] = false;
             }
+        }
+        for (t, all) in self.all_boxed.iter_mut().enumerate() {
+            let entries = &self.cons[self.knot_entries[t]..self.knot_entries[t + 1]];
+            let boxed = entries.iter().all(|e| e.rows.is_empty() || self.boxed[t][e.rows.start]);
+            *all = boxed.then(|| entries.iter().map(|e| e.rows.end).max().unwrap_or(0));
         }
     }
 
@@ -510,6 +519,7 @@ fn iterate(
             lo: &ws.lo,
             hi: &ws.hi,
             boxed: &ws.boxed,
+            all_boxed: &ws.all_boxed,
             w: &mut ws.w,
             out: &mut ws.out,
         };
@@ -567,6 +577,7 @@ struct ShiftedSets<'a> {
     lo: &'a [Vec<f64>],
     hi: &'a [Vec<f64>],
     boxed: &'a [Vec<bool>],
+    all_boxed: &'a [Option<usize>],
     w: &'a mut [f64],
     out: &'a mut [f64],
 }
@@ -581,6 +592,13 @@ impl RowSets for ShiftedSets<'_> {
     }
 
     fn project(&mut self, t: usize, v: &mut [f64]) {
+        if let Some(end) = self.all_boxed[t] {
+            let bounds = self.lo[t][..end].iter().zip(&self.hi[t][..end]);
+            for (vi, (l, u)) in v[..end].iter_mut().zip(bounds) {
+                *vi = vi.max(*l).min(*u);
+            }
+            return;
+        }
         for e in &self.cons[self.knot_entries[t]..self.knot_entries[t + 1]] {
             let r = e.rows.clone();
             if r.is_empty() {
