@@ -8,7 +8,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 ///
 /// Reads and writes of each entry are atomic; a reader running concurrently with a
 /// writer may see a mix of old and new entries, so update parameters between solves.
-#[derive(Debug)]
 pub struct ParamVec {
     values: Box<[AtomicU64]>,
 }
@@ -73,6 +72,13 @@ impl ParamVec {
     }
 }
 
+/// The values (not their bits): `ParamVec([-0.05, 0.05])`.
+impl std::fmt::Debug for ParamVec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_tuple("ParamVec").field(&self.to_vec()).finish()
+    }
+}
+
 impl Clone for ParamVec {
     fn clone(&self) -> Self {
         Self::new(&self.to_vec())
@@ -82,6 +88,11 @@ impl Clone for ParamVec {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn debug_shows_the_values() {
+        assert_eq!(format!("{:?}", ParamVec::new(&[-0.05, 2.0])), "ParamVec([-0.05, 2.0])");
+    }
 
     #[test]
     fn read_write_roundtrip() {
