@@ -133,9 +133,12 @@ impl OffsetMap {
         }
     }
 
-    /// Whether the maps apply to `problem`: `mu_dyn = 0` at every knot.
+    /// Whether the maps apply to `problem` and pay: `mu_dyn = 0` and at most `nx + nu`
+    /// constraint rows at every knot (the maps are dense in the rows, `(ny + nc)²` per
+    /// knot, where the recursion's work grows linearly in rows that do not involve the
+    /// controls, such as the hundreds of obstacle rows of a car among walls).
     pub(crate) fn applies(problem: &LqProblem) -> bool {
-        problem.knots.iter().all(|k| k.mu_dyn == 0.0)
+        (problem.knots.iter()).all(|k| k.mu_dyn == 0.0 && k.nc <= k.nx + k.nu)
     }
 
     /// Forms the maps from the backward pass `solver` just ran on `problem` (whose
@@ -243,7 +246,6 @@ mod tests {
         let mut riccati = RiccatiSolver::new(&problem).unwrap();
         riccati.backward(&problem, 0.0).unwrap();
         let mut map = OffsetMap::new(&problem);
-        assert!(OffsetMap::applies(&problem));
         map.form(&mut riccati, &problem);
         let mut reference = LqSolution::new(&problem);
         riccati.forward(&problem, &mut reference).unwrap();
@@ -311,6 +313,16 @@ mod tests {
             let label = format!("E {general_e}, varying {vary_dims}, x0 rows {initial_rows:?}, {rank_deficient}");
             check_new_offsets(problem, &label);
         }
+    }
+
+    #[test]
+    fn offset_map_applies_without_dynamics_regularisation_and_with_few_rows() {
+        let mut problem = random::peers_problem(4, 2, 4, 5, 3, 1e-2).problem;
+        assert!(OffsetMap::applies(&problem));
+        problem.knots[2].mu_dyn = 1e-6;
+        assert!(!OffsetMap::applies(&problem));
+        let many_rows = random::peers_problem(4, 2, 7, 5, 3, 1e-2).problem;
+        assert!(!OffsetMap::applies(&many_rows));
     }
 
     #[test]

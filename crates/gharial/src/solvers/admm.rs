@@ -15,7 +15,8 @@
 //! `mu_c = 1/ρ` and offset `d = y/ρ - z` (the proximal Riccati's rows minimise
 //! `|C δx + D δu + d|² / (2 mu_c)`), so the factorisation is redone only when `ρ`
 //! changes and the other iterations solve for new vectors only: with `mu_dyn = 0` (every
-//! QP of CSQP) by the affine map of the offsets `d` formed with each factorisation
+//! QP of CSQP) and at most `nx + nu` rows per knot by the affine map of the offsets `d`
+//! formed with each factorisation
 //! (`lq/offsets.rs`: three small matrix-vector products per knot, which also give
 //! `G δ`), else by the vector pass and rollout of the Riccati recursion; the converged
 //! point's co-states and multipliers come from the full recursion. Equality rows take
@@ -145,7 +146,7 @@ pub struct AdmmQp {
     options: AdmmOptions,
     riccati: RiccatiSolver,
     /// The x-update as an affine map of the offsets `d`, formed with each factorization
-    /// when it applies (`mu_dyn = 0`; `use_offsets`).
+    /// when it applies (`OffsetMap::applies`; `use_offsets`).
     offsets: OffsetMap,
     use_offsets: bool,
     sol: LqSolution,
