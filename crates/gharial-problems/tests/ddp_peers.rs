@@ -189,3 +189,31 @@ fn csqp_converges_on_the_harness_constrained_problems() {
         assert!(sol.prim_err <= 1e-6, "{name}: infeasibility {}", sol.prim_err);
     }
 }
+
+/// CSQP from the acrobot's rest guess: the linearised terminal constraint and the QP's
+/// iteration limit leave steps the filter rejects; the solve stops after
+/// `max_linesearch_failures` failed searches in a row (the point kept, its status
+/// `LinesearchFailure`) instead of re-solving the same QP up to `max_iters`, which it does
+/// when the limit is raised.
+#[test]
+fn csqp_stops_after_repeated_line_search_failures() {
+    use gharial::solvers::csqp::{Csqp, CsqpOptions};
+    let ex = gharial_problems::build("acrobot").unwrap();
+    let guess = InitialGuess::primal(&ex.xs0, &ex.us0);
+    let run = |failures: usize| {
+        let mut solver = Csqp::new(CsqpOptions::default().with(|o| {
+            o.max_iters = 20;
+            o.max_linesearch_failures = failures;
+        }));
+        solver.setup(&ex.problem).unwrap();
+        let sol = solver.solve(&ex.problem, guess).unwrap().clone();
+        (sol.status, sol.iterations, sol.cost)
+    };
+    let (status, iters, cost) = run(5);
+    assert_eq!(status, Status::LinesearchFailure);
+    assert!(iters < 20, "{iters} iterations");
+    assert!(cost.is_finite());
+    let (status, iters, _) = run(1000);
+    assert_eq!(status, Status::MaxIterations);
+    assert_eq!(iters, 20);
+}

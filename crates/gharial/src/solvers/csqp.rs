@@ -47,6 +47,11 @@ pub struct CsqpOptions {
     pub warm_qp: bool,
     /// Step lengths tried: `1, 1/2, ..., 2^-(linesearch_steps - 1)` (default 10).
     pub linesearch_steps: usize,
+    /// Line searches in a row that may find no acceptable step before the solve stops as
+    /// [`Status::LinesearchFailure`] (default 5). With `warm_qp` a failed search keeps the
+    /// point and the next QP continues the ADMM iterations of the same subproblem (an
+    /// inexact QP step can fail near a solution); without it the first failure stops.
+    pub max_linesearch_failures: usize,
     /// The filter's memory (default 1).
     pub filter_size: usize,
     /// Wall-time budget (default none).
@@ -65,6 +70,7 @@ impl Default for CsqpOptions {
             admm: AdmmOptions::default(),
             warm_qp: true,
             linesearch_steps: 10,
+            max_linesearch_failures: 5,
             filter_size: 1,
             max_time: None,
             num_threads: 1,
@@ -91,6 +97,9 @@ impl CsqpOptions {
         }
         if !(1..=60).contains(&self.linesearch_steps) {
             return Err(Error::option("linesearch_steps", "must be in 1..=60"));
+        }
+        if self.max_linesearch_failures == 0 {
+            return Err(Error::option("max_linesearch_failures", "must be at least 1"));
         }
         if !(1..=1000).contains(&self.filter_size) {
             return Err(Error::option("filter_size", "must be in 1..=1000"));
@@ -498,6 +507,7 @@ fn iterate(
     // The data's last evaluation is the current point.
     let mut inf = ws.infeasibility(problem);
     let mut warm = false;
+    let mut failures = 0;
     for iter in 0.. {
         ws.build_qp(problem);
         let kkt = ws.kkt(problem, inf.max);
@@ -546,10 +556,12 @@ fn iterate(
                 std::mem::swap(&mut ws.us, &mut ws.us_try);
                 (ws.cost, inf) = (c, t);
                 ws.admm.follow_step(record.alpha);
+                failures = 0;
             }
             // An inexact QP step can fail the filter near the solution; the next QP,
             // warm-started, continues the ADMM iterations on the same subproblem.
-            None if opts.warm_qp => {
+            None if opts.warm_qp && failures + 1 < opts.max_linesearch_failures => {
+                failures += 1;
                 ws.cost = ws.data.evaluate(problem, &ws.xs, &ws.us);
                 inf = ws.infeasibility(problem);
             }
