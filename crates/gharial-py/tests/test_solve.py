@@ -270,3 +270,13 @@ def test_proxddp_final_residuals_option_keeps_the_step():
     assert out[False].status == "max_iterations"
     assert [list(u) for u in out[True].us] == [list(u) for u in out[False].us]
     assert out[True].traj_cost == out[False].traj_cost
+
+
+def test_csqp_stops_after_repeated_line_search_failures():
+    ex = gharial.problems.build("acrobot")
+    s = gharial.SolverCSQP(max_iters=20, max_linesearch_failures=5)
+    s.run(ex.problem, ex.xs0, ex.us0)
+    assert s.results.status == "linesearch_failure" and s.results.num_iters < 20
+    s.max_linesearch_failures = 1000
+    s.run(ex.problem, ex.xs0, ex.us0)
+    assert s.results.status == "max_iterations" and s.results.num_iters == 20
