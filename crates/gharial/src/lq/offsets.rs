@@ -18,7 +18,7 @@
 //! w_t = [k⁰; B̃k⁰ + f̃; Dk⁰] + [I; B̃; D] [R S] [Δp_{t+1}; Δd_t]
 //! ```
 //! from `x_0` of the initial stage (65). Forming the maps costs one KKT solve with
-//! `ny + nc` right-hand sides and a few products per knot; a solve then costs three
+//! `ny + nc` right-hand sides and a few products per knot; a solve then costs two
 //! small matrix-vector products per knot instead of the Q-function's vectors, a KKT solve,
 //! the value gradient and the rollout's products. The states and controls equal the full
 //! recursion's to round-off.
@@ -39,7 +39,8 @@ struct OffsetKnot {
     w0: Vec<f64>,
     /// `[K; Ã + B̃K; C + DK]`: `[u; x_{t+1}; g] = fb x + w`.
     fb: Mat<f64>,
-    /// KKT right-hand sides, then `[R S]`, while forming.
+    /// KKT right-hand sides, then their solutions (`-[R S]` in the control rows), while
+    /// forming.
     rhs: Mat<f64>,
     /// `e = [Δp_{t+1}; Δd_t]`.
     e: Vec<f64>,

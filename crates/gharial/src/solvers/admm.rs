@@ -17,7 +17,7 @@
 //! changes and the other iterations solve for new vectors only: with `mu_dyn = 0` (every
 //! QP of CSQP) and at most `nx + nu` rows per knot by the affine map of the offsets `d`
 //! formed with each factorisation
-//! (`lq/offsets.rs`: three small matrix-vector products per knot, which also give
+//! (`lq/offsets.rs`: two small matrix-vector products per knot, which also give
 //! `G δ`), else by the vector pass and rollout of the Riccati recursion; the converged
 //! point's co-states and multipliers come from the full recursion. Equality rows take
 //! `1000 ρ` (OSQP's choice). Stopping: `|G δ - z|_∞ ≤ ε_abs + ε_rel max(|G δ|_∞, |z|_∞)`
