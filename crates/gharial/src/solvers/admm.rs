@@ -124,9 +124,14 @@ impl RowSets for Bounds<'_> {
         self.lo[t][i] == self.hi[t][i]
     }
     fn project(&mut self, t: usize, v: &mut [f64]) {
-        for (i, vi) in v.iter_mut().enumerate() {
-            *vi = vi.max(self.lo[t][i]).min(self.hi[t][i]);
-        }
+        clamp(v, &self.lo[t], &self.hi[t]);
+    }
+}
+
+/// The projection onto the box `[lo, hi]`, row by row: `v_i ← min(max(v_i, lo_i), hi_i)`.
+pub(crate) fn clamp(v: &mut [f64], lo: &[f64], hi: &[f64]) {
+    for (vi, (l, u)) in v.iter_mut().zip(lo.iter().zip(hi)) {
+        *vi = vi.max(*l).min(*u);
     }
 }
 

@@ -20,7 +20,7 @@
 
 use std::time::{Duration, Instant};
 
-use super::admm::{AdmmOptions, AdmmQp, RowSets};
+use super::admm::{AdmmOptions, AdmmQp, RowSets, clamp};
 use super::log::{COST, Column, Format, ITER, LogSink, Table};
 use super::skeleton::{
     ConstraintEntry, Receding, Signature, SqpFilter, constraint_index, copy_stage_model, fill_constraint_index,
@@ -378,6 +378,24 @@ impl Workspace {
         }
     }
 
+    /// The QP of [`Workspace::build_qp`] by the ADMM, its rows' values in their shifted
+    /// sets (warm-started from the last QP with `warm`).
+    fn solve_qp(&mut self, problem: &Problem, warm: bool) -> Result<()> {
+        let mut sets = ShiftedSets {
+            problem,
+            data: &self.data,
+            cons: &self.cons,
+            knot_entries: &self.knot_entries,
+            lo: &self.lo,
+            hi: &self.hi,
+            boxed: &self.boxed,
+            all_boxed: &self.all_boxed,
+            w: &mut self.w,
+            out: &mut self.out,
+        };
+        self.admm.solve_sets(&mut self.lq, &mut sets, warm).map(|_| ())
+    }
+
     /// The KKT residual with the multipliers of the last QP.
     fn kkt(&mut self, problem: &Problem, infeasibility: f64) -> f64 {
         self.data
@@ -521,19 +539,7 @@ fn iterate(
         if iter >= opts.max_iters {
             return stop(Status::MaxIterations);
         }
-        let mut sets = ShiftedSets {
-            problem,
-            data: &ws.data,
-            cons: &ws.cons,
-            knot_entries: &ws.knot_entries,
-            lo: &ws.lo,
-            hi: &ws.hi,
-            boxed: &ws.boxed,
-            all_boxed: &ws.all_boxed,
-            w: &mut ws.w,
-            out: &mut ws.out,
-        };
-        if ws.admm.solve_sets(&mut ws.lq, &mut sets, warm).is_err() {
+        if ws.solve_qp(problem, warm).is_err() {
             return stop(Status::RegularizationFailure);
         }
         warm = opts.warm_qp;
@@ -605,10 +611,7 @@ impl RowSets for ShiftedSets<'_> {
 
     fn project(&mut self, t: usize, v: &mut [f64]) {
         if let Some(end) = self.all_boxed[t] {
-            let bounds = self.lo[t][..end].iter().zip(&self.hi[t][..end]);
-            for (vi, (l, u)) in v[..end].iter_mut().zip(bounds) {
-                *vi = vi.max(*l).min(*u);
-            }
+            clamp(&mut v[..end], &self.lo[t][..end], &self.hi[t][..end]);
             return;
         }
         for e in &self.cons[self.knot_entries[t]..self.knot_entries[t + 1]] {
@@ -617,10 +620,7 @@ impl RowSets for ShiftedSets<'_> {
                 continue;
             }
             if self.boxed[t][r.start] {
-                let bounds = self.lo[t][r.clone()].iter().zip(&self.hi[t][r.clone()]);
-                for (vi, (l, u)) in v[r].iter_mut().zip(bounds) {
-                    *vi = vi.max(*l).min(*u);
-                }
+                clamp(&mut v[r.clone()], &self.lo[t][r.clone()], &self.hi[t][r]);
                 continue;
             }
             let c = &self.problem.constraints(t)[e.k];
