@@ -2,10 +2,12 @@
 //! affine map of them formed from the factorization (the x-updates of the ADMM of
 //! [`crate::solvers::admm`], hundreds of solves per factorization).
 //!
-//! With `mu_dyn = 0` the vector part of the backward recursion is affine in
-//! `(p_{t+1}, d_t)`. With `W` the inverse of the stage KKT matrix (symmetric), the gains
-//! `[K; Z] = -W [Q_ux; C]` and `[k; ζ] = -W [Q_u; d]` give `p_t = Q_x + Q_xu k + Cᵀζ =
-//! Q_x + KᵀQ_u + Zᵀd`, and `Q_x = q + Ãᵀv`, `Q_u = r + B̃ᵀv`, `v = p_{t+1} + P_{t+1} f̃`,
+//! With `mu_dyn = 0` the vector part of the backward recursion (module docs of
+//! [`crate::lq`], steps 3-5) is affine in `(p_{t+1}, d_t)`. With `W` the inverse of the
+//! stage KKT matrix (45)-(46) (symmetric), the gains `[K; Z] = -W [Q_ux; C]` and
+//! `[k; ζ] = -W [Q_u; d]` turn the value gradient (47) `p_t = Q_x + Q_xu k + Cᵀζ` into
+//! `Q_x + KᵀQ_u + Zᵀd`, and the Q-function (37) has `Q_x = q + Ãᵀv`, `Q_u = r + B̃ᵀv`,
+//! `v = p_{t+1} + P_{t+1} f̃`,
 //! so that, for changes `Δ` from the vectors of the factorization,
 //! ```text
 //! Δp_t = (Ã + B̃K)ᵀ Δp_{t+1} + Zᵀ Δd_t
@@ -127,6 +129,8 @@ pub(crate) struct OffsetMap {
 }
 
 impl OffsetMap {
+    /// Storage of the maps for problems shaped like `problem` (formed by
+    /// [`OffsetMap::form`]).
     pub(crate) fn new(problem: &LqProblem) -> Self {
         Self {
             knots: problem.knots.iter().map(OffsetKnot::new).collect(),
