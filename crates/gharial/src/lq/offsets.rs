@@ -246,7 +246,8 @@ mod tests {
     }
 
     /// New offsets `d` (round `round`): the map's states, controls and rows' values equal
-    /// the full recursion's, and differ from the factorization's solution.
+    /// the full recursion's and the dense KKT solution's, and differ from the
+    /// factorization's solution.
     fn check_new_offsets(mut problem: LqProblem, label: &str) {
         let mut riccati = RiccatiSolver::new(&problem).unwrap();
         riccati.backward(&problem, 0.0).unwrap();
@@ -267,6 +268,10 @@ mod tests {
             map.solve(&mut riccati, &problem, &mut fast, &mut rows).unwrap();
             let gap = primal_gap(&full, &fast);
             assert!(gap < 1e-11, "{label}, round {round}: gap {gap:e}");
+            // The independent reference: the dense KKT solve of the LQ with the new offsets.
+            let dense = crate::lq::dense::solve(&problem).unwrap();
+            let gap = primal_gap(&dense, &fast);
+            assert!(gap < 1e-9, "{label}, round {round}: dense gap {gap:e}");
             for (t, knot) in problem.knots.iter().enumerate() {
                 let mut g = vec![0.0; knot.nc];
                 matvec(&mut g, Accum::Replace, knot.C.as_ref(), slice(&full.xs[t]), 1.0);
