@@ -90,12 +90,10 @@ fn box_variants_on_the_pendulum_with_tight_bounds_stop_without_claiming_converge
 }
 
 /// SQP against mim_solvers' SQP (0.3.0, default filter line search, harness run with
-/// `termination_tolerance = 1e-6`): the same iterates, so after mim's number of steps
-/// the same cost (to 1e-9; on `double-pendulum` also the same gaps, 6.58e-9). The
-/// stopping test stops at most as late: its multipliers are the LQ step's exact
-/// co-states, whose Lagrangian gradient falls with the gaps, while mim's KKT value keeps
-/// a dual part of the size of its gaps' 1-norm (1.1e-5 at iteration 8 on the pendulum,
-/// where the gaps are 4e-6), so it stops two steps later there.
+/// `termination_tolerance = 1e-6`): the same iterates and the same KKT test, so the same
+/// number of steps (the bound is one either way) and the same final cost (mim's
+/// final costs; to 1e-9 relative) and, on the pendulum, its final KKT residual (4.418e-7)
+/// and gaps (6.58e-9).
 #[test]
 fn sqp_takes_the_steps_of_mim_solvers_on_the_harness_problems() {
     let cases = [
@@ -107,27 +105,15 @@ fn sqp_takes_the_steps_of_mim_solvers_on_the_harness_problems() {
         let sol = solve(name, DdpVariant::Sqp);
         assert_eq!(sol.status, Status::Converged, "{name}");
         assert!(
-            sol.iterations <= iters && sol.iterations + 2 >= iters,
+            sol.iterations.abs_diff(iters) <= 1,
             "{name}: {} iterations, mim_solvers {iters}",
             sol.iterations
         );
-        assert!(rel(sol.cost, cost) < 1e-7, "{name}: cost {} vs {cost}", sol.cost);
-        // mim's number of steps, whatever the stopping test.
-        let ex = gharial_problems::build(name).unwrap();
-        let mut solver = Ddp::new(DdpOptions::new(DdpVariant::Sqp).with(|o| {
-            o.tol = 1e-14;
-            o.max_iters = iters;
-        }));
-        solver.setup(&ex.problem).unwrap();
-        let same = solver
-            .solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0))
-            .unwrap();
-        assert_eq!(same.iterations, iters, "{name}");
-        assert!(
-            rel(same.cost, cost) < 1e-9,
-            "{name}: cost after {iters} steps {} vs {cost}",
-            same.cost
-        );
+        assert!(rel(sol.cost, cost) < 1e-9, "{name}: cost {} vs {cost}", sol.cost);
+        if name == "double-pendulum" {
+            assert!(rel(sol.dual_err, 4.418373804430942e-7) < 1e-3, "{}", sol.dual_err);
+            assert!(rel(sol.prim_err, 6.579e-9) < 1e-3, "{}", sol.prim_err);
+        }
     }
 }
 

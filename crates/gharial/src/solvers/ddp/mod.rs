@@ -40,10 +40,12 @@
 //! dynamics and gaps; the trial `x ⊕ αδx, u + αδu` is accepted by a filter on (cost,
 //! 1-norm of the gaps) (Section V-C; with the default memory of 1: if it lowers the cost
 //! or the gaps); and the solve has converged when the KKT residual (20),
-//! `max(|∇L|_∞, |gaps|_∞)` with the co-states `λ⁺` of the last step, is below `tol`.
-//! That test needs the derivatives at the point and `λ⁺` only, so after a step it comes
-//! before the backward pass (as in mim_solvers): a converged solve skips the last pass
-//! (half the work on an LQ), and its gains are those of the step that reached the point.
+//! `max(|∇L|_∞, |gaps|_∞)` at the point with the co-states `λ⁺ = V_xx δx + V_x` of the
+//! step from it ((21); mim_solvers' `checkKKTConditions`), is below `tol`. With the
+//! Gauss-Newton Hessian its dual part is the Hessian times the step, so the test stops
+//! where the next step is small, at mim_solvers' iteration (the co-states of the step
+//! that reached the point would pass it one or two steps earlier, with costs off by
+//! about the tolerance times the multipliers).
 //!
 //! DDP, FDDP and SQP refuse problems with constraints; the box variants accept bounds on the
 //! controls only (recognised among the path constraints as [`crate::constraints::ConstraintSet::box_bounds`] describes), anything else is refused with an error naming the
@@ -241,6 +243,7 @@ impl Ddp {
             iter: 0,
             m: Measures::default(),
             rebuild: true,
+            stepped: false,
         };
         let status = if ws.load_guess(problem, &guess, opts.gap_tol)? {
             loop {
@@ -265,6 +268,8 @@ struct Loop {
     m: Measures,
     /// Whether the knots must be rebuilt (a step was taken).
     rebuild: bool,
+    /// SQP: whether the LQ step of the last backward pass was rolled out.
+    stepped: bool,
 }
 
 impl Loop {
@@ -279,10 +284,9 @@ impl Loop {
         (applies && self.m.stop < self.th_stop).then_some(status)
     }
 
-    /// The backward pass and the stopping tests at the current point (SQP's KKT test (20)
-    /// first after a step: it needs the point's derivatives and the multipliers of the
-    /// last LQ step only, so a converged point skips the pass, as in mim_solvers). Returns
-    /// the model of the step's decrease, or the status that ends the solve.
+    /// The backward pass and the stopping tests at the current point (for SQP, the KKT
+    /// test (20) with the co-states of the step the pass gives, as mim_solvers does).
+    /// Returns the model of the step's decrease, or the status that ends the solve.
     fn direction(
         &mut self,
         ws: &mut Workspace,
@@ -291,28 +295,25 @@ impl Loop {
         start: Instant,
     ) -> std::result::Result<Expected, Status> {
         let sqp = opts.variant.linear_rollout();
-        let mut kkt = None;
-        if sqp && self.iter > 0 {
-            let (dual, residual) = ws.kkt(problem);
-            self.m = Measures {
+        let (e, dual) = backward(ws, problem, opts, &mut self.reg, self.rebuild)?;
+        self.m = if sqp {
+            self.stepped = ws.linear_step();
+            let (dual, stop) = if self.stepped {
+                ws.kkt(problem)
+            } else {
+                (f64::INFINITY, f64::INFINITY)
+            };
+            Measures {
                 gaps: ws.max_gap(),
                 dual,
-                stop: residual,
-            };
-            if let Some(s) = self.converged(opts, true) {
-                return Err(s);
+                stop,
             }
-            kkt = Some(residual);
-        }
-        let (e, dual) = backward(ws, problem, opts, &mut self.reg, self.rebuild)?;
-        self.m = Measures {
-            gaps: ws.max_gap(),
-            dual,
-            stop: if sqp {
-                kkt.unwrap_or_else(|| ws.kkt(problem).1)
-            } else {
-                (e.dg + 0.5 * e.dq).abs()
-            },
+        } else {
+            Measures {
+                gaps: ws.max_gap(),
+                dual,
+                stop: (e.dg + 0.5 * e.dq).abs(),
+            }
         };
         if let Some(s) = self.converged(opts, ws.feasible || sqp) {
             return Err(s);
@@ -349,7 +350,7 @@ impl Loop {
         let sqp = opts.variant.linear_rollout();
         let cost = ws.cost;
         let step = if sqp {
-            filter_line_search(ws, problem, opts)
+            filter_line_search(ws, problem, opts, self.stepped)
         } else {
             line_search(ws, problem, e, opts)
         };
@@ -454,17 +455,18 @@ pub(crate) fn line_search(ws: &mut Workspace, problem: &Problem, e: Expected, op
     step
 }
 
-/// SQP's line search (Jordana et al. 2023, V-C): the LQ step by a linear rollout, then
-/// `α = 1, 1/2, ...` until the trial's (cost, gap 1-norm) is not dominated by the
-/// filter's pairs, which include the current point's.
-fn filter_line_search(ws: &mut Workspace, problem: &Problem, opts: &DdpOptions) -> Step {
+/// SQP's line search (Jordana et al. 2023, V-C) on the LQ step of
+/// [`Workspace::linear_step`] (`stepped`: it was rolled out): `α = 1, 1/2, ...` until the
+/// trial's (cost, gap 1-norm) is not dominated by the filter's pairs, which include the
+/// current point's.
+fn filter_line_search(ws: &mut Workspace, problem: &Problem, opts: &DdpOptions, stepped: bool) -> Step {
     let mut step = Step {
         alpha: 1.0,
         cost: None,
         expected: 0.0,
         decrease: 0.0,
     };
-    if !ws.linear_step() {
+    if !stepped {
         return step;
     }
     let gap = ws.gap_l1();
