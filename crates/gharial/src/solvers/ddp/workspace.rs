@@ -78,6 +78,8 @@ pub(crate) struct Workspace {
     /// SQP: the co-states of the last LQ step (the multipliers of the KKT test), the
     /// Lagrangian gradient, empty path multipliers, and the filter.
     lams: Vec<Vec<f64>>,
+    /// SQP: whether `lams` are the co-states of the last backward pass's step.
+    lams_current: bool,
     gx: Vec<Vec<f64>>,
     gu: Vec<Vec<f64>>,
     no_nus: Vec<Vec<f64>>,
@@ -229,6 +231,7 @@ impl Workspace {
             iterated: false,
             spare: queue.iter().map(StageData::new).collect(),
             lams: crate::solvers::Solution::new(problem, 0).lambdas,
+            lams_current: false,
             gx: vecs(&ndxs),
             gu: vecs(&nus),
             no_nus: (0..=n)
@@ -274,6 +277,7 @@ impl Workspace {
             Some(l) => copy_trajectory(&mut self.lams, l),
             None => self.lams.iter_mut().for_each(|l| l.fill(0.0)),
         }
+        self.lams_current = false;
         self.filter.clear();
         if let InitialCondition::Fixed(x0) = problem.initial_condition() {
             // The initial state may have moved since setup (MPC).
@@ -387,6 +391,7 @@ impl Workspace {
         reg: f64,
         qp_opts: &BoxQpOptions,
     ) -> std::result::Result<(), LqError> {
+        self.lams_current = false;
         if self.square_root {
             self.qp_used.fill(false);
             return self.riccati.backward_square_root(&self.lq, reg);
@@ -566,6 +571,7 @@ impl Workspace {
         for (l, s) in self.lams.iter_mut().zip(&self.lq_sol.lambdas) {
             l.copy_from_slice(slice(s));
         }
+        self.lams_current = true;
         true
     }
 
@@ -648,7 +654,9 @@ impl Workspace {
     /// The co-states `λ` of the last backward pass (its LQ solution) and, with bounds, the
     /// multipliers of the bound rows, written into `lambdas` and `nus`.
     pub fn multipliers(&mut self, lambdas: &mut [Vec<f64>], nus: &mut [Vec<f64>]) {
-        if self.riccati.forward(&self.lq, &mut self.lq_sol).is_ok() {
+        if self.lams_current {
+            crate::solvers::skeleton::copy_trajectory(lambdas, &self.lams);
+        } else if self.riccati.forward(&self.lq, &mut self.lq_sol).is_ok() {
             for (l, s) in lambdas.iter_mut().zip(&self.lq_sol.lambdas) {
                 l.copy_from_slice(slice(s));
             }
