@@ -78,17 +78,69 @@ const FULL_FOR_LOWER_PRODUCT: usize = 16 * SMALL_PRODUCT;
 /// alternating runs); larger products keep the triangular one.
 #[inline]
 pub(crate) fn matmul_lower_upper_free(
-    dst: MatMut<'_, f64>,
+    mut dst: MatMut<'_, f64>,
     accum: Accum,
     lhs: MatRef<'_, f64>,
     rhs: MatRef<'_, f64>,
     alpha: f64,
 ) {
     let work = dst.nrows() * dst.ncols() * lhs.ncols();
+    if work <= SMALL_LOWER_PRODUCT && full_from_rows(dst.rb_mut(), accum, lhs, rhs, alpha) {
+        return;
+    }
     if work > SMALL_LOWER_PRODUCT && work <= FULL_FOR_LOWER_PRODUCT {
         return faer::linalg::matmul::matmul(dst, accum, lhs, rhs, alpha, Par::Seq);
     }
     matmul_lower(dst, accum, lhs, rhs, alpha);
+}
+
+/// The whole of a small `dst = alpha lhs rhs` (`Accum::Replace`) or `dst += ...`, for a
+/// `lhs` stored by rows (such as `[A B]ᵀ`, `m` and its columns `k` at most 16): `lhs`
+/// transposed into columns on the stack, then each column of `dst` in registers as a
+/// sum of those columns (the axpy form of [`small_matmul`], vectorised over the rows)
+/// instead of a dot product per entry. Returns `false` (and does nothing) for other
+/// shapes and layouts.
+fn full_from_rows(dst: MatMut<'_, f64>, accum: Accum, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>, alpha: f64) -> bool {
+    let (m, k) = (lhs.nrows(), lhs.ncols());
+    let layout = lhs.col_stride() == 1 && lhs.row_stride() != 1 && dst.row_stride() == 1 && rhs.row_stride() == 1;
+    if !layout || m > MAX_SMALL_DIM || k > MAX_SMALL_DIM {
+        return false;
+    }
+    let mut t = [[0.0; MAX_SMALL_DIM]; MAX_SMALL_DIM];
+    for i in 0..m {
+        let row = lhs.row(i).try_as_row_major().expect("checked").as_slice();
+        for (tl, &v) in t.iter_mut().zip(row) {
+            tl[i] = v;
+        }
+    }
+    with_fixed_len!(m, full_from_columns_fixed, (dst, accum, &t[..k], rhs, alpha))
+}
+
+/// [`full_from_rows`] for `m = M`, `t[l]` the column `l` of `lhs`.
+#[inline]
+fn full_from_columns_fixed<const M: usize>(
+    mut dst: MatMut<'_, f64>,
+    accum: Accum,
+    t: &[[f64; MAX_SMALL_DIM]],
+    rhs: MatRef<'_, f64>,
+    alpha: f64,
+) {
+    for j in 0..dst.ncols() {
+        let d = col_fixed_mut::<M>(dst.rb_mut(), j);
+        let mut acc = if accum == Accum::Replace { [0.0; M] } else { *d };
+        let b = &rhs.col(j).try_as_col_major().expect("checked").as_slice()[..t.len()];
+        for (tl, &bl) in t.iter().zip(b) {
+            let s = alpha * bl;
+            if s == 0.0 {
+                continue;
+            }
+            let c: &[f64; M] = tl[..M].try_into().expect("M rows");
+            for i in 0..M {
+                acc[i] += s * c[i];
+            }
+        }
+        *d = acc;
+    }
 }
 
 /// Lower triangle of `q += [A B]ᵀ P [A B]` (`P`: `ny × ny`, `A`: `ny × nx`, `B`: `ny × nu`,
@@ -428,6 +480,8 @@ mod tests {
             (6, 5, 3),
             (8, 8, 8),
             (12, 7, 12),
+            (12, 12, 8),
+            (16, 16, 16),
             (17, 17, 9),
             (40, 36, 44),
         ] {
@@ -466,12 +520,16 @@ mod tests {
                             assert!((l[(i, j)] - expected).abs() < 1e-12, "lower {m}: ({i}, {j})");
                         }
                     }
-                    // The upper-free variant: the same lower triangle.
+                    // The upper-free variant: the same lower triangle, adding or replacing.
                     let mut f = init.clone();
                     matmul_lower_upper_free(f.as_mut(), Accum::Add, lhs, rhs, 1.0);
+                    let mut g = init.clone();
+                    matmul_lower_upper_free(g.as_mut(), Accum::Replace, lhs, rhs, -0.5);
                     for j in 0..n {
                         for i in j..m {
                             assert!((f[(i, j)] - l[(i, j)]).abs() < 1e-12, "upper free {m}: ({i}, {j})");
+                            let expected = -0.5 * reference[(i, j)];
+                            assert!((g[(i, j)] - expected).abs() < 1e-12, "upper free {m}: ({i}, {j})");
                         }
                     }
                 }
