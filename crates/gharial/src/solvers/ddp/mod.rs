@@ -243,7 +243,6 @@ impl Ddp {
             iter: 0,
             m: Measures::default(),
             rebuild: true,
-            stepped: false,
         };
         let status = if ws.load_guess(problem, &guess, opts.gap_tol)? {
             loop {
@@ -268,8 +267,6 @@ struct Loop {
     m: Measures,
     /// Whether the knots must be rebuilt (a step was taken).
     rebuild: bool,
-    /// SQP: whether the LQ step of the last backward pass was rolled out.
-    stepped: bool,
 }
 
 impl Loop {
@@ -297,8 +294,7 @@ impl Loop {
         let sqp = opts.variant.linear_rollout();
         let (e, dual) = backward(ws, problem, opts, &mut self.reg, self.rebuild)?;
         self.m = if sqp {
-            self.stepped = ws.linear_step();
-            let (dual, stop) = if self.stepped {
+            let (dual, stop) = if ws.linear_step() {
                 ws.kkt(problem)
             } else {
                 (f64::INFINITY, f64::INFINITY)
@@ -350,7 +346,7 @@ impl Loop {
         let sqp = opts.variant.linear_rollout();
         let cost = ws.cost;
         let step = if sqp {
-            filter_line_search(ws, problem, opts, self.stepped)
+            filter_line_search(ws, problem, opts)
         } else {
             line_search(ws, problem, e, opts)
         };
@@ -456,17 +452,17 @@ pub(crate) fn line_search(ws: &mut Workspace, problem: &Problem, e: Expected, op
 }
 
 /// SQP's line search (Jordana et al. 2023, V-C) on the LQ step of
-/// [`Workspace::linear_step`] (`stepped`: it was rolled out): `α = 1, 1/2, ...` until the
-/// trial's (cost, gap 1-norm) is not dominated by the filter's pairs, which include the
-/// current point's.
-fn filter_line_search(ws: &mut Workspace, problem: &Problem, opts: &DdpOptions, stepped: bool) -> Step {
+/// [`Workspace::linear_step`] (none if it failed): `α = 1, 1/2, ...` until the trial's
+/// (cost, gap 1-norm) is not dominated by the filter's pairs, which include the current
+/// point's.
+fn filter_line_search(ws: &mut Workspace, problem: &Problem, opts: &DdpOptions) -> Step {
     let mut step = Step {
         alpha: 1.0,
         cost: None,
         expected: 0.0,
         decrease: 0.0,
     };
-    if !stepped {
+    if !ws.has_step() {
         return step;
     }
     let gap = ws.gap_l1();

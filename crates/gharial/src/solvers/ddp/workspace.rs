@@ -78,7 +78,8 @@ pub(crate) struct Workspace {
     /// SQP: the co-states of the last LQ step (the multipliers of the KKT test), the
     /// Lagrangian gradient, empty path multipliers, and the filter.
     lams: Vec<Vec<f64>>,
-    /// SQP: whether `lams` are the co-states of the last backward pass's step.
+    /// SQP: whether `lams` are the co-states of the last backward pass's step (it was
+    /// rolled out).
     lams_current: bool,
     gx: Vec<Vec<f64>>,
     gu: Vec<Vec<f64>>,
@@ -573,6 +574,12 @@ impl Workspace {
         }
         self.lams_current = true;
         true
+    }
+
+    /// SQP: whether the LQ step of the last backward pass was rolled out
+    /// ([`Workspace::linear_step`]).
+    pub fn has_step(&self) -> bool {
+        self.lams_current
     }
 
     /// SQP's KKT residual (20) at the current point: the largest entry of the
