@@ -51,10 +51,10 @@
 //!
 //! **Scenarios** ([`scenario`]): `solo-walk-mpc` (flat, command 0.2 m/s forward) and
 //! `solo-walk-mpc-slope` (0.1 rad), one ProxDDP iteration per 12 ms cycle, with the exact
-//! dynamics step ([`mpc_proxddp_options`]). The first
-//! horizon's guess is the converged solution of the first OCP from the standing state
-//! ([`WalkTask::first_plan`], proximal dynamics step). Metrics: base height above the ground under it
-//! relative to the standing height (min, max), the mean base velocity over the second
+//! dynamics step ([`mpc_proxddp_options`]). The first horizon's guess is the converged
+//! solution of the first OCP from the standing state ([`WalkTask::first_plan`], proximal
+//! dynamics step). Metrics: base height above the ground under it relative to the
+//! standing height (min, max), the mean base velocity over the second
 //! half of the run against the command (relative error), the largest friction-cone
 //! violation `‖f_t‖ − μ f_n` of the plant's stance forces recomputed at the recorded
 //! states and controls.
