@@ -315,6 +315,9 @@ fn small_matmul(
             *ai = lhs.row(i).try_as_row_major().expect("checked").as_slice();
         }
     }
+    if lhs_cols && !lower && with_fixed_len!(m, axpy_columns_fixed, (dst.rb_mut(), accum, &a[..k], rhs, alpha)) {
+        return true;
+    }
     for j in 0..n {
         let i0 = if lower { j.min(m) } else { 0 };
         let d = &mut dst
@@ -370,6 +373,35 @@ fn axpy_fixed<const M: usize>(d: &mut [f64], a: &[&[f64]], off: usize, s: &[f64]
         }
     }
     *d = acc;
+}
+
+/// The axpy loop of [`small_matmul`] over every column of a `dst` of `M` rows, the
+/// column kept in registers: `d = [d +] Σ_l (alpha rhs[l, j]) a[l]`, skipping zero
+/// `alpha rhs[l, j]` (the same sums in the same order).
+#[inline]
+fn axpy_columns_fixed<const M: usize>(
+    mut dst: MatMut<'_, f64>,
+    accum: Accum,
+    a: &[&[f64]],
+    rhs: MatRef<'_, f64>,
+    alpha: f64,
+) {
+    for j in 0..dst.ncols() {
+        let col = dst.rb_mut().col_mut(j).try_as_col_major_mut().expect("checked");
+        let d: &mut [f64; M] = col.as_slice_mut().try_into().expect("M rows");
+        let mut acc = if accum == Accum::Replace { [0.0; M] } else { *d };
+        for (l, al) in a.iter().enumerate() {
+            let sl = alpha * rhs[(l, j)];
+            if sl == 0.0 {
+                continue;
+            }
+            let c: &[f64; M] = al[..M].try_into().expect("M rows");
+            for i in 0..M {
+                acc[i] += sl * c[i];
+            }
+        }
+        *d = acc;
+    }
 }
 
 /// `d[i] += alpha * rows[i]ᵀb` for `b` of length `K`: the dot loop of [`small_matmul`]
@@ -476,6 +508,7 @@ mod tests {
         for (m, n, k) in [
             (1, 1, 1),
             (2, 3, 4),
+            (3, 48, 3),
             (4, 4, 4),
             (6, 5, 3),
             (8, 8, 8),
