@@ -44,6 +44,10 @@ struct Rows {
     at: Vec<f64>,
     /// Per row, the columns from its first to its last nonzero (or non-finite) entry.
     span: Vec<Range<usize>>,
+    /// Scratch of the span search: per row, the first nonzero column and one past the
+    /// last.
+    first: Vec<usize>,
+    last: Vec<usize>,
     /// Whether `at` holds the rows (the Jacobian was sparse).
     copied: bool,
     /// Whether every row is zero.
@@ -61,6 +65,8 @@ impl Rows {
         Self {
             at: vec![0.0; nr * n],
             span: vec![0..0; nr],
+            first: vec![0; nr],
+            last: vec![0; nr],
             copied: false,
             zero: true,
             unit: None,
@@ -74,25 +80,22 @@ impl Rows {
     fn load(&mut self, a: MatRef<'_, f64>, copy: impl FnOnce(usize) -> bool) {
         let (nr, n) = (a.nrows(), a.ncols());
         (self.nr, self.n) = (nr, n);
-        let span = &mut self.span[..nr];
-        // Start past every column: the first nonzero lowers it.
-        let none = Range {
-            start: usize::MAX,
-            end: 0,
-        };
-        span.iter_mut().for_each(|s| *s = none.clone());
+        // Per row, the first and one past the last nonzero column, from columns in
+        // increasing order (branch-free, so that the loop over a column's rows is
+        // vectorised); a row without one keeps `first = usize::MAX`.
+        let (first, last) = (&mut self.first[..nr], &mut self.last[..nr]);
+        first.fill(usize::MAX);
+        last.fill(0);
         for c in 0..n {
-            for (s, &v) in span.iter_mut().zip(contiguous(a, c)) {
-                if v != 0.0 {
-                    s.start = s.start.min(c);
-                    s.end = c + 1;
-                }
+            for ((f, l), &v) in first.iter_mut().zip(last.iter_mut()).zip(contiguous(a, c)) {
+                let nonzero = v != 0.0;
+                *f = if nonzero && *f == usize::MAX { c } else { *f };
+                *l = if nonzero { c + 1 } else { *l };
             }
         }
-        for s in span.iter_mut() {
-            if s.start == usize::MAX {
-                *s = 0..0;
-            }
+        let span = &mut self.span[..nr];
+        for ((s, &f), &l) in span.iter_mut().zip(&*first).zip(&*last) {
+            *s = if f == usize::MAX { 0..0 } else { f..l };
         }
         self.zero = span.iter().all(|s| s.is_empty());
         self.unit = span.first().map(|s| s.start).filter(|&c| {
