@@ -19,13 +19,38 @@ pub fn copy(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
             dst.rb_mut().col_mut(j).try_as_col_major_mut(),
         );
         if let (Some(s), Some(d)) = pair {
-            d.as_slice_mut().copy_from_slice(s.as_slice());
+            copy_slice(d.as_slice_mut(), s.as_slice());
             continue;
         }
         for i in 0..src.nrows() {
             dst[(i, j)] = src[(i, j)];
         }
     }
+}
+
+/// `d = s` for slices of equal length: blocks of 16 entries and then the rest moved as
+/// fixed-size arrays (inline vector moves, where a column's `copy_from_slice` is a
+/// `memcpy` call), and `copy_from_slice` past 48 entries.
+#[inline]
+fn copy_slice(d: &mut [f64], s: &[f64]) {
+    if d.len() > 48 {
+        return d.copy_from_slice(s);
+    }
+    let (mut d, mut s) = (d, s);
+    while d.len() > 16 {
+        let (d16, d_rest) = d.split_at_mut(16);
+        let (s16, s_rest) = s.split_at(16);
+        copy_fixed_slice::<16>(d16, s16);
+        (d, s) = (d_rest, s_rest);
+    }
+    with_fixed_len!(d.len(), copy_fixed_slice, (d, s));
+}
+
+/// `d = s` for slices of `N` entries.
+#[inline]
+fn copy_fixed_slice<const N: usize>(d: &mut [f64], s: &[f64]) {
+    let d: &mut [f64; N] = d.try_into().expect("N entries");
+    *d = *<&[f64; N]>::try_from(s).expect("N entries");
 }
 
 /// [`copy`] of column-major matrices with `M` rows: fixed-size column moves instead of
@@ -116,5 +141,23 @@ mod tests {
         let x: Vec<f64> = (0..11).map(|i| i as f64 - 3.0).collect();
         let y: Vec<f64> = (0..11).map(|i| 0.5 * i as f64).collect();
         assert_eq!(dot(&x, &y), x.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>());
+    }
+
+    #[test]
+    fn copies_of_every_column_length() {
+        // Fixed-size columns (up to 16), blocks of 16 and a rest (up to 48), plain
+        // slices beyond; into a view inside a larger matrix, whose border stays.
+        for m in [1, 5, 16, 17, 31, 32, 36, 47, 48, 49, 70] {
+            let a = filled(m, 3, m);
+            let mut big = Mat::<f64>::from_fn(m + 2, 5, |_, _| 7.0);
+            copy(big.as_mut().submatrix_mut(1, 1, m, 3), a.as_ref());
+            for j in 0..5 {
+                for i in 0..m + 2 {
+                    let inside = (1..=m).contains(&i) && (1..=3).contains(&j);
+                    let expected = if inside { a[(i - 1, j - 1)] } else { 7.0 };
+                    assert_eq!(big[(i, j)], expected, "{m} rows: ({i}, {j})");
+                }
+            }
+        }
     }
 }
