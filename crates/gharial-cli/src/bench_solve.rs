@@ -413,9 +413,9 @@ fn peers_solvers(args: &PeersArgs) -> Vec<(&'static str, SolverArgs)> {
             ..Default::default()
         };
         let solver = SolverArgs {
-            solver: SolverKind::ProxDdp,
             common: common.clone(),
             proxddp,
+            ..SolverArgs::new(SolverKind::ProxDdp)
         };
         (label, solver)
     };

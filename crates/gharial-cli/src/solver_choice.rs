@@ -345,6 +345,44 @@ impl ProxDdpArgs {
     }
 }
 
+/// ALTRO's options (overriding its defaults).
+#[derive(clap::Args, Debug, Clone, Default)]
+#[command(next_help_heading = "ALTRO options")]
+pub struct AltroArgs {
+    /// Start from the guess's states, the dynamics' violations carried by slack controls
+    /// (Howell et al. 2019, III-B), instead of the rollout of the guess's controls.
+    #[arg(long)]
+    pub infeasible_start: bool,
+    /// Backward pass on Cholesky factors (III-A).
+    #[arg(long)]
+    pub square_root: bool,
+    /// AL-iLQR alone, to the constraint tolerance, without the Newton projection of
+    /// Algorithm 2.
+    #[arg(long)]
+    pub no_projection: bool,
+    /// Initial penalty of every constraint (times its scale).
+    #[arg(long, value_parser = positive_real)]
+    pub penalty_initial: Option<f64>,
+    /// Penalty scaling factor (> 1).
+    #[arg(long, value_parser = positive_real)]
+    pub penalty_scaling: Option<f64>,
+}
+
+impl AltroArgs {
+    /// Overrides ALTRO's settings.
+    fn apply(&self, o: &mut AltroOptions) {
+        o.infeasible_start |= self.infeasible_start;
+        o.square_root |= self.square_root;
+        o.projected_newton &= !self.no_projection;
+        if let Some(v) = self.penalty_initial {
+            o.penalty_initial = v;
+        }
+        if let Some(v) = self.penalty_scaling {
+            o.penalty_scaling = v;
+        }
+    }
+}
+
 /// The solver and its options, as the command line gives them.
 #[derive(clap::Args, Debug, Clone)]
 pub struct SolverArgs {
@@ -357,6 +395,9 @@ pub struct SolverArgs {
     // ProxDDP's options.
     #[command(flatten)]
     pub proxddp: ProxDdpArgs,
+    // ALTRO's options.
+    #[command(flatten)]
+    pub altro: AltroArgs,
 }
 
 impl SolverArgs {
@@ -366,6 +407,7 @@ impl SolverArgs {
             solver,
             common: CommonArgs::default(),
             proxddp: ProxDdpArgs::default(),
+            altro: AltroArgs::default(),
         }
     }
 
@@ -412,11 +454,14 @@ impl SolverArgs {
             SolverOptions::BclDdp(o) => self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.ddp.num_threads),
             // ALTRO's tolerance is its constraint tolerance c_max, its iteration limit the
             // outer (multiplier) iterations.
-            SolverOptions::Altro(o) => self.common.apply(
-                &mut o.constraint_tolerance,
-                &mut o.iterations_outer,
-                &mut o.inner.num_threads,
-            ),
+            SolverOptions::Altro(o) => {
+                self.common.apply(
+                    &mut o.constraint_tolerance,
+                    &mut o.iterations_outer,
+                    &mut o.inner.num_threads,
+                );
+                self.altro.apply(o);
+            }
             SolverOptions::ProxNlp(o) => {
                 // Dense and single-threaded: --threads is refused by `check`.
                 let mut threads = 1;
@@ -652,27 +697,27 @@ const ALTRO_FIELDS: &[Field<AltroOptions>] = &[
     Field {
         name: "penalty_initial",
         value: |o| Setting::Real(o.penalty_initial),
-        flag: None,
+        flag: Some(("--penalty-initial", |a| a.altro.penalty_initial.is_some())),
     },
     Field {
         name: "penalty_scaling",
         value: |o| Setting::Real(o.penalty_scaling),
-        flag: None,
+        flag: Some(("--penalty-scaling", |a| a.altro.penalty_scaling.is_some())),
     },
     Field {
         name: "projected_newton",
         value: |o| Setting::Name(o.projected_newton.to_string()),
-        flag: None,
+        flag: Some(("--no-projection", |a| a.altro.no_projection)),
     },
     Field {
         name: "square_root",
         value: |o| Setting::Name(o.square_root.to_string()),
-        flag: None,
+        flag: Some(("--square-root", |a| a.altro.square_root)),
     },
     Field {
         name: "infeasible_start",
         value: |o| Setting::Name(o.infeasible_start.to_string()),
-        flag: None,
+        flag: Some(("--infeasible-start", |a| a.altro.infeasible_start)),
     },
     Field {
         name: "num_threads",

@@ -52,6 +52,8 @@ fn solve_args() -> impl Strategy<Value = Vec<String>> {
         Just("--step-acceptance"),
         Just("--merit"),
         Just("--hessian"),
+        Just("--penalty-initial"),
+        Just("--penalty-scaling"),
     ];
     // Every solver, and names that are none.
     let solver = proptest::option::of(prop_oneof![

@@ -157,6 +157,51 @@ fn step_acceptance_merit_and_dynamics_overrides_reach_the_solver() {
     assert!(stderr(&o).contains("filter"), "{}", stderr(&o));
 }
 
+/// ALTRO's own options reach it: with the authors' settings for the car escape and the
+/// infeasible start, the command line solves it to their 1e-8 (from the rollout of the
+/// guess's controls ALTRO does not, `tests/altro_escape.rs` of the catalogue).
+#[test]
+fn altro_options_reach_the_solver() {
+    let path = std::env::temp_dir().join(format!("gharial-cli-altro-{}.json", std::process::id()));
+    let path_str = path.to_str().expect("UTF-8 temp path");
+    let o = gharial(&[
+        "solve",
+        "car-escape",
+        "--solver",
+        "altro",
+        "--infeasible-start",
+        "--penalty-initial",
+        "10",
+        "--penalty-scaling",
+        "100",
+        "--tol",
+        "1e-8",
+        "--max-iters",
+        "20",
+        "--output",
+        path_str,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("infeasible_start true [option; default false]"),
+        "{}",
+        stdout(&o)
+    );
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    assert_eq!(doc["settings"]["infeasible_start"], "true");
+    assert_eq!(doc["settings"]["penalty_initial"], 10.0);
+    assert_eq!(doc["settings"]["penalty_scaling"], 100.0);
+    assert_eq!(doc["settings"]["projected_newton"], "true");
+    assert_eq!(doc["converged"], true);
+    // The solution's dynamics and constraints (wall discs, goal), evaluated here.
+    let ex = gharial_problems::build("car-escape").unwrap();
+    let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
+    let (lambdas, nus) = (vectors(&doc["lambdas"]), vectors(&doc["nus"]));
+    let kkt = kkt_residuals(&ex.problem, &xs, &us, &lambdas, &nus).unwrap();
+    assert!(kkt.primal() <= 1e-8, "{kkt:?}");
+}
+
 /// Every invalid invocation exits with code 2, names the offending option or value in
 /// its message, and runs nothing.
 #[test]
@@ -202,6 +247,20 @@ fn invalid_options_are_refused_before_any_work() {
             "--step-acceptance",
         ),
         (&["solve", "lqr", "--solver", "ddp", "--rollout", "linear"], "--rollout"),
+        (&["solve", "lqr", "--infeasible-start"], "--infeasible-start"),
+        (&["solve", "lqr", "--solver", "fddp", "--square-root"], "--square-root"),
+        (
+            &["solve", "lqr", "--solver", "altro", "--penalty-scaling", "0"],
+            "--penalty-scaling",
+        ),
+        (
+            &["solve", "lqr", "--solver", "altro", "--penalty-scaling", "0.5"],
+            "penalty_scaling",
+        ),
+        (
+            &["solve", "lqr", "--solver", "altro", "--penalty-initial", "nan"],
+            "--penalty-initial",
+        ),
         (
             &["solve", "lqr", "--solver", "fddp", "--output", unwritable],
             "cannot write",
