@@ -13,7 +13,7 @@ use clap::builder::PossibleValue;
 use gharial::error::Num;
 use gharial::nlp::ProxNlpOptions;
 use gharial::solvers::altro::AltroOptions;
-use gharial::solvers::bcl_ddp::BclDdpOptions;
+use gharial::solvers::bcl_ddp::{BclDdpOptions, Multipliers, PenaltyUpdate, Schedule};
 use gharial::solvers::csqp::CsqpOptions;
 use gharial::solvers::ddp::{DdpOptions, DdpVariant};
 use gharial::solvers::log::Table;
@@ -318,6 +318,20 @@ pub struct ProxDdpArgs {
 }
 
 impl ProxDdpArgs {
+    /// Overrides the settings ProxNLP shares with ProxDDP (same names and meanings).
+    fn apply_shared(&self, o: &mut ProxNlpOptions) {
+        if let Some(v) = self.mu_init {
+            o.mu_init = v;
+            o.mu_lower_bound = o.mu_lower_bound.min(v);
+        }
+        if let Some(v) = self.dyn_al_scale {
+            o.dyn_al_scale = v;
+        }
+        if let Some(v) = self.step_acceptance {
+            o.step_acceptance = v.into();
+        }
+    }
+
     /// Overrides ProxDDP's settings.
     fn apply(&self, o: &mut ProxDdpOptions) {
         if let Some(v) = self.mu_init {
@@ -383,6 +397,129 @@ impl AltroArgs {
     }
 }
 
+/// CSQP's options: its QP solver's (mim_solvers' names).
+#[derive(clap::Args, Debug, Clone, Default)]
+#[command(next_help_heading = "CSQP options")]
+pub struct CsqpArgs {
+    /// Absolute tolerance of the ADMM QP solves.
+    #[arg(long, value_parser = positive_real)]
+    pub eps_abs: Option<f64>,
+    /// Relative tolerance of the ADMM QP solves.
+    #[arg(long, value_parser = positive_real)]
+    pub eps_rel: Option<f64>,
+    /// ADMM iterations per QP at most.
+    #[arg(long, value_parser = positive_int)]
+    pub max_qp_iters: Option<usize>,
+}
+
+impl CsqpArgs {
+    /// Overrides CSQP's settings.
+    fn apply(&self, o: &mut CsqpOptions) {
+        if let Some(v) = self.eps_abs {
+            o.admm.eps_abs = v;
+        }
+        if let Some(v) = self.eps_rel {
+            o.admm.eps_rel = v;
+        }
+        if let Some(v) = self.max_qp_iters {
+            o.admm.max_iters = v;
+        }
+    }
+}
+
+/// BCL-DDP's multipliers (El Kazdadi et al. 2021, III).
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum MultipliersArg {
+    /// Constant multipliers (III-A).
+    Constant,
+    /// Affine multipliers with feedback (III-B).
+    Affine,
+}
+
+/// BCL-DDP's penalty growth.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum PenaltyUpdateArg {
+    /// `μ ← k μ` (`--penalty-factor k`).
+    Factor,
+    /// The adaptive rate of II-C with its growth cap.
+    Adaptive,
+}
+
+/// When BCL-DDP updates multipliers and penalty.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum ScheduleArg {
+    /// The bound-constrained Lagrangian rules (Alg. 1).
+    Bcl,
+    /// After every DDP iteration (Fig. 4's failing strategy, for comparisons).
+    EveryIteration,
+}
+
+/// BCL-DDP's inner DDP.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum InnerArg {
+    /// Single shooting.
+    Ddp,
+    /// Multiple shooting (III-C).
+    Fddp,
+}
+
+/// BCL-DDP's options (`--mu-init` is shared with ProxDDP).
+#[derive(clap::Args, Debug, Clone, Default)]
+#[command(next_help_heading = "BCL-DDP options")]
+pub struct BclDdpArgs {
+    /// Multipliers.
+    #[arg(long, value_enum)]
+    pub multipliers: Option<MultipliersArg>,
+    /// Penalty growth.
+    #[arg(long, value_enum)]
+    pub penalty_update: Option<PenaltyUpdateArg>,
+    /// Factor `k > 1` of a penalty increase.
+    #[arg(long, value_parser = positive_real)]
+    pub penalty_factor: Option<f64>,
+    /// When multipliers and penalty change.
+    #[arg(long, value_enum)]
+    pub schedule: Option<ScheduleArg>,
+    /// The inner DDP.
+    #[arg(long, value_enum)]
+    pub inner: Option<InnerArg>,
+}
+
+impl BclDdpArgs {
+    /// Overrides BCL-DDP's settings (and its initial penalty from `--mu-init`).
+    fn apply(&self, mu_init: Option<f64>, o: &mut BclDdpOptions) {
+        if let Some(v) = mu_init {
+            o.mu_init = v;
+        }
+        if let Some(v) = self.multipliers {
+            o.multipliers = match v {
+                MultipliersArg::Constant => Multipliers::Constant,
+                MultipliersArg::Affine => Multipliers::Affine,
+            };
+        }
+        if let Some(v) = self.penalty_update {
+            o.penalty = match v {
+                PenaltyUpdateArg::Factor => PenaltyUpdate::Factor,
+                PenaltyUpdateArg::Adaptive => PenaltyUpdate::Adaptive,
+            };
+        }
+        if let Some(v) = self.penalty_factor {
+            o.penalty_factor = v;
+        }
+        if let Some(v) = self.schedule {
+            o.schedule = match v {
+                ScheduleArg::Bcl => Schedule::Bcl,
+                ScheduleArg::EveryIteration => Schedule::EveryIteration,
+            };
+        }
+        if let Some(v) = self.inner {
+            o.ddp.variant = match v {
+                InnerArg::Ddp => DdpVariant::Ddp,
+                InnerArg::Fddp => DdpVariant::Fddp,
+            };
+        }
+    }
+}
+
 /// The solver and its options, as the command line gives them.
 #[derive(clap::Args, Debug, Clone)]
 pub struct SolverArgs {
@@ -398,6 +535,12 @@ pub struct SolverArgs {
     // ALTRO's options.
     #[command(flatten)]
     pub altro: AltroArgs,
+    // CSQP's options.
+    #[command(flatten)]
+    pub csqp: CsqpArgs,
+    // BCL-DDP's options.
+    #[command(flatten)]
+    pub bcl_ddp: BclDdpArgs,
 }
 
 impl SolverArgs {
@@ -408,6 +551,8 @@ impl SolverArgs {
             common: CommonArgs::default(),
             proxddp: ProxDdpArgs::default(),
             altro: AltroArgs::default(),
+            csqp: CsqpArgs::default(),
+            bcl_ddp: BclDdpArgs::default(),
         }
     }
 
@@ -451,7 +596,10 @@ impl SolverArgs {
                 self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads);
                 o.hessian = self.common.hessian.map_or(o.hessian, Into::into);
             }
-            SolverOptions::BclDdp(o) => self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.ddp.num_threads),
+            SolverOptions::BclDdp(o) => {
+                self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.ddp.num_threads);
+                self.bcl_ddp.apply(self.proxddp.mu_init, o);
+            }
             // ALTRO's tolerance is its constraint tolerance c_max, its iteration limit the
             // outer (multiplier) iterations.
             SolverOptions::Altro(o) => {
@@ -467,8 +615,12 @@ impl SolverArgs {
                 let mut threads = 1;
                 self.common.apply(&mut o.tol, &mut o.max_iters, &mut threads);
                 o.hessian = self.common.hessian.map_or(o.hessian, Into::into);
+                self.proxddp.apply_shared(o);
             }
-            SolverOptions::Csqp(o) => self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads),
+            SolverOptions::Csqp(o) => {
+                self.common.apply(&mut o.tol, &mut o.max_iters, &mut o.num_threads);
+                self.csqp.apply(o);
+            }
             // A solver without command-line options takes none (`check` refuses them).
             _ => {}
         }
@@ -740,22 +892,32 @@ const BCL_DDP_FIELDS: &[Field<BclDdpOptions>] = &[
     Field {
         name: "mu_init",
         value: |o| Setting::Real(o.mu_init),
-        flag: None,
+        flag: Some(("--mu-init", |a| a.proxddp.mu_init.is_some())),
     },
     Field {
         name: "multipliers",
         value: |o| Setting::Name(format!("{:?}", o.multipliers)),
-        flag: None,
+        flag: Some(("--multipliers", |a| a.bcl_ddp.multipliers.is_some())),
     },
     Field {
         name: "penalty",
         value: |o| Setting::Name(format!("{:?}", o.penalty)),
-        flag: None,
+        flag: Some(("--penalty-update", |a| a.bcl_ddp.penalty_update.is_some())),
+    },
+    Field {
+        name: "penalty_factor",
+        value: |o| Setting::Real(o.penalty_factor),
+        flag: Some(("--penalty-factor", |a| a.bcl_ddp.penalty_factor.is_some())),
+    },
+    Field {
+        name: "schedule",
+        value: |o| Setting::Name(format!("{:?}", o.schedule)),
+        flag: Some(("--schedule", |a| a.bcl_ddp.schedule.is_some())),
     },
     Field {
         name: "inner",
         value: |o| Setting::Name(o.ddp.variant.name().to_string()),
-        flag: None,
+        flag: Some(("--inner", |a| a.bcl_ddp.inner.is_some())),
     },
     Field {
         name: "num_threads",
@@ -778,17 +940,17 @@ const CSQP_FIELDS: &[Field<CsqpOptions>] = &[
     Field {
         name: "eps_abs",
         value: |o| Setting::Real(o.admm.eps_abs),
-        flag: None,
+        flag: Some(("--eps-abs", |a| a.csqp.eps_abs.is_some())),
     },
     Field {
         name: "eps_rel",
         value: |o| Setting::Real(o.admm.eps_rel),
-        flag: None,
+        flag: Some(("--eps-rel", |a| a.csqp.eps_rel.is_some())),
     },
     Field {
         name: "max_qp_iters",
         value: |o| Setting::Count(o.admm.max_iters),
-        flag: None,
+        flag: Some(("--max-qp-iters", |a| a.csqp.max_qp_iters.is_some())),
     },
     Field {
         name: "num_threads",
@@ -816,17 +978,17 @@ const PROXNLP_FIELDS: &[Field<ProxNlpOptions>] = &[
     Field {
         name: "mu_init",
         value: |o| Setting::Real(o.mu_init),
-        flag: None,
+        flag: Some(("--mu-init", |a| a.proxddp.mu_init.is_some())),
     },
     Field {
         name: "dyn_al_scale",
         value: |o| Setting::Real(o.dyn_al_scale),
-        flag: None,
+        flag: Some(("--dyn-al-scale", |a| a.proxddp.dyn_al_scale.is_some())),
     },
     Field {
         name: "step_acceptance",
         value: |o| Setting::Name(format!("{:?}", o.step_acceptance)),
-        flag: None,
+        flag: Some(("--step-acceptance", |a| a.proxddp.step_acceptance.is_some())),
     },
 ];
 

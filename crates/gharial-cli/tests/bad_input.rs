@@ -54,6 +54,10 @@ fn solve_args() -> impl Strategy<Value = Vec<String>> {
         Just("--hessian"),
         Just("--penalty-initial"),
         Just("--penalty-scaling"),
+        Just("--eps-abs"),
+        Just("--max-qp-iters"),
+        Just("--penalty-factor"),
+        Just("--schedule"),
     ];
     // Every solver, and names that are none.
     let solver = proptest::option::of(prop_oneof![

@@ -202,6 +202,93 @@ fn altro_options_reach_the_solver() {
     assert!(kkt.primal() <= 1e-8, "{kkt:?}");
 }
 
+/// The settings a `gharial solve --output` run reports, and its exit code.
+fn solve_settings(args: &[&str]) -> (Option<i32>, serde_json::Value) {
+    let path = std::env::temp_dir().join(format!("gharial-cli-settings-{}-{}.json", std::process::id(), args[1]));
+    let path_str = path.to_str().expect("UTF-8 temp path");
+    let o = gharial(&[args, &["--output", path_str]].concat());
+    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    (o.status.code(), doc)
+}
+
+/// CSQP's QP tolerances, BCL-DDP's strategies and ProxNLP's shared options reach the
+/// solvers; BCL-DDP with the penalty multiplied by 3 after every iteration stalls on
+/// the ECDDP cart-pole (the paper's Fig. 4) where the BCL rules converge.
+#[test]
+fn csqp_bcl_ddp_and_proxnlp_options_reach_the_solvers() {
+    let (code, doc) = solve_settings(&[
+        "solve",
+        "peers-lqr-box",
+        "--solver",
+        "csqp",
+        "--eps-abs",
+        "1e-6",
+        "--eps-rel",
+        "1e-7",
+        "--max-qp-iters",
+        "5000",
+    ]);
+    assert_eq!(code, Some(0));
+    assert_eq!(doc["settings"]["eps_abs"], 1e-6);
+    assert_eq!(doc["settings"]["eps_rel"], 1e-7);
+    assert_eq!(doc["settings"]["max_qp_iters"], 5000);
+
+    let fig4 = [
+        "solve",
+        "ecddp-cartpole",
+        "--solver",
+        "bcl-ddp",
+        "--schedule",
+        "every-iteration",
+        "--penalty-factor",
+        "3",
+    ];
+    let (code, doc) = solve_settings(&fig4);
+    assert_eq!(code, Some(1), "{doc}");
+    assert_eq!(doc["settings"]["schedule"], "EveryIteration");
+    assert_eq!(doc["settings"]["penalty_factor"], 3.0);
+    assert_eq!(doc["converged"], false);
+    let (code, doc) = solve_settings(&[
+        "solve",
+        "ecddp-cartpole",
+        "--solver",
+        "bcl-ddp",
+        "--penalty-update",
+        "adaptive",
+        "--multipliers",
+        "affine",
+        "--inner",
+        "fddp",
+        "--mu-init",
+        "100",
+    ]);
+    assert_eq!(code, Some(0), "{doc}");
+    for (key, value) in [
+        ("penalty", "Adaptive"),
+        ("multipliers", "Affine"),
+        ("inner", "fddp"),
+        ("schedule", "Bcl"),
+    ] {
+        assert_eq!(doc["settings"][key], value, "{key}");
+    }
+    assert_eq!(doc["settings"]["mu_init"], 100.0);
+
+    let (code, doc) = solve_settings(&[
+        "solve",
+        "lqr-bounds",
+        "--solver",
+        "proxnlp",
+        "--mu-init",
+        "1e-3",
+        "--step-acceptance",
+        "nonmonotone",
+    ]);
+    assert_eq!(code, Some(0), "{doc}");
+    assert_eq!(doc["settings"]["mu_init"], 1e-3);
+    assert_eq!(doc["settings"]["step_acceptance"], "NonmonotoneLinesearch");
+}
+
 /// Every invalid invocation exits with code 2, names the offending option or value in
 /// its message, and runs nothing.
 #[test]
@@ -248,6 +335,18 @@ fn invalid_options_are_refused_before_any_work() {
         ),
         (&["solve", "lqr", "--solver", "ddp", "--rollout", "linear"], "--rollout"),
         (&["solve", "lqr", "--infeasible-start"], "--infeasible-start"),
+        (&["solve", "lqr", "--eps-abs", "1e-3"], "--eps-abs"),
+        (
+            &["solve", "lqr", "--solver", "csqp", "--max-qp-iters", "0"],
+            "--max-qp-iters",
+        ),
+        (&["solve", "lqr", "--solver", "fddp", "--schedule", "bcl"], "--schedule"),
+        (&["solve", "lqr", "--solver", "bcl-ddp", "--inner", "sqp"], "--inner"),
+        (
+            &["solve", "lqr", "--solver", "bcl-ddp", "--penalty-factor", "1"],
+            "penalty_factor",
+        ),
+        (&["solve", "lqr", "--solver", "ddp", "--mu-init", "1"], "--mu-init"),
         (&["solve", "lqr", "--solver", "fddp", "--square-root"], "--square-root"),
         (
             &["solve", "lqr", "--solver", "altro", "--penalty-scaling", "0"],
