@@ -83,7 +83,7 @@ fn circle_mpc_cycles_do_not_allocate() {
     assert_cycles_do_not_allocate(300);
 }
 
-/// The scenario's full count, 10^5 cycles of each variant (4.4 min in release on two cores):
+/// The scenario's full count, 10^5 cycles of each variant (2.1 min in release on two cores):
 /// `cargo test --release -p gharial-problems --test mpc_scenarios -- --ignored`.
 #[test]
 #[ignore]
