@@ -116,3 +116,34 @@ fn multipliers_after_the_projection_certify_stationarity() {
         assert!(kkt.max() < 1e-6, "{name}: {kkt:?}");
     }
 }
+
+/// From the hanging pendulum at rest (the catalogue's guess), the terminal tip constraint
+/// is violated by the whole swing (2 m) and its gradient vanishes by symmetry: the
+/// augmented Lagrangian is stationary for every multiplier and penalty. ALTRO stops as
+/// `Stalled` once the penalties are at their largest instead of running out its outer
+/// iterations, at the guess; the constraint Jacobian there, recomputed here, is zero in
+/// the violated row. (ProxDDP, whose step also moves the multipliers, swings it up.)
+#[test]
+fn a_stationary_violated_start_stalls() {
+    let ex = gharial_problems::build("pendulum").unwrap();
+    let opts = AltroOptions::default();
+    let sol = solve(&ex, opts.clone());
+    assert_eq!(sol.status, Status::Stalled);
+    assert_eq!(sol.iterations, 0);
+    assert!(sol.al_iterations < opts.iterations_outer, "{}", sol.al_iterations);
+    assert!((sol.prim_err - 2.0).abs() < 1e-9, "{}", sol.prim_err);
+    let mut data = gharial::problem::ProblemData::new(&ex.problem, 1).unwrap();
+    data.evaluate(&ex.problem, &sol.xs, &sol.us);
+    data.compute_derivatives(&ex.problem, &sol.xs, &sol.us);
+    let n = ex.problem.horizon();
+    let (c, cd) = (&ex.problem.constraints(n)[0], &data.constraint_data(n)[0]);
+    let mut worst_row = (0, 0.0_f64);
+    for i in 0..c.nr() {
+        if cd.value()[i].abs() > worst_row.1 {
+            worst_row = (i, cd.value()[i].abs());
+        }
+    }
+    let row = cd.jx.as_ref().row(worst_row.0);
+    let gradient = (0..row.ncols()).map(|j| row[j].abs()).fold(0.0, f64::max);
+    assert!(worst_row.1 > 1.9 && gradient < 1e-12, "{worst_row:?} {gradient:e}");
+}

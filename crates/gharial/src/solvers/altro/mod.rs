@@ -36,7 +36,10 @@
 //! multipliers `λ`, `lambdas` the co-states of the inner solve's last backward pass; after
 //! a converged projection both are the multipliers of the projected point, from the
 //! projection's KKT system with the cost gradient (module `projection`), which certify
-//! its stationarity.
+//! its stationarity. It stops as `Stalled` when an inner solve with every penalty at
+//! `penalty_max` does not move the point while the constraints are violated: the
+//! augmented Lagrangian is stationary there for any multiplier (the violated
+//! constraints' gradients vanish, as at a symmetric start).
 //!
 //! - *Infeasible start* (III-B, [`AltroOptions::infeasible_start`]): slack controls `s`
 //!   with `x_{k+1} = f(x_k, u_k) ⊕ s_k` ((30); `+` on vector spaces) start from the guess's states with the slacks
@@ -447,6 +450,13 @@ fn outer_loop(
         push_record(sol, record, &opts.log, &TABLE);
         if let Some(status) = outer_stop(opts, inner_status, viol, tol, last, start) {
             return Ok((status, inner_iters, viol));
+        }
+        // With every penalty at its largest, an inner solve that does not move the point
+        // leaves nothing to change but multipliers that already failed to move it: the
+        // augmented Lagrangian is stationary at a violated point (the constraints'
+        // gradients vanish there, as at the hanging pendulum's symmetric start).
+        if iters == 0 && viol > tol && ws.max_penalty() >= opts.penalty_max {
+            return Ok((Status::Stalled, inner_iters, viol));
         }
         // (17)-(18), unless the constraints are met and only the cost tolerance is not.
         if viol > tol {
