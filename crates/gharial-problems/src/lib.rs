@@ -108,7 +108,9 @@ pub struct Example {
 impl Example {
     /// The options of the solver `name` (one of [`SolverOptions::names`]) for this
     /// problem: ProxDDP's are the recommended [`Example::proxddp`], ProxNLP's the ones of
-    /// those it shares (`ProxNlpOptions::from`), the other solvers' their defaults.
+    /// those it shares (`ProxNlpOptions::from`), ALTRO's the authors' where the paper's
+    /// result needs them ([`altro_table::recommended_altro`]), the other solvers' their
+    /// defaults.
     ///
     /// # Errors
     /// If `name` is not a solver's name (the message lists the valid names).
@@ -116,6 +118,9 @@ impl Example {
         match SolverOptions::from_name(name)? {
             SolverOptions::ProxDdp(_) => Ok(SolverOptions::ProxDdp(self.proxddp.clone())),
             SolverOptions::ProxNlp(_) => Ok(SolverOptions::ProxNlp((&self.proxddp).into())),
+            SolverOptions::Altro(defaults) => Ok(SolverOptions::Altro(
+                altro_table::recommended_altro(self.name).unwrap_or(defaults),
+            )),
             defaults => Ok(defaults),
         }
     }
@@ -428,5 +433,23 @@ mod tests {
         }
         let e = ex.options("ipopt").unwrap_err().to_string();
         assert!(e.contains("unknown solver `ipopt`"), "{e}");
+    }
+
+    /// ALTRO on the car escape and the quadrotor maze starts from the problems' states
+    /// (infeasible start) with the authors' penalties; elsewhere its defaults.
+    #[test]
+    fn altro_takes_the_recommended_settings_where_there_are_some() {
+        use gharial::solvers::altro::AltroOptions;
+        for (name, penalty, tol) in [("car-escape", 10.0, 1e-8), ("quadrotor-maze", 0.1, 1e-6)] {
+            let ex = build(name).unwrap();
+            let SolverOptions::Altro(o) = ex.options("altro").unwrap() else {
+                panic!("{name}: not ALTRO's options");
+            };
+            assert!(o.infeasible_start, "{name}");
+            assert_eq!((o.penalty_initial, o.constraint_tolerance), (penalty, tol), "{name}");
+        }
+        let ex = build("block-move").unwrap();
+        let expected = SolverOptions::Altro(AltroOptions::default());
+        assert_eq!(format!("{:?}", ex.options("altro").unwrap()), format!("{expected:?}"));
     }
 }
