@@ -47,7 +47,9 @@
 //!   the augmented Lagrangian, and the projection closes what is left of the gaps.
 //! - *Projection* (Algorithm 2, [`AltroOptions::projected_newton`]): module `projection`.
 //!
-//! Not implemented: minimum-time problems (III-C).
+//! Minimum-time problems (III-C) are built at the problem level
+//! ([`crate::problem::MinimumTime`]: the time step as a control), which ALTRO solves as any
+//! other problem.
 
 mod al_cost;
 mod options;
