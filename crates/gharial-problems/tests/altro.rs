@@ -147,3 +147,19 @@ fn a_stationary_violated_start_stalls() {
     let gradient = (0..row.ncols()).map(|j| row[j].abs()).fold(0.0, f64::max);
     assert!(worst_row.1 > 1.9 && gradient < 1e-12, "{worst_row:?} {gradient:e}");
 }
+
+/// The Solo-12 centre-of-mass circle's guess (the standing state and the quasi-static
+/// torques at every node) does not roll out over its 5 s (the state is non-finite by
+/// node 181): ALTRO's start refuses it with an error that names the infeasible start.
+#[test]
+fn a_guess_that_does_not_roll_out_is_an_error_naming_the_infeasible_start() {
+    let ex = gharial_problems::build("solo-com-circle").unwrap();
+    let mut s = Altro::new(AltroOptions::default());
+    s.setup(&ex.problem).unwrap();
+    let err = s
+        .solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0))
+        .unwrap_err();
+    assert!(matches!(err, gharial::Error::NonFinite { .. }), "{err}");
+    let msg = err.to_string();
+    assert!(msg.contains("rollout") && msg.contains("infeasible_start"), "{msg}");
+}

@@ -245,7 +245,13 @@ impl Workspace {
             u[g.len()..].fill(0.0);
         }
         if !infeasible {
-            return self.data.rollout(problem, &mut self.xs, guess.us);
+            return self.data.rollout(problem, &mut self.xs, guess.us).map_err(|e| match e {
+                Error::NonFinite { what } => Error::non_finite(format!(
+                    "{what}: the guess's controls do not roll out from x_0 (the infeasible start, option \
+                     `infeasible_start`, starts from the guess's states instead)"
+                )),
+                e => e,
+            });
         }
         self.data.evaluate(problem, &self.xs, guess.us);
         for (t, (u, g)) in self.us.iter_mut().zip(guess.us).enumerate() {
