@@ -107,7 +107,7 @@ pub(crate) use symmetric::{
 };
 #[cfg(test)]
 pub(crate) use views::col;
-pub(crate) use views::{as_mat, as_mat_mut, col_of, col_of_mut};
+pub(crate) use views::{as_mat, as_mat_mut, col_of, col_of_mut, col_slice_mut};
 
 /// Inertia of a symmetric matrix: numbers of positive, negative and zero eigenvalues.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -6,7 +6,7 @@
 use faer::prelude::ReborrowMut;
 use faer::{MatMut, MatRef};
 
-use super::views::{col_fixed, col_fixed_mut, columns_fixed};
+use super::views::{col_fixed, col_fixed_mut, col_slice, col_slice_mut, columns_fixed};
 
 /// Copies the lower triangle of a square matrix into its upper triangle.
 pub(crate) fn symmetrize_from_lower(mut m: MatMut<'_, f64>) {
@@ -31,9 +31,6 @@ pub(crate) fn symmetrize_from_lower(mut m: MatMut<'_, f64>) {
 /// entries of those rows in one store (a slice per column instead of two indexed
 /// accesses per entry); the 4 x 4 diagonal blocks entry by entry.
 fn symmetrize_from_lower_by_columns(mut m: MatMut<'_, f64>) {
-    fn slice(c: MatRef<'_, f64>, j: usize) -> &[f64] {
-        c.col(j).try_as_col_major().expect("column-major").as_slice()
-    }
     let n = m.nrows();
     for j in (0..n).step_by(4) {
         let w = 4.min(n - j);
@@ -48,14 +45,15 @@ fn symmetrize_from_lower_by_columns(mut m: MatMut<'_, f64>) {
         let (left, mut right) = m.rb_mut().split_at_col_mut(j + 4);
         let left = left.as_ref();
         let s = [
-            slice(left, j),
-            slice(left, j + 1),
-            slice(left, j + 2),
-            slice(left, j + 3),
+            col_slice(left, j),
+            col_slice(left, j + 1),
+            col_slice(left, j + 2),
+            col_slice(left, j + 3),
         ];
         for (k, i) in (j + 4..n).enumerate() {
-            let d = right.rb_mut().col_mut(k).try_as_col_major_mut().expect("column-major");
-            let d: &mut [f64; 4] = (&mut d.as_slice_mut()[j..j + 4]).try_into().expect("four rows");
+            let d: &mut [f64; 4] = (&mut col_slice_mut(right.rb_mut(), k)[j..j + 4])
+                .try_into()
+                .expect("four rows");
             *d = [s[0][i], s[1][i], s[2][i], s[3][i]];
         }
     }

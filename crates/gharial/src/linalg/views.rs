@@ -69,6 +69,21 @@ pub(super) fn columns_fixed<const N: usize>(m: MatRef<'_, f64>) -> [[f64; N]; N]
     a
 }
 
+/// Column `j` of a column-major view (unit row stride) as a slice.
+#[inline]
+pub(crate) fn col_slice(m: MatRef<'_, f64>, j: usize) -> &[f64] {
+    m.col(j).try_as_col_major().expect("a column-major view").as_slice()
+}
+
+/// Column `j` of a column-major mutable view (unit row stride) as a slice.
+#[inline]
+pub(crate) fn col_slice_mut(m: MatMut<'_, f64>, j: usize) -> &mut [f64] {
+    m.col_mut(j)
+        .try_as_col_major_mut()
+        .expect("a column-major view")
+        .as_slice_mut()
+}
+
 /// Column `j` of a column-major matrix with `N` rows as a fixed-size array.
 #[inline]
 pub(super) fn col_fixed<const N: usize>(m: MatRef<'_, f64>, j: usize) -> &[f64; N] {

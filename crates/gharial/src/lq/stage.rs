@@ -1218,14 +1218,6 @@ struct KktFactor {
     gather: Mat<f64>,
 }
 
-/// Column `j` of a column-major matrix as a slice.
-fn column(m: MatMut<'_, f64>, j: usize) -> &mut [f64] {
-    m.col_mut(j)
-        .try_as_col_major_mut()
-        .expect("a column-major right-hand side")
-        .as_slice_mut()
-}
-
 impl KktFactor {
     /// For `nu` controls, `nc` constraint rows and right-hand sides of up to `max_rhs`
     /// columns.
@@ -1269,14 +1261,20 @@ impl KktFactor {
             let (m, c) = (self.coupled.len(), rhs.ncols());
             let mut g = self.gather.as_mut().submatrix_mut(0, 0, m, c);
             for j in 0..c {
-                let (src, dst) = (column(rhs.rb_mut(), j), column(g.rb_mut(), j));
+                let (src, dst) = (
+                    linalg::col_slice_mut(rhs.rb_mut(), j),
+                    linalg::col_slice_mut(g.rb_mut(), j),
+                );
                 for (d, &r) in dst.iter_mut().zip(&self.coupled) {
                     *d = src[r];
                 }
             }
             self.ldlt.solve_in_place(g.rb_mut());
             for j in 0..c {
-                let (dst, src) = (column(rhs.rb_mut(), j), column(g.rb_mut(), j));
+                let (dst, src) = (
+                    linalg::col_slice_mut(rhs.rb_mut(), j),
+                    linalg::col_slice_mut(g.rb_mut(), j),
+                );
                 for (s, &r) in src.iter().zip(&self.coupled) {
                     dst[r] = *s;
                 }
