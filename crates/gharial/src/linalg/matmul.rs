@@ -7,7 +7,7 @@ use faer::prelude::ReborrowMut;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::reduce::{dot, dot_fixed};
-use super::views::{col_fixed, col_fixed_mut};
+use super::views::{col_fixed, col_fixed_mut, col_slice};
 
 /// Products with at most this many multiply-adds use the loops of [`small_matmul`]: faer's
 /// fixed cost per call (dispatch, blocking) dominates below it (measured: `Aᵀ B` for 4 x 4
@@ -113,34 +113,8 @@ fn full_from_rows(dst: MatMut<'_, f64>, accum: Accum, lhs: MatRef<'_, f64>, rhs:
             tl[i] = v;
         }
     }
-    with_fixed_len!(m, full_from_columns_fixed, (dst, accum, &t[..k], rhs, alpha))
-}
-
-/// [`full_from_rows`] for `m = M`, `t[l]` the column `l` of `lhs`.
-#[inline]
-fn full_from_columns_fixed<const M: usize>(
-    mut dst: MatMut<'_, f64>,
-    accum: Accum,
-    t: &[[f64; MAX_SMALL_DIM]],
-    rhs: MatRef<'_, f64>,
-    alpha: f64,
-) {
-    for j in 0..dst.ncols() {
-        let d = col_fixed_mut::<M>(dst.rb_mut(), j);
-        let mut acc = if accum == Accum::Replace { [0.0; M] } else { *d };
-        let b = &rhs.col(j).try_as_col_major().expect("checked").as_slice()[..t.len()];
-        for (tl, &bl) in t.iter().zip(b) {
-            let s = alpha * bl;
-            if s == 0.0 {
-                continue;
-            }
-            let c: &[f64; M] = tl[..M].try_into().expect("M rows");
-            for i in 0..M {
-                acc[i] += s * c[i];
-            }
-        }
-        *d = acc;
-    }
+    let cols: [&[f64]; MAX_SMALL_DIM] = std::array::from_fn(|l| &t[l][..]);
+    with_fixed_len!(m, axpy_columns_fixed, (dst, accum, &cols[..k], rhs, alpha))
 }
 
 /// Lower triangle of `q += [A B]ᵀ P [A B]` (`P`: `ny × ny`, `A`: `ny × nx`, `B`: `ny × nu`,
@@ -315,7 +289,8 @@ fn small_matmul(
             *ai = lhs.row(i).try_as_row_major().expect("checked").as_slice();
         }
     }
-    if lhs_cols && !lower && with_fixed_len!(m, axpy_columns_fixed, (dst.rb_mut(), accum, &a[..k], rhs, alpha)) {
+    let columns = lhs_cols && !lower && rhs.row_stride() == 1;
+    if columns && with_fixed_len!(m, axpy_columns_fixed, (dst.rb_mut(), accum, &a[..k], rhs, alpha)) {
         return true;
     }
     for j in 0..n {
@@ -363,7 +338,16 @@ fn small_matmul(
 fn axpy_fixed<const M: usize>(d: &mut [f64], a: &[&[f64]], off: usize, s: &[f64]) {
     let d: &mut [f64; M] = d.try_into().expect("M rows");
     let mut acc = *d;
-    for (al, &sl) in a.iter().zip(s) {
+    add_columns(&mut acc, a, off, |l| s[l]);
+    *d = acc;
+}
+
+/// `acc[i] += Σ_l s(l) a[l][off + i]`, `l` in order, skipping zero `s(l)`: the column sum
+/// of every axpy kernel of this module.
+#[inline(always)]
+fn add_columns<const M: usize>(acc: &mut [f64; M], a: &[&[f64]], off: usize, s: impl Fn(usize) -> f64) {
+    for (l, al) in a.iter().enumerate() {
+        let sl = s(l);
         if sl == 0.0 {
             continue;
         }
@@ -372,11 +356,10 @@ fn axpy_fixed<const M: usize>(d: &mut [f64], a: &[&[f64]], off: usize, s: &[f64]
             acc[i] += sl * c[i];
         }
     }
-    *d = acc;
 }
 
-/// The axpy loop of [`small_matmul`] over every column of a `dst` of `M` rows, the
-/// column kept in registers: `d = [d +] Σ_l (alpha rhs[l, j]) a[l]`, skipping zero
+/// The axpy loop of [`small_matmul`] over every column of a `dst` of `M` rows (`rhs`
+/// column-major), the column kept in registers: `d = [d +] Σ_l (alpha rhs[l, j]) a[l]`, skipping zero
 /// `alpha rhs[l, j]` (the same sums in the same order).
 #[inline]
 fn axpy_columns_fixed<const M: usize>(
@@ -387,19 +370,10 @@ fn axpy_columns_fixed<const M: usize>(
     alpha: f64,
 ) {
     for j in 0..dst.ncols() {
-        let col = dst.rb_mut().col_mut(j).try_as_col_major_mut().expect("checked");
-        let d: &mut [f64; M] = col.as_slice_mut().try_into().expect("M rows");
+        let d = col_fixed_mut::<M>(dst.rb_mut(), j);
         let mut acc = if accum == Accum::Replace { [0.0; M] } else { *d };
-        for (l, al) in a.iter().enumerate() {
-            let sl = alpha * rhs[(l, j)];
-            if sl == 0.0 {
-                continue;
-            }
-            let c: &[f64; M] = al[..M].try_into().expect("M rows");
-            for i in 0..M {
-                acc[i] += sl * c[i];
-            }
-        }
+        let b = &col_slice(rhs, j)[..a.len()];
+        add_columns(&mut acc, a, 0, |l| alpha * b[l]);
         *d = acc;
     }
 }
