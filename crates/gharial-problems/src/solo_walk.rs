@@ -124,7 +124,7 @@ use gharial::dynamics::{Dynamics, SemiImplicitEuler};
 use gharial::functions::{Slice, StageFunction, Unary};
 use gharial::mpc::{MpcOptions, Plant, Record};
 use gharial::problem::{Problem, StageConstraint, StageModel};
-use gharial::solvers::proxddp::{DynamicsStep, ProxDdp, ProxDdpOptions, Rollout};
+use gharial::solvers::proxddp::{ProxDdp, ProxDdpOptions, Rollout};
 use gharial::solvers::{InitialGuess, Solver};
 use gharial::spaces::Manifold;
 use gharial::{Error, Result};
@@ -1008,13 +1008,11 @@ pub fn proxddp_options() -> ProxDdpOptions {
 }
 
 /// The ProxDDP settings of the MPC cycles: [`proxddp_options`] with the exact dynamics
-/// step ([`DynamicsStep::Exact`]). The proximal step's `(I + mu_d P')⁻¹ P'` costs a
-/// fifth of a cycle's instructions (41.6 M against 32.8 M per cycle), and with the
-/// gaps of the previous cycle's step about closed the two steps differ by terms of
-/// order `mu_d`: the closed-loop metrics agree to the fourth digit (flat, ±0.1 rad,
-/// 0.2 rad, `--speed 0.3`, a push and a payload).
+/// step ([`crate::mpc::cycle_proxddp_options`]; 32.8 M instructions per cycle against
+/// 41.6 M with the proximal step, the closed-loop metrics the same to the fourth digit on
+/// flat ground, ±0.1 rad, 0.2 rad, `--speed 0.3`, a push and a payload).
 pub fn mpc_proxddp_options() -> ProxDdpOptions {
-    proxddp_options().with(|o| o.dynamics_step = DynamicsStep::Exact)
+    crate::mpc::cycle_proxddp_options(proxddp_options())
 }
 
 /// The closed-loop scenario (module documentation) on ground tilted by `slope` (rad)

@@ -97,7 +97,7 @@ use gharial::costs::{CostStack, QuadraticResidualCost, QuadraticStateCost};
 use gharial::dynamics::{Dynamics, SemiImplicitEuler};
 use gharial::functions::{LinearComposition, StageFunctionData, Unary, UnaryFunction};
 use gharial::problem::{Problem, StageConstraint, StageModel};
-use gharial::solvers::proxddp::{DynamicsStep, ProxDdpOptions, Rollout};
+use gharial::solvers::proxddp::{ProxDdpOptions, Rollout};
 use gharial::spaces::Manifold;
 use gharial::{Error, Result};
 use gharial_multibody::{Model, RootJoint};
@@ -542,11 +542,8 @@ pub fn scenario_with(variant: CircleVariant, mismatch: crate::mpc::Mismatch) -> 
     let n = task.running.len();
     let shifted = task.clone();
     let measured = task.clone();
-    // The cycles take the exact dynamics step: with the constraints, the catalogue's
-    // problems take the proximal one, whose `(I + mu_d P')⁻¹ P'` per stage the exact step
-    // skips; the closed loops' metrics are the same to the printed digits.
     let mut example = example(&task)?;
-    example.proxddp.dynamics_step = DynamicsStep::Exact;
+    example.proxddp = crate::mpc::cycle_proxddp_options(example.proxddp);
     Ok(crate::mpc::MpcScenario {
         name,
         example,
