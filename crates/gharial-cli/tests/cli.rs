@@ -233,6 +233,7 @@ fn csqp_bcl_ddp_and_proxnlp_options_reach_the_solvers() {
     assert_eq!(doc["settings"]["eps_abs"], 1e-6);
     assert_eq!(doc["settings"]["eps_rel"], 1e-7);
     assert_eq!(doc["settings"]["max_qp_iters"], 5000);
+    assert_kkt_point("peers-lqr-box", &doc, 1e-6);
 
     let fig4 = [
         "solve",
@@ -287,6 +288,17 @@ fn csqp_bcl_ddp_and_proxnlp_options_reach_the_solvers() {
     assert_eq!(code, Some(0), "{doc}");
     assert_eq!(doc["settings"]["mu_init"], 1e-3);
     assert_eq!(doc["settings"]["step_acceptance"], "NonmonotoneLinesearch");
+    assert_kkt_point("lqr-bounds", &doc, 1e-6);
+}
+
+/// The solution of `solve --output` on `problem` satisfies the KKT conditions to `tol`,
+/// recomputed here from its states, controls and multipliers.
+fn assert_kkt_point(problem: &str, doc: &serde_json::Value, tol: f64) {
+    let ex = gharial_problems::build(problem).unwrap();
+    let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
+    let (lambdas, nus) = (vectors(&doc["lambdas"]), vectors(&doc["nus"]));
+    let kkt = kkt_residuals(&ex.problem, &xs, &us, &lambdas, &nus).unwrap();
+    assert!(kkt.max() <= tol, "{problem}: {kkt:?}");
 }
 
 /// Every invalid invocation exits with code 2, names the offending option or value in
