@@ -7,7 +7,7 @@ use faer::prelude::ReborrowMut;
 use faer::{Accum, MatMut, MatRef, Par};
 
 use super::reduce::{dot, dot_fixed};
-use super::views::{col_fixed, col_fixed_mut, col_slice};
+use super::views::{col_fixed, col_fixed_mut};
 
 /// Products with at most this many multiply-adds use the loops of [`small_matmul`]: faer's
 /// fixed cost per call (dispatch, blocking) dominates below it (measured: `Aᵀ B` for 4 x 4
@@ -113,8 +113,7 @@ fn full_from_rows(dst: MatMut<'_, f64>, accum: Accum, lhs: MatRef<'_, f64>, rhs:
             tl[i] = v;
         }
     }
-    let cols: [&[f64]; MAX_SMALL_DIM] = std::array::from_fn(|l| &t[l][..]);
-    with_fixed_len!(m, axpy_columns_fixed, (dst, accum, &cols[..k], rhs, alpha))
+    with_fixed_len!(m, axpy_columns_fixed, (dst, accum, &t[..k], rhs, alpha))
 }
 
 /// Lower triangle of `q += [A B]ᵀ P [A B]` (`P`: `ny × ny`, `A`: `ny × nx`, `B`: `ny × nu`,
@@ -289,8 +288,7 @@ fn small_matmul(
             *ai = lhs.row(i).try_as_row_major().expect("checked").as_slice();
         }
     }
-    let columns = lhs_cols && !lower && rhs.row_stride() == 1;
-    if columns && with_fixed_len!(m, axpy_columns_fixed, (dst.rb_mut(), accum, &a[..k], rhs, alpha)) {
+    if lhs_cols && !lower && with_fixed_len!(m, axpy_columns_fixed, (dst.rb_mut(), accum, &a[..k], rhs, alpha)) {
         return true;
     }
     for j in 0..n {
@@ -338,42 +336,48 @@ fn small_matmul(
 fn axpy_fixed<const M: usize>(d: &mut [f64], a: &[&[f64]], off: usize, s: &[f64]) {
     let d: &mut [f64; M] = d.try_into().expect("M rows");
     let mut acc = *d;
-    add_columns(&mut acc, a, off, |l| s[l]);
+    add_columns(&mut acc, a, off, s.iter().copied());
     *d = acc;
 }
 
-/// `acc[i] += Σ_l s(l) a[l][off + i]`, `l` in order, skipping zero `s(l)`: the column sum
-/// of every axpy kernel of this module.
+/// `acc[i] += Σ_l s_l a[l][off + i]` over the pairs of `a` and `s`, `l` in order,
+/// skipping zero `s_l`: the column sum of every axpy kernel of this module.
 #[inline(always)]
-fn add_columns<const M: usize>(acc: &mut [f64; M], a: &[&[f64]], off: usize, s: impl Fn(usize) -> f64) {
-    for (l, al) in a.iter().enumerate() {
-        let sl = s(l);
+fn add_columns<const M: usize>(
+    acc: &mut [f64; M],
+    a: &[impl AsRef<[f64]>],
+    off: usize,
+    s: impl IntoIterator<Item = f64>,
+) {
+    for (al, sl) in a.iter().zip(s) {
         if sl == 0.0 {
             continue;
         }
-        let c: &[f64; M] = al[off..off + M].try_into().expect("M rows");
+        let c: &[f64; M] = al.as_ref()[off..off + M].try_into().expect("M rows");
         for i in 0..M {
             acc[i] += sl * c[i];
         }
     }
 }
 
-/// The axpy loop of [`small_matmul`] over every column of a `dst` of `M` rows (`rhs`
-/// column-major), the column kept in registers: `d = [d +] Σ_l (alpha rhs[l, j]) a[l]`, skipping zero
+/// The axpy loop of [`small_matmul`] over every column of a `dst` of `M` rows, the
+/// column kept in registers: `d = [d +] Σ_l (alpha rhs[l, j]) a[l]`, skipping zero
 /// `alpha rhs[l, j]` (the same sums in the same order).
 #[inline]
 fn axpy_columns_fixed<const M: usize>(
     mut dst: MatMut<'_, f64>,
     accum: Accum,
-    a: &[&[f64]],
+    a: &[impl AsRef<[f64]>],
     rhs: MatRef<'_, f64>,
     alpha: f64,
 ) {
     for j in 0..dst.ncols() {
         let d = col_fixed_mut::<M>(dst.rb_mut(), j);
         let mut acc = if accum == Accum::Replace { [0.0; M] } else { *d };
-        let b = &col_slice(rhs, j)[..a.len()];
-        add_columns(&mut acc, a, 0, |l| alpha * b[l]);
+        match rhs.col(j).try_as_col_major() {
+            Some(b) => add_columns(&mut acc, a, 0, b.as_slice().iter().map(|&v| alpha * v)),
+            None => add_columns(&mut acc, a, 0, (0..a.len()).map(|l| alpha * rhs[(l, j)])),
+        }
         *d = acc;
     }
 }
