@@ -18,7 +18,7 @@
 use crate::data::{Data, check_data};
 use crate::derivatives::{rnea_derivatives_kernel, velocity_pass};
 use crate::dynamics::{factor_mass_matrix, mass_matrix_column, minv_from_factor};
-use crate::error::{Error, Result, check_result_vec, check_vec};
+use crate::error::{Error, Result, check_results, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
 use crate::lie::{jlog6_blocks, log6};
 use crate::linalg::{DofTree, add_combination, axpy, cholesky_factor, cholesky_solve, ltdl_solve_rows};
@@ -383,8 +383,10 @@ pub fn constraint_dynamics(
             .sum();
         cdata.ddq[k] += s;
     }
-    check_result_vec("constrained ddq", &cdata.ddq)?;
-    check_result_vec("contact forces lambda", &cdata.lambda)?;
+    check_results(&[
+        ("constrained ddq", &cdata.ddq),
+        ("contact forces lambda", &cdata.lambda),
+    ])?;
     data.ddq.copy_from_slice(&cdata.ddq);
     cdata.solved = true;
     Ok(())
@@ -720,17 +722,14 @@ fn solution_derivatives(model: &Model, data: &mut Data, cdata: &mut ContactData)
     for (x, y) in cdata.dl_dtau.iter_mut().zip(&cdata.qt_linv[..nc * nv]) {
         *x = -y;
     }
-    for (what, x) in [
-        ("ddq_dq", &cdata.ddq_dq[..]),
+    check_results(&[
+        ("ddq_dq", &cdata.ddq_dq),
         ("ddq_dv", &cdata.ddq_dv),
         ("ddq_dtau", &cdata.pq[..nv * nv]),
         ("dlambda_dq", &cdata.dl_dq),
         ("dlambda_dv", &cdata.dl_dv),
         ("dlambda_dtau", &cdata.dl_dtau),
-    ] {
-        check_result_vec(what, x)?;
-    }
-    Ok(())
+    ])
 }
 
 /// The blocks of the inverse KKT matrix at the last `constraint_dynamics`: `M⁻¹` (from

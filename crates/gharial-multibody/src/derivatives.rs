@@ -19,7 +19,7 @@
 
 use crate::data::{Data, LEFT_ABA, check_data};
 use crate::dynamics::{aba_unchecked, factor_mass_matrix, minv_from_factor};
-use crate::error::{Error, Result, check_result, check_result_mat, check_result_vec, check_vec};
+use crate::error::{Error, Result, check_result, check_result_mat, check_results, check_vec};
 use crate::kinematics::{
     check_kinematics, express_motion, frame_placement_of, jacobian_step, joint_motion, placement_step,
 };
@@ -356,10 +356,12 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[
 
 /// Checks `tau`, `dtau_dq`, `dtau_dv` and `M` of the last RNEA derivatives.
 fn check_rnea_derivatives(data: &Data) -> Result<()> {
-    check_result_vec("tau", &data.tau)?;
-    check_result_vec("dtau_dq", &data.dtau_dq)?;
-    check_result_vec("dtau_dv", &data.dtau_dv)?;
-    check_result_vec("mass matrix", &data.m)
+    check_results(&[
+        ("tau", &data.tau),
+        ("dtau_dq", &data.dtau_dq),
+        ("dtau_dv", &data.dtau_dv),
+        ("mass matrix", &data.m),
+    ])
 }
 
 /// [`rnea_derivatives_kernel`] into `data.dtau_dq`, `data.dtau_dv`, `data.m`.
@@ -405,12 +407,14 @@ pub fn compute_aba_derivatives_reusing_aba(
     aba_derivatives(model, data, q, v, tau, reuse)
 }
 
+/// `reuse`: the last algorithm on `data` was an [`crate::aba`] at these very `(q, v, tau)`,
+/// which checked them and `ddq`.
 fn aba_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[f64], reuse: bool) -> Result<()> {
-    model.check_configuration("q", q)?;
     check_data(model, data)?;
-    check_vec("v", v, model.nv)?;
-    check_vec("tau", tau, model.nv)?;
     if !reuse {
+        model.check_configuration("q", q)?;
+        check_vec("v", v, model.nv)?;
+        check_vec("tau", tau, model.nv)?;
         aba_unchecked(model, data, q, v, tau)?;
     }
     let ddq = std::mem::take(&mut data.ddq);
@@ -421,9 +425,14 @@ fn aba_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[
     let tree = model.dof_tree(&data.subtree_end);
     minv_times_tree_sparse(&tree, &data.minv, &data.dtau_dq, &mut data.ddq_dq, &mut data.terms);
     minv_times_tree_sparse(&tree, &data.minv, &data.dtau_dv, &mut data.ddq_dv, &mut data.terms);
-    check_result_vec("ddq", &data.ddq)?;
-    check_rnea_derivatives(data)?;
-    check_result_vec("inverse mass matrix", &data.minv)?;
-    check_result_vec("ddq_dq", &data.ddq_dq)?;
-    check_result_vec("ddq_dv", &data.ddq_dv)
+    check_results(&[
+        ("ddq", &data.ddq),
+        ("tau", &data.tau),
+        ("dtau_dq", &data.dtau_dq),
+        ("dtau_dv", &data.dtau_dv),
+        ("mass matrix", &data.m),
+        ("inverse mass matrix", &data.minv),
+        ("ddq_dq", &data.ddq_dq),
+        ("ddq_dv", &data.ddq_dv),
+    ])
 }

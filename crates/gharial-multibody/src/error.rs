@@ -178,6 +178,22 @@ pub(crate) fn check_result_vec(what: &str, x: &[f64]) -> Result<()> {
     check_result(what, x, |v| v.is_finite())
 }
 
+/// [`check_result_vec`] for several results at once: one branch-free pass over all of
+/// them, the first non-finite one named only on failure (the order of `items`).
+pub(crate) fn check_results(items: &[(&str, &[f64])]) -> Result<()> {
+    let mut acc = [0.0f64; 4];
+    for (_, x) in items {
+        crate::spatial::add_times_zero(&mut acc, x);
+    }
+    if (acc[0] + acc[1]) + (acc[2] + acc[3]) == 0.0 {
+        return Ok(());
+    }
+    for (what, x) in items {
+        check_result_vec(what, x)?;
+    }
+    Ok(())
+}
+
 /// [`check_result`] for a matrix view (index in column-major order).
 pub(crate) fn check_result_mat(what: &str, m: faer::MatRef<'_, f64>) -> Result<()> {
     let nrows = m.nrows();
@@ -196,4 +212,27 @@ pub(crate) fn check_result_mat(what: &str, m: faer::MatRef<'_, f64>) -> Result<(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn check_results_names_the_first_non_finite_item() {
+        let (a, b, c) = ([1.0, 2.0], [0.0; 9], [3.0, -4.0, 5.0]);
+        assert!(check_results(&[("a", &a), ("b", &b), ("c", &c)]).is_ok());
+        assert!(check_results(&[]).is_ok());
+        let mut b2 = b;
+        b2[7] = f64::INFINITY;
+        let c2 = [3.0, f64::NAN, 5.0];
+        match check_results(&[("a", &a), ("b", &b2), ("c", &c2)]) {
+            Err(Error::NonFiniteResult { what, index }) => assert_eq!((what.as_str(), index), ("b", 7)),
+            other => panic!("expected b[7], got {other:?}"),
+        }
+        match check_results(&[("a", &a), ("c", &c2)]) {
+            Err(Error::NonFiniteResult { what, index }) => assert_eq!((what.as_str(), index), ("c", 1)),
+            other => panic!("expected c[1], got {other:?}"),
+        }
+    }
 }

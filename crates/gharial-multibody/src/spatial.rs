@@ -18,6 +18,14 @@ pub type Mat3 = Matrix3<f64>;
 #[inline]
 pub fn all_finite(x: &[f64]) -> bool {
     let mut acc = [0.0f64; 4];
+    add_times_zero(&mut acc, x);
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) == 0.0
+}
+
+/// The sums of [`all_finite`], `x · 0` added into four accumulators (several slices can
+/// share them: one test at the end).
+#[inline(always)]
+pub(crate) fn add_times_zero(acc: &mut [f64; 4], x: &[f64]) {
     let chunks = x.chunks_exact(4);
     let tail = chunks.remainder();
     for c in chunks {
@@ -28,7 +36,6 @@ pub fn all_finite(x: &[f64]) -> bool {
     for (a, v) in acc.iter_mut().zip(tail) {
         *a += v * 0.0;
     }
-    (acc[0] + acc[1]) + (acc[2] + acc[3]) == 0.0
 }
 
 /// [`all_finite`] for the few entries of a fixed-size vector or matrix: one sum, unrolled.
