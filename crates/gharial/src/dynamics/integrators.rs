@@ -346,7 +346,8 @@ impl ExplicitDynamics for SemiImplicitEuler {
         Box::new(SieWs {
             ode: self.ode.create_data(),
             dq: vec![0.0; nv],
-            jq: Mat::zeros(nv, nv),
+            // `J⊕q = I` on a vector space, set once.
+            jq: Mat::identity(nv, nv),
         })
     }
 
@@ -380,7 +381,9 @@ impl ExplicitDynamics for SemiImplicitEuler {
         let q = &x[..nq];
         self.config
             .jintegrate_transport(q, &ws.dq, Arg::Second, jq_rows.as_mut());
-        self.config.jintegrate(q, &ws.dq, Arg::First, ws.jq.as_mut());
+        if !self.config.is_vector_space() {
+            self.config.jintegrate(q, &ws.dq, Arg::First, ws.jq.as_mut());
+        }
         add_scaled(jq_rows.submatrix_mut(0, 0, nv, nv), 1.0, ws.jq.as_ref());
         let (mut uq_rows, mut uv_rows) = data.ju.as_mut().split_at_row_mut(nv);
         copy_scaled(uv_rows.as_mut(), dt, au);
