@@ -14,11 +14,13 @@ use std::sync::Arc;
 use faer::{Col, Mat};
 use gharial::constraints::{BoxConstraint, NegativeOrthant};
 use gharial::costs::QuadraticCost;
+use gharial::dynamics::{Dynamics, ExplicitDynamics, ExplicitDynamicsData};
 use gharial::functions::{StateError, Unary};
 use gharial::lq::dense;
 use gharial::problem::{Problem, StageConstraint, StageModel, kkt_residuals};
 use gharial::solvers::ddp::{Ddp, DdpOptions, DdpVariant};
 use gharial::solvers::{Callback, InitialGuess, IterationRecord, Solution, Solver, Status};
+use gharial::spaces::Manifold;
 use lq_ocp::*;
 
 fn solve(p: &Problem, opts: DdpOptions, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Solution {
@@ -63,6 +65,65 @@ fn one_step_solves_an_unconstrained_lq_exactly() {
                 assert!(max_diff(&sol.lambdas, &reference.lambdas) < 1e-8, "{what}");
                 let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
                 assert!(kkt.max() < 1e-9, "{what}: {kkt:?}");
+            }
+        }
+    }
+}
+
+/// Linear dynamics that do not declare their Jacobians constant: the solvers then factor
+/// the LQ anew at every backward pass.
+struct Undeclared(Arc<dyn ExplicitDynamics>);
+
+impl ExplicitDynamics for Undeclared {
+    fn space(&self) -> &Arc<dyn Manifold> {
+        self.0.space()
+    }
+    fn nu(&self) -> usize {
+        self.0.nu()
+    }
+    fn create_workspace(&self) -> gharial::functions::Workspace {
+        self.0.create_workspace()
+    }
+    fn forward(&self, x: &[f64], u: &[f64], data: &mut ExplicitDynamicsData) {
+        self.0.forward(x, u, data)
+    }
+    fn jacobians(&self, x: &[f64], u: &[f64], data: &mut ExplicitDynamicsData) {
+        self.0.jacobians(x, u, data)
+    }
+}
+
+/// On a linear-quadratic problem the backward passes after the first keep its
+/// factorization while the regularisation stays (their vector part alone): every variant
+/// returns, bit for bit, what it returns when the dynamics hide that their Jacobians are
+/// constant, from feasible and infeasible guesses, with and without regularisation.
+#[test]
+fn kept_factorizations_change_no_result_on_linear_quadratic_problems() {
+    let lq = random_lq(6, 3, 30, 7);
+    let p = ocp(&lq, None, None);
+    let mut q = p.clone();
+    for stage in q.stages_mut() {
+        let Dynamics::Explicit(d) = &stage.dynamics else {
+            unreachable!()
+        };
+        stage.dynamics = Dynamics::Explicit(Arc::new(Undeclared(d.clone())));
+    }
+    assert!(p.has_constant_derivatives() && !q.has_constant_derivatives());
+    assert!(!pendulum::euler_swing_up(5, [0.0, 0.0]).has_constant_derivatives());
+    let (zeros, us) = zero_guess(&p);
+    let feasible = rollout(&p, &us);
+    for variant in DdpVariant::ALL {
+        for reg_init in [0.0, 1e-3] {
+            for xs in [&feasible, &zeros] {
+                let opts = DdpOptions::new(variant).with(|o| {
+                    o.reg_init = reg_init;
+                    o.tol = 1e-12;
+                });
+                let (a, b) = (solve(&p, opts.clone(), xs, &us), solve(&q, opts, xs, &us));
+                let what = format!("{} reg_init {reg_init}", variant.name());
+                assert_eq!((a.status, a.iterations), (b.status, b.iterations), "{what}");
+                assert_eq!((&a.xs, &a.us, &a.lambdas), (&b.xs, &b.us, &b.lambdas), "{what}");
+                assert_eq!(a.feedforward, b.feedforward, "{what}");
+                assert_eq!(a.cost.to_bits(), b.cost.to_bits(), "{what}");
             }
         }
     }

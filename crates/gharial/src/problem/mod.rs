@@ -358,6 +358,25 @@ impl Problem {
         Ok(())
     }
 
+    /// Whether every derivative the LQ subproblems are built from is the same at every
+    /// point: dynamics with constant Jacobians into vector spaces, cost Hessians and
+    /// constraint Jacobians the models declare constant, and a fixed initial state on a
+    /// vector space (a linear-quadratic problem). The matrices of the LQ subproblem then
+    /// change only with the solver's regularisation, and its factorization can be kept
+    /// from one iteration to the next.
+    pub fn has_constant_derivatives(&self) -> bool {
+        let jacobians_constant = |cs: &[StageConstraint]| cs.iter().all(|c| c.func.jacobians_are_constant());
+        matches!(self.init, InitialCondition::Fixed(_))
+            && self.stages[0].space().is_vector_space()
+            && self.stages.iter().all(|s| {
+                s.dynamics.jacobians_are_constant()
+                    && s.cost.hessian_is_constant()
+                    && jacobians_constant(&s.constraints)
+            })
+            && self.terminal_cost.hessian_is_constant()
+            && jacobians_constant(&self.terminal_constraints)
+    }
+
     /// Horizon length `N` (number of stages).
     pub fn horizon(&self) -> usize {
         self.stages.len()

@@ -48,6 +48,16 @@ pub(crate) struct Workspace {
     x0: Vec<f64>,
     /// Regularisation currently on the diagonals of the knots' `Q`.
     knot_reg: f64,
+    /// Whether the knots' `Q` were built with `knot_reg` on their diagonals (not shifted
+    /// to it by [`Workspace::set_reg`], which can round differently).
+    knots_built: bool,
+    /// Whether the LQ matrices are the same at every point of this solve (a
+    /// linear-quadratic problem without an augmented Lagrangian).
+    lq_constant: bool,
+    /// With `lq_constant`: the regularisation of the Riccati factorization that the
+    /// solver holds for the knots' matrices, which the next backward pass at that
+    /// regularisation reuses (its vector part alone).
+    factored_reg: Option<f64>,
     pub lq: LqProblem,
     pub riccati: RiccatiSolver,
     /// Solution of the LQ subproblem (for the co-states of the solution).
@@ -213,6 +223,9 @@ impl Workspace {
             shift: vecs(&ndxs[1..]),
             x0: x0.clone(),
             knot_reg: 0.0,
+            knots_built: false,
+            lq_constant: false,
+            factored_reg: None,
             lq,
             riccati,
             lq_sol,
@@ -286,6 +299,8 @@ impl Workspace {
         }
         self.kbuf.iter_mut().for_each(|k| k.fill(0.0));
         self.iterated = false;
+        self.lq_constant = self.al.is_none() && problem.has_constant_derivatives();
+        self.factored_reg = None;
         self.data.invalidate_constant_derivatives();
         self.cost = self.data.evaluate(problem, &self.xs, &self.us);
         if let Some(al) = &mut self.al {
@@ -363,11 +378,16 @@ impl Workspace {
             }
         }
         self.knot_reg = reg;
+        self.knots_built = true;
     }
 
     /// Changes the regularisation on the knots' `Q` to `reg`.
     pub fn set_reg(&mut self, reg: f64) {
         let delta = reg - self.knot_reg;
+        if delta == 0.0 {
+            return;
+        }
+        self.knots_built = false;
         for knot in &mut self.lq.knots {
             for i in 0..knot.nx {
                 knot.Q[(i, i)] += delta;
@@ -399,10 +419,11 @@ impl Workspace {
         }
         let use_qp = self.feasible && self.iterated && self.bounds.is_some();
         let exact = self.exact && self.feasible;
+        let factored_reg = self.factored_reg.take();
         if !use_qp {
             self.qp_used.fill(false);
             if !exact {
-                return self.riccati.backward(&self.lq, reg);
+                return self.riccati_pass(reg, factored_reg);
             }
         }
         let bounds = self.bounds.as_ref().filter(|_| use_qp);
@@ -490,6 +511,20 @@ impl Workspace {
             }
         }
         (e, dual)
+    }
+
+    /// The plain Riccati pass at regularisation `reg`: its vector part alone when the
+    /// solver holds the factorization of these very matrices (`factored_reg`, on a
+    /// linear-quadratic problem), the whole pass otherwise.
+    fn riccati_pass(&mut self, reg: f64, factored_reg: Option<f64>) -> std::result::Result<(), LqError> {
+        let same_matrices = self.lq_constant && self.knots_built;
+        if same_matrices && factored_reg == Some(reg) {
+            self.factored_reg = factored_reg;
+            return self.riccati.backward_vectors(&self.lq);
+        }
+        self.riccati.backward(&self.lq, reg)?;
+        self.factored_reg = same_matrices.then_some(reg);
+        Ok(())
     }
 
     /// `(Δ₁, Δ₂)` of the last trial: FDDP's `Δ₁ = Δ_g + Δ_v`, `Δ₂ = Δ_q - 2Δ_v` with
