@@ -54,23 +54,37 @@ fn vectors(v: &serde_json::Value) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Runs `gharial <args> --output <a temporary file>` and returns the process's output
+/// and the JSON document it wrote (`tag` keeps the file names of tests apart).
+fn run_with_output(tag: &str, args: &[&str]) -> (Output, serde_json::Value) {
+    let path = std::env::temp_dir().join(format!("gharial-cli-{tag}-{}.json", std::process::id()));
+    let path_str = path.to_str().expect("UTF-8 temp path");
+    let o = gharial(&[args, &["--output", path_str]].concat());
+    let text = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{args:?} wrote no output ({e}): {}{}", stdout(&o), stderr(&o)));
+    std::fs::remove_file(&path).unwrap();
+    (o, serde_json::from_str(&text).unwrap())
+}
+
+/// The KKT residuals of the primal-dual point written in `doc`, recomputed on `problem`.
+fn written_kkt(problem: &gharial::problem::Problem, doc: &serde_json::Value) -> gharial::problem::KktResiduals {
+    let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
+    let (lambdas, nus) = (vectors(&doc["lambdas"]), vectors(&doc["nus"]));
+    kkt_residuals(problem, &xs, &us, &lambdas, &nus).unwrap()
+}
+
 #[test]
 fn solve_writes_a_primal_dual_solution_that_satisfies_the_kkt_conditions() {
-    let path = std::env::temp_dir().join(format!("gharial-cli-test-{}.json", std::process::id()));
-    let path_str = path.to_str().expect("UTF-8 temp path");
-    let o = gharial(&["solve", "lqr-bounds-term", "--tol", "1e-8", "--output", path_str]);
+    let (o, doc) = run_with_output("test", &["solve", "lqr-bounds-term", "--tol", "1e-8"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let text = stdout(&o);
     assert!(text.contains("status    converged"), "{text}");
     assert!(text.contains(" iter "), "the iteration table is printed: {text}");
 
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    std::fs::remove_file(&path).unwrap();
     assert_eq!(doc["problem"], "lqr-bounds-term");
     assert_eq!(doc["converged"], true);
     assert_eq!(doc["settings"]["tol"], 1e-8);
     let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
-    let (lambdas, nus) = (vectors(&doc["lambdas"]), vectors(&doc["nus"]));
     let ex = gharial_problems::build("lqr-bounds-term").unwrap();
     assert_eq!(xs.len(), ex.problem.horizon() + 1);
     assert_eq!(us.len(), ex.problem.horizon());
@@ -79,7 +93,7 @@ fn solve_writes_a_primal_dual_solution_that_satisfies_the_kkt_conditions() {
         doc["iterations"].as_u64().unwrap() as usize
     );
     // The written point is optimal for the problem the library builds under that name.
-    let kkt = kkt_residuals(&ex.problem, &xs, &us, &lambdas, &nus).unwrap();
+    let kkt = written_kkt(&ex.problem, &doc);
     assert!(kkt.max() < 1e-8, "{kkt:?}");
     // The bounds |u| <= 0.15 hold and some are active.
     let u_max = us.iter().flatten().fold(0.0f64, |m, u| m.max(u.abs()));
@@ -122,34 +136,29 @@ fn an_unconverged_solve_exits_with_code_one() {
 
 #[test]
 fn step_acceptance_merit_and_dynamics_overrides_reach_the_solver() {
-    let path = std::env::temp_dir().join(format!("gharial-cli-accept-{}.json", std::process::id()));
-    let path_str = path.to_str().expect("UTF-8 temp path");
-    let o = gharial(&[
-        "solve",
-        "lqr-bounds-term",
-        "--step-acceptance",
-        "nonmonotone",
-        "--merit",
-        "primal",
-        "--dyn-al-scale",
-        "0.5",
-        "--dynamics-step",
-        "exact",
-        "--output",
-        path_str,
-    ]);
+    let (o, doc) = run_with_output(
+        "accept",
+        &[
+            "solve",
+            "lqr-bounds-term",
+            "--step-acceptance",
+            "nonmonotone",
+            "--merit",
+            "primal",
+            "--dyn-al-scale",
+            "0.5",
+            "--dynamics-step",
+            "exact",
+        ],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    std::fs::remove_file(&path).unwrap();
     assert_eq!(doc["settings"]["step_acceptance"], "NonmonotoneLinesearch");
     assert_eq!(doc["settings"]["merit"], "Primal");
     assert_eq!(doc["settings"]["dyn_al_scale"], 0.5);
     assert_eq!(doc["settings"]["dynamics_step"], "Exact");
     assert_eq!(doc["converged"], true);
     let ex = gharial_problems::build("lqr-bounds-term").unwrap();
-    let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
-    let (lambdas, nus) = (vectors(&doc["lambdas"]), vectors(&doc["nus"]));
-    let kkt = kkt_residuals(&ex.problem, &xs, &us, &lambdas, &nus).unwrap();
+    let kkt = written_kkt(&ex.problem, &doc);
     assert!(kkt.max() < ex.proxddp.tol, "{kkt:?}");
 
     let o = gharial(&["solve", "lqr", "--step-acceptance", "nope"]);
@@ -162,53 +171,43 @@ fn step_acceptance_merit_and_dynamics_overrides_reach_the_solver() {
 /// guess's controls ALTRO does not, `tests/altro_escape.rs` of the catalogue).
 #[test]
 fn altro_options_reach_the_solver() {
-    let path = std::env::temp_dir().join(format!("gharial-cli-altro-{}.json", std::process::id()));
-    let path_str = path.to_str().expect("UTF-8 temp path");
-    let o = gharial(&[
-        "solve",
-        "car-escape",
-        "--solver",
+    let (o, doc) = run_with_output(
         "altro",
-        "--infeasible-start",
-        "--penalty-initial",
-        "10",
-        "--penalty-scaling",
-        "100",
-        "--tol",
-        "1e-8",
-        "--max-iters",
-        "20",
-        "--output",
-        path_str,
-    ]);
+        &[
+            "solve",
+            "car-escape",
+            "--solver",
+            "altro",
+            "--infeasible-start",
+            "--penalty-initial",
+            "10",
+            "--penalty-scaling",
+            "100",
+            "--tol",
+            "1e-8",
+            "--max-iters",
+            "20",
+        ],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stdout(&o).contains("infeasible_start true [option; default false]"),
         "{}",
         stdout(&o)
     );
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    std::fs::remove_file(&path).unwrap();
     assert_eq!(doc["settings"]["infeasible_start"], "true");
     assert_eq!(doc["settings"]["penalty_initial"], 10.0);
     assert_eq!(doc["settings"]["penalty_scaling"], 100.0);
     assert_eq!(doc["settings"]["projected_newton"], "true");
     assert_eq!(doc["converged"], true);
     // The solution's dynamics and constraints (wall discs, goal), evaluated here.
-    let ex = gharial_problems::build("car-escape").unwrap();
-    let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
-    let (lambdas, nus) = (vectors(&doc["lambdas"]), vectors(&doc["nus"]));
-    let kkt = kkt_residuals(&ex.problem, &xs, &us, &lambdas, &nus).unwrap();
+    let kkt = written_kkt(&gharial_problems::build("car-escape").unwrap().problem, &doc);
     assert!(kkt.primal() <= 1e-8, "{kkt:?}");
 }
 
 /// The settings a `gharial solve --output` run reports, and its exit code.
 fn solve_settings(args: &[&str]) -> (Option<i32>, serde_json::Value) {
-    let path = std::env::temp_dir().join(format!("gharial-cli-settings-{}-{}.json", std::process::id(), args[1]));
-    let path_str = path.to_str().expect("UTF-8 temp path");
-    let o = gharial(&[args, &["--output", path_str]].concat());
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    std::fs::remove_file(&path).unwrap();
+    let (o, doc) = run_with_output(&format!("settings-{}", args[1]), args);
     (o.status.code(), doc)
 }
 
@@ -294,10 +293,7 @@ fn csqp_bcl_ddp_and_proxnlp_options_reach_the_solvers() {
 /// The solution of `solve --output` on `problem` satisfies the KKT conditions to `tol`,
 /// recomputed here from its states, controls and multipliers.
 fn assert_kkt_point(problem: &str, doc: &serde_json::Value, tol: f64) {
-    let ex = gharial_problems::build(problem).unwrap();
-    let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
-    let (lambdas, nus) = (vectors(&doc["lambdas"]), vectors(&doc["nus"]));
-    let kkt = kkt_residuals(&ex.problem, &xs, &us, &lambdas, &nus).unwrap();
+    let kkt = written_kkt(&gharial_problems::build(problem).unwrap().problem, doc);
     assert!(kkt.max() <= tol, "{problem}: {kkt:?}");
 }
 
@@ -456,15 +452,10 @@ fn the_header_says_which_settings_the_problem_recommends() {
 /// Solves `problem` with `solver` writing the JSON output; returns the document (its
 /// `solver`, `converged` and history checked) and the catalogue's example.
 fn solve_to_json(problem: &str, solver: &str, extra: &[&str]) -> (serde_json::Value, gharial_problems::Example) {
-    let path = std::env::temp_dir().join(format!("gharial-cli-{solver}-{problem}-{}.json", std::process::id()));
-    let path_str = path.to_str().expect("UTF-8 temp path");
-    let mut args = vec!["solve", problem, "--solver", solver, "--output", path_str];
-    args.extend_from_slice(extra);
-    let o = gharial(&args);
+    let args = [&["solve", problem, "--solver", solver], extra].concat();
+    let (o, doc) = run_with_output(&format!("{solver}-{problem}"), &args);
     assert_eq!(o.status.code(), Some(0), "{args:?}: {}{}", stdout(&o), stderr(&o));
     assert!(stdout(&o).contains("status    converged"), "{}", stdout(&o));
-    let doc: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    std::fs::remove_file(&path).unwrap();
     assert_eq!(doc["solver"], solver);
     assert_eq!(doc["converged"], true);
     let history = doc["history"].as_array().unwrap();
@@ -475,10 +466,9 @@ fn solve_to_json(problem: &str, solver: &str, extra: &[&str]) -> (serde_json::Va
 /// The KKT residuals of the written primal-dual point, recomputed from the problem the
 /// library builds under that name, and the cost of the written trajectory.
 fn check_written_solution(doc: &serde_json::Value, ex: &gharial_problems::Example, tol: f64) {
-    let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
-    let (lambdas, nus) = (vectors(&doc["lambdas"]), vectors(&doc["nus"]));
-    let kkt = kkt_residuals(&ex.problem, &xs, &us, &lambdas, &nus).unwrap();
+    let kkt = written_kkt(&ex.problem, doc);
     assert!(kkt.max() < tol, "{kkt:?}");
+    let (xs, us) = (vectors(&doc["xs"]), vectors(&doc["us"]));
     let cost = gharial_problems::total_cost(&ex.problem, &xs, &us).unwrap();
     assert!((cost - doc["cost"].as_f64().unwrap()).abs() < 1e-12 * cost.abs().max(1.0));
 }
