@@ -249,22 +249,10 @@ pub(crate) fn velocity_pass(model: &Model, data: &mut Data, q: &[f64], v: &[f64]
     }
 }
 
-/// The RNEA derivative recursion at (q, v, a), after a [`velocity_pass`] at (q, v) (or a
-/// pass leaving the same quantities, such as the ABA). Writes `dtau_dq`, `dtau_dv` and
-/// `M` into `dq`, `dv`, `m` (column-major; only the entries at dof pairs on one path to
-/// the root are written, the others must be zero), `tau` into `data.tau`, and leaves `oa_gf`, the subtree quantities and the per-dof columns in `data`.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn rnea_derivatives_kernel(
-    model: &Model,
-    data: &mut Data,
-    v: &[f64],
-    a: &[f64],
-    dq: &mut [f64],
-    dv: &mut [f64],
-    m: &mut [f64],
-) {
-    let nv = model.nv;
-    let idx = |r: usize, c: usize| c * nv + r;
+/// The forward sweep of [`rnea_derivatives_kernel`]: world accelerations `oa_gf` (gravity
+/// included), the subtree quantities' joint terms (`o_ycrb`, `hcrb`, `tcrb`), the body
+/// forces `of`, and per dof the columns `dvdq`, `dadq`, `dadv`.
+fn rnea_derivatives_forward(model: &Model, data: &mut Data, v: &[f64], a: &[f64]) {
     data.oa_gf[0] = -model.gravity;
     for i in 1..model.njoints() {
         let p = model.parents[i];
@@ -287,6 +275,25 @@ pub(crate) fn rnea_derivatives_kernel(
             data.dadv[k] = dj + dvdq;
         }
     }
+}
+
+/// The RNEA derivative recursion at (q, v, a), after a [`velocity_pass`] at (q, v) (or a
+/// pass leaving the same quantities, such as the ABA). Writes `dtau_dq`, `dtau_dv` and
+/// `M` into `dq`, `dv`, `m` (column-major; only the entries at dof pairs on one path to
+/// the root are written, the others must be zero), `tau` into `data.tau`, and leaves `oa_gf`, the subtree quantities and the per-dof columns in `data`.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn rnea_derivatives_kernel(
+    model: &Model,
+    data: &mut Data,
+    v: &[f64],
+    a: &[f64],
+    dq: &mut [f64],
+    dv: &mut [f64],
+    m: &mut [f64],
+) {
+    let nv = model.nv;
+    let idx = |r: usize, c: usize| c * nv + r;
+    rnea_derivatives_forward(model, data, v, a);
     for i in (1..model.njoints()).rev() {
         let jm = model.joints[i];
         let (iv, nvj) = (jm.idx_v, jm.nv);
