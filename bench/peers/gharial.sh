@@ -10,9 +10,7 @@
 # leaves it so).
 set -euo pipefail
 ROOT="${GHARIAL_ROOT:?set GHARIAL_ROOT to the gharial repository}"
-# Built from the repository: cargo reads `.cargo/config.toml` (the x86-64-v3 flags) from
-# the current directory, not from `--manifest-path`'s.
-(cd "$ROOT" && cargo build --release -q -p gharial-cli) >&2
+. "$ROOT/bench/peers/build_gharial.sh"
 run() {
   "$ROOT/target/release/gharial" bench peers \
     --problems "${PROBLEMS:-lqr,lqr_box,lqr_box_term,ur5,ur5_box,pendulum,pendulum_box,pendulum_box_term}" \

@@ -20,9 +20,7 @@ lqr_box:BoxDDP lqr_box:BoxFDDP lqr_box:CSQP lqr_box_term:CSQP ur5_box:BoxDDP ur5
 pendulum_box:BoxDDP pendulum_box:CSQP pendulum_box_term:CSQP}"
 command -v valgrind >/dev/null || { echo "instructions.sh: valgrind is needed" >&2; exit 2; }
 [ -x "$CROC_VENV/bin/python" ] || { echo "instructions.sh: no venv at $CROC_VENV (run the harness's setup.sh)" >&2; exit 2; }
-# Built from the repository: cargo reads `.cargo/config.toml` (the x86-64-v3 flags) from
-# the current directory, not from `--manifest-path`'s.
-(cd "$ROOT" && cargo build --release -q -p gharial-cli) >&2
+. "$ROOT/bench/peers/build_gharial.sh"
 GHARIAL="$ROOT/target/release/gharial"
 TMP="$(mktemp -d)"
 trap 'rm -rf "$TMP"' EXIT

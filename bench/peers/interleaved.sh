@@ -22,9 +22,7 @@ lqr_box:CSQP lqr_box_term:CSQP ur5_box:CSQP pendulum_box:CSQP}"
 ROUNDS="${ROUNDS:-3}"
 REPEATS="${REPEATS:-20}"
 [ -x "$CROC_VENV/bin/python" ] || { echo "interleaved.sh: no venv at $CROC_VENV (run the harness's setup.sh)" >&2; exit 2; }
-# Built from the repository: cargo reads `.cargo/config.toml` (the x86-64-v3 flags) from
-# the current directory, not from `--manifest-path`'s.
-(cd "$ROOT" && cargo build --release -q -p gharial-cli) >&2
+. "$ROOT/bench/peers/build_gharial.sh"
 GHARIAL="$ROOT/target/release/gharial"
 
 echo "| problem | solver | round | gharial 1 thread median / min (ms) | gharial 2 threads | peer 1 thread | peer 2 threads | ratio of medians (1 / 2 threads) | ratio of minima (1 / 2) |"
