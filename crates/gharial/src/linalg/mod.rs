@@ -47,7 +47,10 @@ macro_rules! with_fixed_len {
     };
 }
 
-/// Calls `$f::<N>$args` when `$n` is at most 12 and evaluates to `Some` of its result,
+/// The largest dimension of the fixed-size kernels of [`with_small_dim!`].
+pub(crate) const SMALL_DIM: usize = 12;
+
+/// Calls `$f::<N>$args` when `$n` is at most [`SMALL_DIM`] and evaluates to `Some` of its result,
 /// `None` otherwise. Factorizations and solves up to this dimension use the fixed-size
 /// kernels of [`small`] ([`small_factor`](small::small_factor),
 /// [`ldlt_solve_fixed`](small::ldlt_solve_fixed),

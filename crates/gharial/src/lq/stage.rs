@@ -642,7 +642,7 @@ impl RiccatiStage {
     /// Solves the factored stage KKT system in place, for any number of right-hand sides
     /// (in blocks of the columns the factorization's scratch holds).
     pub(crate) fn kkt_solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
-        let (n, block) = (rhs.ncols(), self.kkt.gather.ncols().max(1));
+        let (n, block) = (rhs.ncols(), self.kkt.max_rhs.max(1));
         for j in (0..n).step_by(block) {
             let c = block.min(n - j);
             self.kkt.solve_in_place(rhs.rb_mut().subcols_mut(j, c));
@@ -1214,8 +1214,11 @@ struct KktFactor {
     /// The decoupled rows (constraint rows with `D` row zero and `mu_c > 0`) with their
     /// pivot `-mu_c`: `[K; Z]` on them is the right-hand side divided by the pivot.
     free: Vec<(usize, f64)>,
-    /// Gathered coupled rows of a right-hand side.
-    gather: Mat<f64>,
+    /// The coupled rows of a right-hand side, gathered (by rows for the small
+    /// factorizations, by columns for faer's).
+    gather: Vec<f64>,
+    /// Right-hand side columns the gather buffer holds.
+    max_rhs: usize,
 }
 
 impl KktFactor {
@@ -1229,7 +1232,8 @@ impl KktFactor {
             use_bk: false,
             coupled: Vec::with_capacity(nk),
             free: Vec::with_capacity(nc),
-            gather: Mat::zeros(nk, max_rhs),
+            gather: vec![0.0; nk * max_rhs],
+            max_rhs,
         }
     }
 
@@ -1252,35 +1256,52 @@ impl KktFactor {
         self.ldlt.set_dim(self.coupled.len());
     }
 
+    /// Solves the factored system in place for the columns of `rhs` (at most
+    /// `max_rhs`): the coupled rows through the LDLᵀ factorization, the decoupled ones
+    /// divided by their pivots.
     fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
         if self.use_bk {
             self.bk.solve_in_place(rhs);
-        } else if self.free.is_empty() {
-            self.ldlt.solve_in_place(rhs);
-        } else {
-            let (m, c) = (self.coupled.len(), rhs.ncols());
-            let mut g = self.gather.as_mut().submatrix_mut(0, 0, m, c);
+            return;
+        }
+        let (m, c) = (self.coupled.len(), rhs.ncols());
+        let g = &mut self.gather[..m * c];
+        if m <= linalg::SMALL_DIM {
+            // By rows: the row-wise solve vectorises across the columns.
             for j in 0..c {
-                let (src, dst) = (
-                    linalg::col_slice_mut(rhs.rb_mut(), j),
-                    linalg::col_slice_mut(g.rb_mut(), j),
-                );
-                for (d, &r) in dst.iter_mut().zip(&self.coupled) {
+                let src = linalg::col_slice_mut(rhs.rb_mut(), j);
+                for (a, &r) in self.coupled.iter().enumerate() {
+                    g[a * c + j] = src[r];
+                }
+            }
+            self.ldlt.solve_rows_in_place(g, c);
+            for j in 0..c {
+                let dst = linalg::col_slice_mut(rhs.rb_mut(), j);
+                for (a, &r) in self.coupled.iter().enumerate() {
+                    dst[r] = g[a * c + j];
+                }
+            }
+        } else if self.free.is_empty() {
+            self.ldlt.solve_in_place(rhs.rb_mut());
+        } else {
+            for j in 0..c {
+                let src = linalg::col_slice_mut(rhs.rb_mut(), j);
+                for (d, &r) in g[j * m..(j + 1) * m].iter_mut().zip(&self.coupled) {
                     *d = src[r];
                 }
             }
-            self.ldlt.solve_in_place(g.rb_mut());
+            self.ldlt.solve_in_place(MatMut::from_column_major_slice_mut(g, m, c));
             for j in 0..c {
-                let (dst, src) = (
-                    linalg::col_slice_mut(rhs.rb_mut(), j),
-                    linalg::col_slice_mut(g.rb_mut(), j),
-                );
-                for (s, &r) in src.iter().zip(&self.coupled) {
+                let dst = linalg::col_slice_mut(rhs.rb_mut(), j);
+                for (s, &r) in g[j * m..(j + 1) * m].iter().zip(&self.coupled) {
                     dst[r] = *s;
                 }
-                for &(r, pivot) in &self.free {
-                    dst[r] /= pivot;
-                }
+            }
+        }
+        for j in 0..c {
+            let dst = linalg::col_slice_mut(rhs.rb_mut(), j);
+            for &(r, pivot) in &self.free {
+                dst[r] /= pivot;
             }
         }
     }
