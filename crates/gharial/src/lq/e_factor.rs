@@ -64,13 +64,13 @@ impl EFactor {
         self.lu.factor(e_b)
     }
 
-    /// `X ← E⁻¹X`.
-    pub(crate) fn solve_in_place(&mut self, mut x: MatMut<'_, f64>) {
+    /// `X ← -E⁻¹X = diag(-E_b⁻¹, I) X`: the rows past the block stay as they are.
+    pub(crate) fn neg_solve_in_place(&mut self, x: MatMut<'_, f64>) {
         let k = self.k;
-        let rest = x.nrows() - k;
-        linalg::negate(x.rb_mut().subrows_mut(k, rest));
         if k > 0 {
-            self.lu.solve_in_place(x.subrows_mut(0, k));
+            let mut top = x.subrows_mut(0, k);
+            self.lu.solve_in_place(top.rb_mut());
+            linalg::negate(top);
         }
     }
 

@@ -246,8 +246,7 @@ impl RiccatiStage {
             let mut ab = self.ab_tilde.as_mut();
             linalg::copy(ab.rb_mut().submatrix_mut(0, 0, ny, nx), knot.A.as_ref());
             linalg::copy(ab.rb_mut().submatrix_mut(0, nx, ny, nu), knot.B.as_ref());
-            self.e_fac.solve_in_place(ab.rb_mut());
-            linalg::negate(ab);
+            self.e_fac.neg_solve_in_place(ab);
         }
         Ok(())
     }
@@ -398,9 +397,7 @@ impl RiccatiStage {
         // f̃ = -E⁻¹ f.
         slice_mut(&mut self.f_tilde).copy_from_slice(v.f);
         if !self.e_fac.is_minus_identity() {
-            let mut ft = self.f_tilde.as_mut().as_mat_mut();
-            self.e_fac.solve_in_place(ft.rb_mut());
-            linalg::negate(ft);
+            self.e_fac.neg_solve_in_place(self.f_tilde.as_mut().as_mat_mut());
         }
         // p̃ = (I + P'G)⁻¹ p', v = P̃ f̃ + p̃.
         let pt_vec: &[f64] = if self.mu_dyn > 0.0 {
