@@ -297,6 +297,17 @@ mod tests {
         }
     }
 
+    /// `[[H, Dᵀ], [D, -mu I]]` (`H` the leading `nu × nu` block) from a random SPD matrix.
+    fn quasi_definite(n: usize, nu: usize, seed: u64, mu: f64) -> Mat<f64> {
+        let mut k = spd(n, seed);
+        for i in nu..n {
+            for j in nu..n {
+                k[(i, j)] = if i == j { -mu } else { 0.0 };
+            }
+        }
+        k
+    }
+
     #[test]
     fn ldlt_small_and_blocked_paths_agree_with_the_system() {
         // Quasi-definite [[H, Dᵀ], [D, -mu I]] of sizes around 12 (the fixed-size kernels' limit), solved with one,
@@ -304,12 +315,7 @@ mod tests {
         // through a non-contiguous right-hand side.
         for n in [1usize, 3, 11, 12, 13, 30, 70] {
             let nu = n.div_ceil(3);
-            let mut k = spd(n, n as u64 + 3);
-            for i in nu..n {
-                for j in nu..n {
-                    k[(i, j)] = if i == j { -1e-3 } else { 0.0 };
-                }
-            }
+            let k = quasi_definite(n, nu, n as u64 + 3, 1e-3);
             let mut f = Ldlt::new(n);
             let inertia = f.factor(k.as_ref()).unwrap();
             assert_eq!((inertia.positive, inertia.negative), (nu, n - nu));
@@ -326,13 +332,7 @@ mod tests {
         // sides: for n <= 12 every entry of X equals the column solve's bit for bit; past
         // it (faer's blocked solve on the columns) X solves the system.
         for n in [1usize, 5, 12, 13, 20] {
-            let nu = n.div_ceil(2);
-            let mut k = spd(n, n as u64 + 7);
-            for i in nu..n {
-                for j in nu..n {
-                    k[(i, j)] = if i == j { -1e-2 } else { 0.0 };
-                }
-            }
+            let k = quasi_definite(n, n.div_ceil(2), n as u64 + 7, 1e-2);
             let mut f = Ldlt::new(n);
             f.factor(k.as_ref()).unwrap();
             for w in [1usize, 7, 8, 9, 37] {
