@@ -273,12 +273,7 @@ mod tests {
 
             // Quasi-definite [[H, Dᵀ], [D, -mu I]] (no pivoting needed).
             let nu = n.div_ceil(2);
-            let mut k = a.clone();
-            for i in nu..n {
-                for j in nu..n {
-                    k[(i, j)] = if i == j { -0.3 } else { 0.0 };
-                }
-            }
+            let k = quasi_definite(n, nu, 100 + n as u64, 0.3);
             let reference = k.as_ref().ldlt(faer::Side::Lower).unwrap();
             let mut f = Ldlt::new(n);
             let inertia = f.factor(k.as_ref()).unwrap();
