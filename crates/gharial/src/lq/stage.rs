@@ -1261,10 +1261,15 @@ impl KktFactor {
             self.bk.solve_in_place(rhs);
             return;
         }
+        if self.free.is_empty() {
+            self.ldlt.solve_in_place(rhs);
+            return;
+        }
         let (m, c) = (self.coupled.len(), rhs.ncols());
         let g = &mut self.gather[..m * c];
         if m <= linalg::SMALL_DIM {
-            // By rows: the row-wise solve vectorises across the columns.
+            // By rows (the gather transposes anyway): the row-wise solve vectorises
+            // across the columns.
             for j in 0..c {
                 let src = linalg::col_slice_mut(rhs.rb_mut(), j);
                 for (a, &r) in self.coupled.iter().enumerate() {
@@ -1278,8 +1283,6 @@ impl KktFactor {
                     dst[r] = g[a * c + j];
                 }
             }
-        } else if self.free.is_empty() {
-            self.ldlt.solve_in_place(rhs.rb_mut());
         } else {
             for j in 0..c {
                 let src = linalg::col_slice_mut(rhs.rb_mut(), j);
