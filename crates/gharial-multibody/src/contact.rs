@@ -21,7 +21,7 @@ use crate::dynamics::{factor_mass_matrix, mass_matrix_column, minv_from_factor};
 use crate::error::{Error, Result, check_results, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
 use crate::lie::{jlog6_blocks, log6};
-use crate::linalg::{DofTree, add_combination, axpy, cholesky_factor, cholesky_solve, ltdl_solve_rows};
+use crate::linalg::{axpy, cholesky_factor, cholesky_solve, gemm, ltdl_solve_rows};
 use crate::model::{Model, NONE, ReferenceFrame};
 use crate::spatial::{Force, Mat3, Motion, Se3, Vec3};
 use faer::MatRef;
@@ -139,8 +139,10 @@ pub struct ContactData {
     dl_dq: Vec<f64>,
     dl_dv: Vec<f64>,
     dl_dtau: Vec<f64>,
+    /// `[±b; r2]` ((nv + nc) × nv, column-major), the right-hand side of the products of
+    /// `solution_derivatives`.
+    stacked: Vec<f64>,
     chain: Vec<usize>,
-    terms: Vec<(usize, f64)>,
 }
 
 impl ContactData {
@@ -160,7 +162,7 @@ impl ContactData {
                 model.name
             )));
         }
-        Ok(Self {
+        let mut cdata = Self {
             nc,
             nv,
             dof_tree_hash: model.dof_tree_hash,
@@ -185,9 +187,16 @@ impl ContactData {
             dl_dq: vec![0.0; nc * nv],
             dl_dv: vec![0.0; nc * nv],
             dl_dtau: vec![0.0; nc * nv],
-            terms: Vec::with_capacity(nv + nc + 1),
+            stacked: vec![0.0; (nv + nc) * nv],
             chain: Vec::with_capacity(nv),
-        })
+        };
+        // faer keeps the packing memory of its larger products in a buffer per thread,
+        // allocated at the thread's first such product: one product of the derivatives'
+        // size (on zeros) makes it here, so that this thread's derivatives allocate
+        // nothing later (another thread's first derivatives allocate it once).
+        let cd = &mut cdata;
+        gemm(&mut cd.ddq_dq, &cd.pq, &cd.stacked, (nv, nv + nc, nv), false, 1.0);
+        Ok(cdata)
     }
 
     /// Total number of constraint rows.
@@ -711,13 +720,12 @@ fn constraint_derivative_columns(data: &Data, c: &ContactModel, pt: &ContactPoin
 fn solution_derivatives(model: &Model, data: &mut Data, cdata: &mut ContactData) -> Result<()> {
     let (nv, nc) = (model.nv, cdata.nc);
     kkt_inverse_blocks(model, data, cdata);
-    let tree = model.dof_tree(&data.subtree_end);
     let cd = &mut *cdata;
     for (b, r2, ddq_dx, dl_dx) in [
         (&cd.b_dq, &cd.r2_dq, &mut cd.ddq_dq, &mut cd.dl_dq),
         (&cd.b_dv, &cd.r2_dv, &mut cd.ddq_dv, &mut cd.dl_dv),
     ] {
-        kkt_derivatives(&tree, nc, &cd.pq, &cd.qt_linv, b, r2, ddq_dx, dl_dx, &mut cd.terms);
+        kkt_derivatives((nv, nc), (&cd.pq, &cd.qt_linv), (b, r2), ddq_dx, dl_dx, &mut cd.stacked);
     }
     for (x, y) in cdata.dl_dtau.iter_mut().zip(&cdata.qt_linv[..nc * nv]) {
         *x = -y;
@@ -745,77 +753,37 @@ fn kkt_inverse_blocks(model: &Model, data: &mut Data, cdata: &mut ContactData) {
         col[a] = 1.0;
         cholesky_solve(nc, &cdata.delassus, col);
     }
-    // Column k of Qᵀ: Λ⁻¹ (row k of G).
-    for k in 0..nv {
-        let g_k = &cdata.jcminv[k * nc..(k + 1) * nc];
-        cdata.terms.clear();
-        cdata.terms.extend(g_k.iter().copied().enumerate());
-        let col = &mut qt[k * nc..(k + 1) * nc];
-        col.fill(0.0);
-        add_combination(col, linv, nc, &cdata.terms);
-    }
+    // `jcminv` is Gᵀ (nc × nv).
+    gemm(qt, linv, &cdata.jcminv, (nc, nc, nv), false, 1.0);
     let (p, q) = cdata.pq.split_at_mut(nv * nv);
     for k in 0..nv {
         for a in 0..nc {
             q[a * nv + k] = qt[k * nc + a];
         }
     }
-    // Column c of P: M⁻¹ e_c − Q (row c of G).
-    for c in 0..nv {
-        let g_c = &cdata.jcminv[c * nc..(c + 1) * nc];
-        cdata.terms.clear();
-        cdata.terms.extend(g_c.iter().enumerate().map(|(a, &gca)| (a, -gca)));
-        let col = &mut p[c * nv..(c + 1) * nv];
-        col.copy_from_slice(&data.minv[c * nv..(c + 1) * nv]);
-        add_combination(col, q, nv, &cdata.terms);
-    }
+    p.copy_from_slice(&data.minv[..nv * nv]);
+    gemm(p, q, &cdata.jcminv, (nv, nc, nv), true, -1.0);
 }
 
-/// Derivatives of ddq and λ from `b = ∂τ − ∂(Jcᵀλ)` (nv × nv, zero outside dof pairs on
-/// one path to the root) and `r2 = −∂g` (nc × nv), with the KKT inverse blocks:
-/// `∂ddq = −P b + Q r2`, `∂λ = Qᵀ b + Λ⁻¹ r2`. Each output column combines only the
-/// columns selected by the nonzeros of column c of b and r2.
-#[allow(clippy::too_many_arguments)]
+/// Derivatives of ddq and λ from `b = ∂τ − ∂(Jcᵀλ)` (nv × nv) and `r2 = −∂g` (nc × nv)
+/// with the KKT inverse blocks `[P | Q]` and `[Qᵀ | Λ⁻¹]`: `∂λ = [Qᵀ | Λ⁻¹] [b; r2]`, then
+/// `∂ddq = [P | Q] [−b; r2]`, two products on the stacked right-hand side in `s`.
 fn kkt_derivatives(
-    tree: &DofTree<'_>,
-    nc: usize,
-    pq: &[f64],
-    qt_linv: &[f64],
-    b: &[f64],
-    r2: &[f64],
+    (nv, nc): (usize, usize),
+    (pq, qt_linv): (&[f64], &[f64]),
+    (b, r2): (&[f64], &[f64]),
     ddq_dx: &mut [f64],
     dl_dx: &mut [f64],
-    terms: &mut Vec<(usize, f64)>,
+    s: &mut [f64],
 ) {
-    let nv = tree.parent.len();
-    for c in 0..nv {
-        let bc = &b[c * nv..(c + 1) * nv];
-        let r2c = &r2[c * nc..(c + 1) * nc];
-        // ∂ddq: columns r of P, nv + a of [P | Q].
-        terms.clear();
-        let mut r = tree.parent[c];
-        while r != NONE {
-            terms.push((r, -bc[r]));
-            r = tree.parent[r];
-        }
-        for r in c..tree.subtree_end[c] {
-            terms.push((r, -bc[r]));
-        }
-        let path = terms.len();
-        for (a, &x) in r2c.iter().enumerate() {
-            if x != 0.0 {
-                terms.push((nv + a, x));
-            }
-        }
-        let out = &mut ddq_dx[c * nv..(c + 1) * nv];
-        out.fill(0.0);
-        add_combination(out, pq, nv, terms);
-        // ∂λ: the same columns of [Qᵀ | Λ⁻¹], signs of b flipped.
-        for t in &mut terms[..path] {
-            t.1 = -t.1;
-        }
-        let out = &mut dl_dx[c * nc..(c + 1) * nc];
-        out.fill(0.0);
-        add_combination(out, qt_linv, nc, terms);
+    let n = nv + nc;
+    for (c, col) in s.chunks_exact_mut(n).enumerate() {
+        col[..nv].copy_from_slice(&b[c * nv..(c + 1) * nv]);
+        col[nv..].copy_from_slice(&r2[c * nc..(c + 1) * nc]);
     }
+    gemm(dl_dx, qt_linv, s, (nc, n, nv), false, 1.0);
+    for col in s.chunks_exact_mut(n) {
+        col[..nv].iter_mut().for_each(|x| *x = -*x);
+    }
+    gemm(ddq_dx, pq, s, (nv, n, nv), false, 1.0);
 }

@@ -73,6 +73,29 @@ impl<'a> DofTree<'a> {
     }
 }
 
+/// `out = alpha a b` (or `out += alpha a b` with `accumulate`) for column-major slices,
+/// `a` of `m × k`, `b` of `k × n`, `out` of `m × n`: faer's product, whose kernels (FMA,
+/// the widest vectors of the CPU, chosen at run time) win over loops for the dense blocks
+/// of the KKT inverse.
+pub(crate) fn gemm(
+    out: &mut [f64],
+    a: &[f64],
+    b: &[f64],
+    (m, k, n): (usize, usize, usize),
+    accumulate: bool,
+    alpha: f64,
+) {
+    let dst = faer::MatMut::from_column_major_slice_mut(&mut out[..m * n], m, n);
+    let lhs = faer::MatRef::from_column_major_slice(&a[..m * k], m, k);
+    let rhs = faer::MatRef::from_column_major_slice(&b[..k * n], k, n);
+    let accum = if accumulate {
+        faer::Accum::Add
+    } else {
+        faer::Accum::Replace
+    };
+    faer::linalg::matmul::matmul(dst, accum, lhs, rhs, alpha, faer::Par::Seq);
+}
+
 /// `out[j] += Σ_(k, b) b · src[k·stride + j]` for every `j < out.len()`: a linear
 /// combination of columns of `src` (column k starts at `k·stride`), accumulated in
 /// registers sixteen entries at a time.
