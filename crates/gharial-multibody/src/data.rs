@@ -7,6 +7,7 @@
 //! views.
 
 use crate::error::{Error, Result};
+use crate::linalg::{DENSE_TREE_PRODUCT, gemm};
 use crate::model::Model;
 use crate::spatial::{Force, Inertia, Mat3, Motion, Se3, Sym6, Vec3};
 use faer::MatRef;
@@ -181,7 +182,7 @@ impl Data {
         let n = model.njoints();
         let nv = model.nv();
         let nf = model.nframes();
-        Self {
+        let mut data = Self {
             nv,
             dof_tree_hash: model.dof_tree_hash,
             subtree_end: model.dof_subtree_ends(),
@@ -230,7 +231,16 @@ impl Data {
             com: Vec3::zeros(),
             vcom: Vec3::zeros(),
             acom: Vec3::zeros(),
+        };
+        if nv >= DENSE_TREE_PRODUCT {
+            // faer keeps the packing memory of its larger products in a buffer per
+            // thread, allocated at the thread's first such product: one product of the
+            // derivatives' size (on zeros) makes it here, so that this thread's
+            // derivatives allocate nothing later (another thread's first ones allocate
+            // it once).
+            gemm(&mut data.ddq_dq, &data.minv, &data.dtau_dq, (nv, nv, nv), false, 1.0);
         }
+        data
     }
 
     /// Placement of joint frame `i` in the world (`oMi`). Panics if the index is out of range.

@@ -177,6 +177,11 @@ pub(crate) fn ltdl_inverse(tree: &DofTree<'_>, l: &[f64], d: &[f64], out: &mut [
     }
 }
 
+/// Least dofs of a branched tree whose [`minv_times_tree_sparse`] runs as one dense
+/// product (faer's): from a quadruped's 18 on, its kernels beat the column combinations
+/// that skip the zeros.
+pub(crate) const DENSE_TREE_PRODUCT: usize = 12;
+
 /// `out = −S B` for a symmetric `S` and a `B` whose column `c` is zero outside the
 /// ancestors of dof `c` and the range `c..subtree_end[c]` (n × n, column-major): each
 /// output column combines only the columns of `S` selected by the nonzeros of `B`.
@@ -190,6 +195,11 @@ pub(crate) fn minv_times_tree_sparse(
     let n = tree.n();
     if n > 0 && tree.is_chain() {
         minus_dense_product(n, s, b, out);
+        return;
+    }
+    if n >= DENSE_TREE_PRODUCT {
+        // B's zeros are exact: the dense product gives the same sums with faer's kernels.
+        gemm(out, s, b, (n, n, n), false, -1.0);
         return;
     }
     for c in 0..n {
