@@ -178,8 +178,8 @@ pub(crate) fn ltdl_inverse(tree: &DofTree<'_>, l: &[f64], d: &[f64], out: &mut [
 }
 
 /// Least dofs of a branched tree whose [`minv_times_tree_sparse`] runs as one dense
-/// product (faer's): from a quadruped's 18 on, its kernels beat the column combinations
-/// that skip the zeros.
+/// product (faer's), whose kernels beat the column combinations that skip the zeros on
+/// the quadruped (18 dofs) and the humanoid (35) measured.
 pub(crate) const DENSE_TREE_PRODUCT: usize = 12;
 
 /// `out = −S B` for a symmetric `S` and a `B` whose column `c` is zero outside the
