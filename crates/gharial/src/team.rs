@@ -314,6 +314,7 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 /// A helper's loop: wait for a turn (spinning, then parked), claim it, run the job.
 fn helper(shared: &Shared, i: usize) {
     let slot = &shared.slots[i];
+    crate::linalg::reserve_packing_buffer();
     shared.started.fetch_add(1, Ordering::Release);
     loop {
         let Some(pass) = wait_for_turn(shared, slot) else {

@@ -21,6 +21,17 @@ const SMALL_PRODUCT: usize = 512;
 /// to 1024 makes that solve slower (faer's AVX-512 kernel wins on `P [A B]`).
 const SMALL_LOWER_PRODUCT: usize = 4 * SMALL_PRODUCT;
 
+/// Makes faer's packing buffer of the calling thread: faer keeps the packed operands of
+/// its larger products in one buffer per thread, allocated at the thread's first such
+/// product. One product (on zeros) when a workspace is built, or a team thread starts,
+/// keeps that allocation out of the first solve.
+pub(crate) fn reserve_packing_buffer() {
+    const N: usize = 64;
+    let a = faer::Mat::<f64>::zeros(N, N);
+    let mut c = faer::Mat::<f64>::zeros(N, N);
+    faer::linalg::matmul::matmul(c.as_mut(), Accum::Replace, a.as_ref(), a.as_ref(), 1.0, Par::Seq);
+}
+
 /// `dst = alpha * lhs * rhs` (`Accum::Replace`) or `dst += alpha * lhs * rhs` (`Accum::Add`).
 #[inline]
 pub fn matmul(mut dst: MatMut<'_, f64>, accum: Accum, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>, alpha: f64) {

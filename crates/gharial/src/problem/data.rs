@@ -423,8 +423,9 @@ fn constraint_data(cs: &[StageConstraint]) -> Vec<StageFunctionData> {
 }
 
 impl ProblemData {
-    /// Allocates the data of `problem`; stages are evaluated on `num_threads` threads
-    /// (1: serial, in the calling thread), at most the available parallelism
+    /// Allocates the data of `problem` (and faer's packing buffer of the calling thread,
+    /// so that the first solve allocates nothing); stages are evaluated on `num_threads`
+    /// threads (1: serial, in the calling thread), at most the available parallelism
     /// ([`crate::pool_threads`]); results are the same for every thread count.
     ///
     /// # Errors
@@ -434,6 +435,7 @@ impl ProblemData {
             return Err(Error::option("num_threads", "must be at least 1"));
         }
         let team = Team::for_threads(num_threads).map_err(|e| Error::option("num_threads", e))?;
+        crate::linalg::reserve_packing_buffer();
         let s0 = problem.space(0);
         let init = match problem.initial_condition() {
             InitialCondition::Fixed(_) => {
