@@ -128,7 +128,8 @@ pub struct ContactData {
     /// `[Qᵀ | Λ⁻¹]` (nc × (nv + nc), column-major).
     qt_linv: Vec<f64>,
     /// `∂τ/∂x − ∂(Jcᵀ λ)/∂x` of the RNEA at the solution (nv × nv, column-major), x = q, v;
-    /// only written at dof pairs on one path to the root (zero elsewhere).
+    /// only written at dof pairs on one path to the root (zero elsewhere: the dense
+    /// products of `kkt_derivatives` rely on it).
     b_dq: Vec<f64>,
     b_dv: Vec<f64>,
     /// `−∂g/∂x` of the constraint function at fixed ddq (nc × nv, column-major).
