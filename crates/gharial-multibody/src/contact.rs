@@ -21,7 +21,7 @@ use crate::dynamics::{factor_mass_matrix, mass_matrix_column, minv_from_factor};
 use crate::error::{Error, Result, check_results, check_vec};
 use crate::kinematics::{jacobian_step, joint_motion, placement_step};
 use crate::lie::{jlog6_blocks, log6};
-use crate::linalg::{axpy, cholesky_factor, cholesky_solve, gemm, ltdl_solve_rows};
+use crate::linalg::{axpy, cholesky_factor, cholesky_solve, gemm, ltdl_solve_rows, reserve_packing_buffer};
 use crate::model::{Model, NONE, ReferenceFrame};
 use crate::spatial::{Force, Mat3, Motion, Se3, Vec3};
 use faer::MatRef;
@@ -191,12 +191,8 @@ impl ContactData {
             stacked: vec![0.0; (nv + nc) * nv],
             chain: Vec::with_capacity(nv),
         };
-        // faer keeps the packing memory of its larger products in a buffer per thread,
-        // allocated at the thread's first such product: one product of the derivatives'
-        // size (on zeros) makes it here, so that this thread's derivatives allocate
-        // nothing later (another thread's first derivatives allocate it once).
         let cd = &mut cdata;
-        gemm(&mut cd.ddq_dq, &cd.pq, &cd.stacked, (nv, nv + nc, nv), false, 1.0);
+        reserve_packing_buffer(&mut cd.ddq_dq, &cd.pq, &cd.stacked, (nv, nv + nc, nv));
         Ok(cdata)
     }
 

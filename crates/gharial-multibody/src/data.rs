@@ -7,7 +7,7 @@
 //! views.
 
 use crate::error::{Error, Result};
-use crate::linalg::{DENSE_TREE_PRODUCT, gemm};
+use crate::linalg::{DENSE_TREE_PRODUCT, reserve_packing_buffer};
 use crate::model::Model;
 use crate::spatial::{Force, Inertia, Mat3, Motion, Se3, Sym6, Vec3};
 use faer::MatRef;
@@ -233,12 +233,7 @@ impl Data {
             acom: Vec3::zeros(),
         };
         if nv >= DENSE_TREE_PRODUCT {
-            // faer keeps the packing memory of its larger products in a buffer per
-            // thread, allocated at the thread's first such product: one product of the
-            // derivatives' size (on zeros) makes it here, so that this thread's
-            // derivatives allocate nothing later (another thread's first ones allocate
-            // it once).
-            gemm(&mut data.ddq_dq, &data.minv, &data.dtau_dq, (nv, nv, nv), false, 1.0);
+            reserve_packing_buffer(&mut data.ddq_dq, &data.minv, &data.dtau_dq, (nv, nv, nv));
         }
         data
     }

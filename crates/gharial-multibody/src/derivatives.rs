@@ -358,17 +358,18 @@ pub fn compute_rnea_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[
     check_vec("a", a, model.nv)?;
     velocity_pass(model, data, q, v);
     rnea_derivatives_into_data(model, data, v, a);
-    check_rnea_derivatives(data)
+    check_results(&rnea_results(data))
 }
 
-/// Checks `tau`, `dtau_dq`, `dtau_dv` and `M` of the last RNEA derivatives.
-fn check_rnea_derivatives(data: &Data) -> Result<()> {
-    check_results(&[
+/// The results of the last RNEA derivatives (`tau`, `dtau_dq`, `dtau_dv`, `M`), named for
+/// [`check_results`].
+fn rnea_results(data: &Data) -> [(&'static str, &[f64]); 4] {
+    [
         ("tau", &data.tau),
         ("dtau_dq", &data.dtau_dq),
         ("dtau_dv", &data.dtau_dv),
         ("mass matrix", &data.m),
-    ])
+    ]
 }
 
 /// [`rnea_derivatives_kernel`] into `data.dtau_dq`, `data.dtau_dv`, `data.m`.
@@ -432,12 +433,13 @@ fn aba_derivatives(model: &Model, data: &mut Data, q: &[f64], v: &[f64], tau: &[
     let tree = model.dof_tree(&data.subtree_end);
     minv_times_tree_sparse(&tree, &data.minv, &data.dtau_dq, &mut data.ddq_dq, &mut data.terms);
     minv_times_tree_sparse(&tree, &data.minv, &data.dtau_dv, &mut data.ddq_dv, &mut data.terms);
+    let [tau, dtau_dq, dtau_dv, m] = rnea_results(data);
     check_results(&[
         ("ddq", &data.ddq),
-        ("tau", &data.tau),
-        ("dtau_dq", &data.dtau_dq),
-        ("dtau_dv", &data.dtau_dv),
-        ("mass matrix", &data.m),
+        tau,
+        dtau_dq,
+        dtau_dv,
+        m,
         ("inverse mass matrix", &data.minv),
         ("ddq_dq", &data.ddq_dq),
         ("ddq_dv", &data.ddq_dv),

@@ -96,6 +96,15 @@ pub(crate) fn gemm(
     faer::linalg::matmul::matmul(dst, accum, lhs, rhs, alpha, faer::Par::Seq);
 }
 
+/// Makes faer's packing buffer of the calling thread: faer keeps the packed operands of
+/// its larger products in one buffer per thread, allocated at the thread's first such
+/// product. One product of the given size on the given (zero) buffers, when a workspace
+/// is created, keeps that allocation out of the algorithms on this thread (another
+/// thread's first product allocates its own once).
+pub(crate) fn reserve_packing_buffer(out: &mut [f64], a: &[f64], b: &[f64], dims: (usize, usize, usize)) {
+    gemm(out, a, b, dims, false, 1.0);
+}
+
 /// `out[j] += Σ_(k, b) b · src[k·stride + j]` for every `j < out.len()`: a linear
 /// combination of columns of `src` (column k starts at `k·stride`), accumulated in
 /// registers sixteen entries at a time.
