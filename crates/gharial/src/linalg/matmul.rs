@@ -45,6 +45,16 @@ pub fn matmul(mut dst: MatMut<'_, f64>, accum: Accum, lhs: MatRef<'_, f64>, rhs:
     faer::linalg::matmul::matmul(dst, accum, lhs, rhs, alpha, Par::Seq);
 }
 
+/// `dst = alpha * lhs * rhs` by the loop kernels whatever the number of columns (faer's
+/// product when they do not apply: more than `MAX_SMALL_DIM` rows and columns of `lhs`,
+/// or strided views): for a small square `lhs` applied to many columns, whose loops keep
+/// each column of `dst` in registers where faer's kernels pack and dispatch.
+pub(crate) fn matmul_loops(mut dst: MatMut<'_, f64>, lhs: MatRef<'_, f64>, rhs: MatRef<'_, f64>, alpha: f64) {
+    if !small_matmul(dst.rb_mut(), Accum::Replace, lhs, rhs, alpha, false) {
+        faer::linalg::matmul::matmul(dst, Accum::Replace, lhs, rhs, alpha, Par::Seq);
+    }
+}
+
 /// Lower triangle (diagonal included) of `dst = alpha * lhs * rhs` (`Accum::Replace`) or
 /// `dst += alpha * lhs * rhs` (`Accum::Add`); the strict upper triangle of `dst` is not
 /// touched. For products known to be symmetric, such as `Aᵀ P A`, at half the cost.

@@ -98,7 +98,7 @@ pub(crate) use gram::{GramScratch, GramWeight, scale_rows};
 pub(crate) use ldlt::Ldlt;
 pub(crate) use llt::Llt;
 pub(crate) use matmul::{
-    add_sandwich_lower, copy_add_product, identity_block, matmul_identity_block, matmul_lower_upper_free,
+    add_sandwich_lower, copy_add_product, identity_block, matmul_identity_block, matmul_loops, matmul_lower_upper_free,
     reserve_packing_buffer,
 };
 pub(crate) use matvec::matvec_t;

@@ -138,6 +138,34 @@ fn factorizations_solve_random_systems() {
     }
 }
 
+/// The row-wise LU solve against faer's column solve (random matrices, so with row
+/// exchanges; a wrong permutation or substitution is off by O(1)), scaled, for the
+/// shapes of a Riccati stage's `E` block among others.
+#[test]
+fn lu_solve_by_rows_equals_the_column_solve() {
+    let mut rng = crate::lq::random::SplitMix64::new(11);
+    for (n, m) in [(1, 1), (3, 1), (6, 1), (6, 48), (7, 5), (12, 37), (30, 9)] {
+        let a = Mat::from_fn(n, n, |i, j| rng.uniform(-1.0, 1.0) + if i == j { 0.5 } else { 0.0 });
+        let b = Mat::from_fn(n, m, |_, _| rng.uniform(-1.0, 1.0));
+        let mut f = Lu::new(n, m);
+        f.factor(a.as_ref()).unwrap();
+        let mut x = b.clone();
+        f.solve_in_place(x.as_mut());
+        let mut y = b.clone();
+        let mut rows = vec![f64::NAN; n * m];
+        f.solve_rows_in_place(y.as_mut(), -2.0, &mut rows);
+        let scale = norm_max(x.as_ref()).max(1.0);
+        for i in 0..n {
+            for c in 0..m {
+                assert!(
+                    (y[(i, c)] + 2.0 * x[(i, c)]).abs() < 1e-11 * scale,
+                    "{n}x{m} at ({i}, {c})"
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn singular_and_non_finite_are_reported() {
     let mut f = Llt::new(2);

@@ -11,7 +11,7 @@
 use faer::prelude::ReborrowMut;
 use faer::{Accum, Mat, MatMut, MatRef};
 
-use crate::linalg::{self, FactorError, Lu, identity_block, matmul};
+use crate::linalg::{self, FactorError, Lu, SMALL_DIM, identity_block, matmul};
 
 /// `E = diag(E_b, -I)` factored through `E_b` (module documentation).
 #[derive(Debug)]
@@ -20,19 +20,35 @@ pub(crate) struct EFactor {
     k: usize,
     /// `E_b` (in the leading `k × k` corner), for products with `Eᵀ`.
     block: Mat<f64>,
+    /// `-E_b⁻¹` (leading `k × k` corner) when `k <= SMALL_DIM`: the solves are then
+    /// products, a few multiply-adds per column in registers (the Riccati stage solves
+    /// with all `nx + nu` columns of `[A B]`), where a blocked triangular solve spends
+    /// most of its time outside the arithmetic.
+    neg_inv: Mat<f64>,
+    /// `-E_b⁻ᵀ`, stored for the same products.
+    neg_inv_t: Mat<f64>,
     /// `E_b⁻¹E_b⁻ᵀ` scratch (leading `k × k` corner).
     inv: Mat<f64>,
     lu: Lu,
+    /// Scratch: a copy of the right-hand side's block rows (`ny × max_rhs`), and the
+    /// row-major rows of the solve that forms `-E_b⁻¹` (`ny²`).
+    top: Mat<f64>,
+    rows: Vec<f64>,
 }
 
 impl EFactor {
     /// Storage for matrices `E` up to `ny × ny`, solved with up to `max_rhs` columns.
     pub(crate) fn new(ny: usize, max_rhs: usize) -> Self {
+        let max_rhs = max_rhs.max(ny).max(1);
         Self {
             k: 0,
             block: Mat::zeros(ny, ny),
+            neg_inv: Mat::zeros(ny.min(SMALL_DIM), ny.min(SMALL_DIM)),
+            neg_inv_t: Mat::zeros(ny.min(SMALL_DIM), ny.min(SMALL_DIM)),
             inv: Mat::zeros(ny, ny),
-            lu: Lu::new(ny, max_rhs.max(ny).max(1)),
+            lu: Lu::new(ny, max_rhs),
+            top: Mat::zeros(ny.min(SMALL_DIM), max_rhs),
+            rows: vec![0.0; ny.min(SMALL_DIM).pow(2)],
         }
     }
 
@@ -48,7 +64,7 @@ impl EFactor {
     }
 
     /// Factors `e` (nothing to factor when `e = -I`; the vectorised exact test first,
-    /// the block search only for other `E`).
+    /// the block search only for other `E`), and forms `-E_b⁻¹` for small blocks.
     pub(crate) fn factor(&mut self, e: MatRef<'_, f64>) -> Result<(), FactorError> {
         self.k = if super::is_minus_identity(e) {
             0
@@ -61,27 +77,54 @@ impl EFactor {
         }
         let e_b = e.submatrix(0, 0, k, k);
         linalg::copy(self.block.as_mut().submatrix_mut(0, 0, k, k), e_b);
-        self.lu.factor(e_b)
+        self.lu.factor(e_b)?;
+        if self.small() {
+            let mut n = self.neg_inv.as_mut().submatrix_mut(0, 0, k, k);
+            crate::spaces::set_identity(n.rb_mut(), 1.0);
+            self.lu.solve_rows_in_place(n.rb_mut(), -1.0, &mut self.rows);
+            linalg::copy_transposed(self.neg_inv_t.as_mut().submatrix_mut(0, 0, k, k), n.as_ref());
+        }
+        Ok(())
+    }
+
+    /// Whether `-E_b⁻¹` is formed.
+    fn small(&self) -> bool {
+        self.k <= SMALL_DIM
     }
 
     /// `X ← -E⁻¹X = diag(-E_b⁻¹, I) X`: the rows past the block stay as they are.
     pub(crate) fn neg_solve_in_place(&mut self, x: MatMut<'_, f64>) {
-        let k = self.k;
-        if k > 0 {
-            let mut top = x.subrows_mut(0, k);
-            self.lu.solve_in_place(top.rb_mut());
-            linalg::negate(top);
+        let (k, m) = (self.k, x.ncols());
+        if k == 0 {
+            return;
         }
+        let mut x_b = x.subrows_mut(0, k);
+        if !self.small() {
+            self.lu.solve_in_place(x_b.rb_mut());
+            return linalg::negate(x_b);
+        }
+        let mut top = self.top.as_mut().submatrix_mut(0, 0, k, m);
+        linalg::copy(top.rb_mut(), x_b.as_ref());
+        let n = self.neg_inv.as_ref().submatrix(0, 0, k, k);
+        linalg::matmul_loops(x_b, n, top.as_ref(), 1.0);
     }
 
-    /// `X ← E⁻ᵀX`.
+    /// `X ← E⁻ᵀX = diag(E_b⁻ᵀ, -I) X`.
     pub(crate) fn solve_transpose_in_place(&mut self, mut x: MatMut<'_, f64>) {
-        let k = self.k;
+        let (k, m) = (self.k, x.ncols());
         let rest = x.nrows() - k;
         linalg::negate(x.rb_mut().subrows_mut(k, rest));
-        if k > 0 {
-            self.lu.solve_transpose_in_place(x.subrows_mut(0, k));
+        if k == 0 {
+            return;
         }
+        let x_b = x.subrows_mut(0, k);
+        if !self.small() {
+            return self.lu.solve_transpose_in_place(x_b);
+        }
+        let mut top = self.top.as_mut().submatrix_mut(0, 0, k, m);
+        linalg::copy(top.rb_mut(), x_b.as_ref());
+        let n_t = self.neg_inv_t.as_ref().submatrix(0, 0, k, k);
+        linalg::matmul_loops(x_b, n_t, top.as_ref(), -1.0);
     }
 
     /// `X ← EᵀX`; `w` is scratch of at least `k` rows and `X`'s columns.
@@ -106,6 +149,11 @@ impl EFactor {
         }
         if k == 0 {
             return;
+        }
+        if self.small() {
+            // E_b⁻¹E_b⁻ᵀ = (-E_b⁻¹)(-E_b⁻¹)ᵀ.
+            let n = self.neg_inv.as_ref().submatrix(0, 0, k, k);
+            return matmul(g.submatrix_mut(0, 0, k, k), Accum::Replace, n, n.transpose(), mu);
         }
         let mut inv = self.inv.as_mut().submatrix_mut(0, 0, k, k);
         inv.fill(0.0);
