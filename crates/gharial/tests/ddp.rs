@@ -466,3 +466,31 @@ fn ode_problem() -> Problem {
     let term = Arc::new(QuadraticStateCost::diagonal(space, &[0.0, 0.0], &[1.0, 1.0], 0).unwrap());
     Problem::new(&[0.1, 0.0], vec![StageModel::new(cost, phi).unwrap(); 4], term).unwrap()
 }
+
+/// The point mass of [`point_mass`] pushed against its control box: with
+/// `x0 = (1, 1, 1, 1)` both controls of the first knot sit at their bound at the optimum
+/// (the free set of the box QP is empty), and with the horizons and starts below at
+/// several knots. Both box variants converge there to a point that satisfies the KKT
+/// conditions (a convex QP: the optimum) with the controls inside the box.
+#[test]
+fn box_variants_converge_with_every_control_of_a_knot_clamped() {
+    for (n, x0, w) in [
+        (1, [1.0, 1.0, 1.0, 1.0], 1.0),
+        (1, [0.0, 0.0, 3.0, 3.0], 1.0),
+        (1, [1.0, 1.0, 0.5, 1.0], 1.0),
+        (20, [1.0, 1.0, 1.0, 1.0], 1.0),
+        (20, [1.0, -1.0, 0.0, 0.0], 100.0),
+    ] {
+        let p = ocp(&point_mass(n, x0, w), Some(2.0), None);
+        let (_, us) = zero_guess(&p);
+        let xs = rollout(&p, &us);
+        for variant in [DdpVariant::BoxDdp, DdpVariant::BoxFddp] {
+            let what = format!("{} N = {n}, x0 = {x0:?}", variant.name());
+            let sol = solve(&p, DdpOptions::new(variant), &xs, &us);
+            assert_eq!(sol.status, Status::Converged, "{what}");
+            let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+            assert!(kkt.max() < 1e-6, "{what}: {kkt:?}");
+            assert!(sol.us.iter().flatten().all(|u| u.abs() <= 2.0), "{what}");
+        }
+    }
+}

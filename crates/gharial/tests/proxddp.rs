@@ -126,6 +126,35 @@ fn box_constrained_lq_satisfies_the_kkt_conditions_for_every_step_acceptance() {
     }
 }
 
+/// The point mass against its control box, every control of a knot at its bound at the
+/// optimum (the cases of the box-DDP test), for ProxDDP's default options and its
+/// active-set prediction: converged to the KKT conditions inside the box. The first
+/// case once ended in a regularisation failure (a 2x2 pivot of an earlier initial-stage
+/// factorization read as one of the next).
+#[test]
+fn box_constrained_point_mass_with_every_control_of_a_knot_clamped() {
+    for (n, x0, w) in [
+        (1, [1.0, 1.0, 1.0, 1.0], 1.0),
+        (1, [0.0, 0.0, 3.0, 3.0], 1.0),
+        (1, [1.0, 1.0, 0.5, 1.0], 1.0),
+        (2, [1.0, 1.0, 1.0, 1.0], 1.5),
+        (20, [1.0, 1.0, 1.0, 1.0], 1.0),
+        (20, [1.0, -1.0, 0.0, 0.0], 100.0),
+    ] {
+        let p = ocp(&point_mass(n, x0, w), Some(2.0), None);
+        for active_set_iters in [0, 10] {
+            let what = format!("N = {n}, x0 = {x0:?}, active_set_iters = {active_set_iters}");
+            let (xs, us) = zero_guess(&p);
+            let opts = ProxDdpOptions::default().with(|o| o.active_set_iters = active_set_iters);
+            let sol = solve(&p, opts, &xs, &us);
+            assert_eq!(sol.status, Status::Converged, "{what}");
+            let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+            assert!(kkt.max() < 1e-5, "{what}: {kkt:?}");
+            assert!(sol.us.iter().flatten().all(|u| u.abs() <= 2.0 + 1e-6), "{what}");
+        }
+    }
+}
+
 #[test]
 fn warm_start_from_a_converged_solution_takes_at_most_two_iterations() {
     let lq = random_lq(4, 2, 30, 11);

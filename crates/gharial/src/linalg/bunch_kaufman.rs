@@ -85,6 +85,9 @@ impl BunchKaufman {
         if !lower_sum_is_finite(self.factors.as_ref()) {
             return Err(FactorError::NonFinite);
         }
+        // faer writes the subdiagonal of the 2x2 pivots only: a zero marks a 1x1 pivot
+        // (below and in the solve), so the entries of an earlier factorization go.
+        self.subdiag.fill(0.0);
         let stack = MemStack::new(&mut self.buf);
         bunch_kaufman::factor::cholesky_in_place(
             self.factors.as_mut(),

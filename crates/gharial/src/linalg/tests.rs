@@ -423,3 +423,38 @@ fn sparse_ldlt_solves_and_reads_the_inertia_of_kkt_matrices() {
     a.values[0] = f64::NAN;
     assert_eq!(f.factor(&a), Err(FactorError::NonFinite));
 }
+
+/// A factorization reuses its storage: a 2x2 pivot of an earlier matrix must not count
+/// (or solve) as one of a later matrix factored with 1x1 pivots only. The second matrix
+/// is `[[P, I], [I, -0]]` with `P` positive definite (inertia `(n, n)`), the first the
+/// same with another `P` that takes a 2x2 pivot.
+#[test]
+fn bunch_kaufman_refactors_without_stale_pivots() {
+    let kkt = |p22: f64| {
+        let mut k = Mat::<f64>::zeros(8, 8);
+        for (i, v) in [1.1, 1.1, p22, p22].into_iter().enumerate() {
+            k[(i, i)] = v;
+            k[(4 + i, i)] = 1.0;
+            k[(i, 4 + i)] = 1.0;
+            k[(4 + i, 4 + i)] = -0.0;
+        }
+        for (i, j) in [(2, 0), (0, 2), (3, 1), (1, 3)] {
+            k[(i, j)] = 0.1;
+        }
+        k
+    };
+    let expected = Inertia {
+        positive: 4,
+        negative: 4,
+        zero: 0,
+    };
+    let mut f = BunchKaufman::new(8);
+    let b = Mat::from_fn(8, 1, |i, _| 1.0 + i as f64);
+    for p22 in [0.52, 1.02, 0.52] {
+        let k = kkt(p22);
+        assert_eq!(f.factor(k.as_ref(), 0.0).unwrap(), expected, "P22 = {p22}");
+        let mut x = b.clone();
+        f.solve_in_place(x.as_mut());
+        assert!(residual(k.as_ref(), x.as_ref(), b.as_ref()) < 1e-12, "P22 = {p22}");
+    }
+}

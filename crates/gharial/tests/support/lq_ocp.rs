@@ -77,6 +77,35 @@ pub fn space(lq: &Lq) -> Arc<dyn Manifold> {
     Arc::new(VectorSpace::new(lq.nx))
 }
 
+/// A point mass in the plane, `x = (p, v)`, `u` the acceleration, `dt = 0.1`: running
+/// cost `dt (|p|² + 0.1 |v|² + 0.1 |u|²) / 2`, terminal `w_final |x|² / 2`.
+pub fn point_mass(n: usize, x0: [f64; 4], w_final: f64) -> Lq {
+    let dt = 0.1;
+    let diag = |v: &[f64]| Mat::from_fn(v.len(), v.len(), |i, j| if i == j { v[i] } else { 0.0 });
+    let mut a = diag(&[1.0; 4]);
+    a[(0, 2)] = dt;
+    a[(1, 3)] = dt;
+    let mut b = Mat::zeros(4, 2);
+    b[(2, 0)] = dt;
+    b[(3, 1)] = dt;
+    Lq {
+        nx: 4,
+        nu: 2,
+        n,
+        a,
+        b,
+        c: vec![0.0; 4],
+        q: diag(&[dt, dt, 0.1 * dt, 0.1 * dt]),
+        s: Mat::zeros(4, 2),
+        r: diag(&[0.1 * dt, 0.1 * dt]),
+        qv: vec![0.0; 4],
+        rv: vec![0.0; 2],
+        qf: diag(&[w_final; 4]),
+        qfv: vec![0.0; 4],
+        x0: x0.to_vec(),
+    }
+}
+
 /// The OCP with optional control bounds and a terminal equality `x_N = x_target`.
 pub fn ocp(lq: &Lq, umax: Option<f64>, x_target: Option<&[f64]>) -> Problem {
     let sp = space(lq);
