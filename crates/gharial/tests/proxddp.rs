@@ -455,6 +455,38 @@ fn time_budget_and_callbacks_stop_the_solve_with_a_usable_iterate() {
     assert_eq!(sol.status, Status::Converged);
 }
 
+/// Contradictory constraints (`u = 3` and a box `|u| <= 1` on the same controls, or
+/// `u = 3` and `u = -3`) stop as infeasible once the subproblem at the smallest penalty
+/// stays infeasible (ProxNLP's rule), long before the outer-iteration limit, with a
+/// finite iterate.
+#[test]
+fn contradictory_constraints_stop_as_infeasible() {
+    use gharial::constraints::BoxConstraint;
+    use gharial::functions::ControlError;
+    let lq = point_mass(5, [1.0; 4], 1.0);
+    for second in [(-3.0, None), (0.0, Some(1.0))] {
+        let mut p = ocp(&lq, None, None);
+        let sp = space(&lq);
+        let mut stage = p.stages()[0].clone();
+        let eq = Arc::new(ControlError::new(sp.as_ref(), &[3.0, 3.0]).unwrap());
+        stage
+            .add_constraint(StageConstraint::new("u = 3", eq, Arc::new(EqualityConstraintSet)))
+            .unwrap();
+        let f = Arc::new(ControlError::new(sp.as_ref(), &[second.0; 2]).unwrap());
+        let set: Arc<dyn gharial::constraints::ConstraintSet> = match second.1 {
+            None => Arc::new(EqualityConstraintSet),
+            Some(m) => Arc::new(BoxConstraint::new(&[-m; 2], &[m; 2]).unwrap()),
+        };
+        stage.add_constraint(StageConstraint::new("second", f, set)).unwrap();
+        p = Problem::new(&lq.x0, vec![stage; 5], p.terminal_cost().clone()).unwrap();
+        let (xs, us) = zero_guess(&p);
+        let sol = solve(&p, ProxDdpOptions::default(), &xs, &us);
+        assert_eq!(sol.status, Status::Infeasible, "{second:?}");
+        assert!(sol.al_iterations < ProxDdpOptions::default().max_al_iters, "{second:?}");
+        assert!(sol.xs.iter().chain(&sol.us).flatten().all(|v| v.is_finite()));
+    }
+}
+
 #[test]
 fn diverging_problems_return_a_status_and_finite_values() {
     // A cost unbounded below in u (R = -I): no minimiser exists.

@@ -12,7 +12,7 @@ use crate::error::{Error, Result, check_dim, check_finite};
 use crate::solvers::filter::Filter;
 use crate::solvers::linesearch::{LinesearchResult, Nonmonotone, armijo};
 use crate::solvers::proxddp::{StepAcceptance, TABLE};
-use crate::solvers::skeleton::StallCount;
+use crate::solvers::skeleton::{InfeasibleCount, StallCount};
 use crate::solvers::{Callback, HISTORY_LIMIT, IterationRecord, Status};
 
 /// Smallest factor of the primal tolerance `eta` after a successful outer step (as
@@ -22,10 +22,6 @@ const MIN_ETA_FACTOR: f64 = 1e-2;
 /// Trials of the filter may be at most this factor more infeasible than the initial
 /// point (or than 1), as in IPOPT and ProxDDP.
 const THETA_MAX_FACTOR: f64 = 1e4;
-
-/// Failed outer steps at the smallest penalty after which the problem is declared
-/// (locally) infeasible.
-const INFEASIBLE_AFTER: usize = 3;
 
 /// The result of a ProxNLP solve.
 #[derive(Debug, Clone, Default)]
@@ -261,7 +257,7 @@ struct State {
     /// Consecutive outer updates forced by stalls.
     stalls: StallCount,
     /// Consecutive failed outer steps at the smallest penalty.
-    failed_at_min: usize,
+    infeasible: InfeasibleCount,
     nonmonotone: Nonmonotone,
 }
 
@@ -347,7 +343,7 @@ impl State {
             stalled: false,
             roundoff_inner: f64::INFINITY,
             stalls: StallCount::default(),
-            failed_at_min: 0,
+            infeasible: InfeasibleCount::default(),
             nonmonotone: nonmonotone(opts),
         }
     }
@@ -391,19 +387,14 @@ impl State {
                 self.al_iter
             ));
         }
+        if self.infeasible.update(success, self.mu <= opts.mu_lower_bound) {
+            return Some(Status::Infeasible);
+        }
         if success {
-            self.failed_at_min = 0;
             cx.ws.accept_multipliers();
             self.omega *= bcl_rate(self.mu).powf(opts.bcl_alpha_omega);
             self.eta *= bcl_rate(self.mu).powf(opts.bcl_alpha_eta).max(MIN_ETA_FACTOR);
         } else {
-            if self.mu <= opts.mu_lower_bound {
-                // The subproblem at the smallest penalty is solved and still infeasible.
-                self.failed_at_min += 1;
-                if self.failed_at_min >= INFEASIBLE_AFTER {
-                    return Some(Status::Infeasible);
-                }
-            }
             self.mu = (self.mu * opts.mu_update_factor).max(opts.mu_lower_bound);
             self.omega *= bcl_rate(self.mu).powf(opts.bcl_beta_omega);
             self.eta *= bcl_rate(self.mu).powf(opts.bcl_beta_eta);

@@ -70,7 +70,7 @@ pub enum Status {
     /// A callback asked the solver to stop; the last accepted iterate is returned.
     Interrupted,
     /// The constraints look infeasible: the subproblem at the smallest penalty was solved
-    /// repeatedly with a primal residual above its target (ProxNLP).
+    /// repeatedly with a primal residual above its target (ProxDDP, ProxNLP).
     Infeasible,
 }
 

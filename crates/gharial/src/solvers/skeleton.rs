@@ -385,3 +385,24 @@ impl StallCount {
         self.updates > 3
     }
 }
+
+/// Failed outer updates at the smallest penalty (the primal-dual augmented-Lagrangian
+/// loops of ProxDDP and ProxNLP): the subproblem at `mu_lower_bound` solved three times
+/// in a row with a primal residual above its target declares the constraints (locally)
+/// infeasible.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct InfeasibleCount(usize);
+
+impl InfeasibleCount {
+    /// Counts an outer update that met its primal target (`success`, which resets the
+    /// count) or not, at a penalty at its lower bound or not; `true` when the solve
+    /// should stop as infeasible.
+    pub(crate) fn update(&mut self, success: bool, at_min_penalty: bool) -> bool {
+        if success {
+            self.0 = 0;
+        } else if at_min_penalty {
+            self.0 += 1;
+        }
+        self.0 >= 3
+    }
+}

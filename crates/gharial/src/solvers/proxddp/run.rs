@@ -12,7 +12,7 @@ use crate::lq::LqError;
 use crate::problem::Problem;
 use crate::solvers::filter::Filter;
 use crate::solvers::linesearch::{LinesearchResult, Nonmonotone, armijo};
-use crate::solvers::skeleton::{StallCount, copy_trajectory, push_record, write_gains};
+use crate::solvers::skeleton::{InfeasibleCount, StallCount, copy_trajectory, push_record, write_gains};
 use crate::solvers::{Callback, InitialGuess, IterationRecord, Solution, Status};
 
 /// Trials of the filter may be at most this factor more infeasible than the initial
@@ -55,6 +55,8 @@ struct State {
     roundoff_inner: f64,
     /// Consecutive outer updates forced by stalls.
     stalls: StallCount,
+    /// Consecutive failed outer updates at the smallest penalty.
+    infeasible: InfeasibleCount,
     watchdog: Watchdog,
     nonmonotone: Nonmonotone,
 }
@@ -158,6 +160,7 @@ impl State {
             stalled: false,
             roundoff_inner: f64::INFINITY,
             stalls: StallCount::default(),
+            infeasible: InfeasibleCount::default(),
             watchdog: Watchdog::new(opts.watchdog_trigger),
             nonmonotone: nonmonotone(opts),
         }
@@ -205,6 +208,9 @@ impl State {
                     "mu decreased"
                 }
             ));
+        }
+        if self.infeasible.update(success, self.mu <= opts.mu_lower_bound) {
+            return Some(Status::Infeasible);
         }
         if success {
             cx.ws.accept_multipliers();
