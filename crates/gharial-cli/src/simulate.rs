@@ -45,9 +45,10 @@ pub struct SimulateArgs {
     pub solver: SolverArgs,
 }
 
-/// A simulated duration: finite, at least 0, at most 5000 s.
+/// A simulated duration: finite, positive, at most 5000 s (the scenario refuses one
+/// shorter than its plant step).
 fn duration(s: &str) -> Result<f64, String> {
-    let v = crate::nonnegative_real(s)?;
+    let v = crate::positive_real(s)?;
     if v <= 5000.0 {
         Ok(v)
     } else {

@@ -801,6 +801,11 @@ fn simulate_writes_a_closed_loop_that_the_plant_replays() {
     for (args, what) in [
         (vec!["simulate", "nope"], "unknown MPC scenario"),
         (vec!["simulate", "ur5-circle-mpc", "--duration", "1e9"], "at most 5000"),
+        (vec!["simulate", "solo-walk-mpc", "--duration", "0"], "--duration"),
+        (
+            vec!["simulate", "solo-walk-mpc", "--duration", "1e-4"],
+            "one plant step",
+        ),
         (
             vec!["simulate", "ur5-circle-mpc", "--output", "/nonexistent/dir/x.json"],
             "cannot write",

@@ -148,11 +148,20 @@ pub struct ContactData {
 
 impl ContactData {
     /// Allocates the workspace for these contacts. Fails if a contact is not attached to
-    /// a moving joint of the model, or if the contacts have more rows than the model has
-    /// degrees of freedom (their Delassus matrix would be singular).
+    /// a moving joint of the model, if two contacts move with the same joint, or if the
+    /// contacts have more rows than the model has degrees of freedom (in both cases
+    /// their Delassus matrix would be singular).
     pub fn new(model: &Model, contacts: &[ContactModel]) -> Result<Self> {
         for (k, c) in contacts.iter().enumerate() {
             check_contact(model, k, c)?;
+            if let Some(j) = contacts[..k].iter().position(|d| d.joint == c.joint) {
+                // Rows of two contacts on one rigid body are the body's twist mapped by
+                // 3 + 3 (or more) rows of rank at most 5 (or 6): dependent.
+                return Err(Error::Invalid(format!(
+                    "contacts {j} and {k} both move with joint `{}`: the rows of two contacts on one rigid body are linearly dependent (the Delassus matrix would be singular); one 6D contact constrains the whole body",
+                    model.joint_names()[c.joint]
+                )));
+            }
         }
         let nc: usize = contacts.iter().map(|c| c.size()).sum();
         let nv = model.nv();

@@ -125,10 +125,20 @@ fn algorithms_validate_their_inputs() {
     // More constraint rows than degrees of freedom: refused when the contact data is made.
     let c = vec![ContactModel::from_frame(&m, ContactType::Contact6D, 3, ReferenceFrame::Local).unwrap()];
     assert!(matches!(ContactData::new(&m, &c), Err(Error::Invalid(ref s)) if s.contains("6 constraint rows")));
-    // Contacts that the robot cannot realize (the same point twice: Jc has rank 3) give a
-    // clear error, not NaN.
+    // Two contacts on one rigid body (the same point twice, or two points of a link)
+    // have dependent rows: refused when the contact data is made.
     let tool = other.frame_id("tool0").unwrap();
     let c = vec![ContactModel::from_frame(&other, ContactType::Contact3D, tool, ReferenceFrame::Local).unwrap(); 2];
+    let e = ContactData::new(&other, &c).err().unwrap();
+    assert!(e.to_string().contains("contacts 0 and 1 both move with joint"), "{e}");
+    let mut off = c.clone();
+    off[1].placement.translation[0] += 0.05;
+    assert!(ContactData::new(&other, &off).is_err());
+    // A contact the robot cannot realize (a point of the first link, which turns about
+    // one axis: Jc has rank 1) gives a clear error, not NaN.
+    let mut c = vec![c[0].clone()];
+    c[0].joint = 1;
+    c[0].placement.translation[0] = 0.1;
     let mut cd = ContactData::new(&other, &c).unwrap();
     let mut d = other.create_data();
     let (q, z) = (vec![0.3; 6], vec![0.0; 6]);

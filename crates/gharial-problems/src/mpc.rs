@@ -137,10 +137,17 @@ impl MpcScenario {
     /// seconds from the problem's initial state.
     ///
     /// # Errors
-    /// As [`simulate()`], or if `duration` is not finite and non-negative.
+    /// As [`simulate()`], or if `duration` is not finite or shorter than half a plant
+    /// step (no step to simulate).
     pub fn run<S: Solver>(&mut self, mpc: &mut Mpc<S>, duration: f64) -> Result<Record> {
-        if !(duration.is_finite() && duration >= 0.0) {
-            return Err(Error::option("duration", "must be finite and non-negative"));
+        if !(duration.is_finite() && duration >= 0.5 * self.plant_dt) {
+            return Err(Error::option(
+                "duration",
+                format!(
+                    "must be finite and at least one plant step ({} s), got {duration}",
+                    self.plant_dt
+                ),
+            ));
         }
         let x0 = self
             .example

@@ -38,6 +38,19 @@ def test_guesses_of_the_wrong_size_are_errors():
         s.run(p, [np.zeros(4)] * 21)
 
 
+
+def test_rollout_checks_the_controls():
+    p = lqr_problem()
+    with pytest.raises(ValueError, match=r"us\[0\] size"):
+        p.rollout([np.zeros(3)] * 20)
+    with pytest.raises(ValueError, match="number of controls"):
+        p.rollout([np.zeros(2)] * 3)
+    with pytest.raises(ValueError, match="number of controls"):
+        p.rollout([np.zeros(2)] * 21)
+    with pytest.raises(ValueError, match="non-finite"):
+        p.rollout([np.array([np.nan, 0.0])] * 20)
+
+
 def test_model_errors_carry_the_rust_message():
     space = manifolds.VectorSpace(4)
     a, b = point_mass()

@@ -133,4 +133,9 @@ fn the_page_embeds_the_scene_and_bad_scenes_are_errors() {
         .add_robot(&model, &[vec![0.0; 6], vec![0.0; 5]], &MeshSearch::default())
         .unwrap_err();
     assert!(e.to_string().contains("configuration 1"), "{e}");
+    // No configuration at all (an empty trajectory) is an error, not an index panic.
+    let e = Scene::new("x", 0.1)
+        .add_robot(&model, &[], &MeshSearch::default())
+        .unwrap_err();
+    assert!(e.to_string().contains("no configurations"), "{e}");
 }

@@ -224,9 +224,13 @@ impl Scene {
     /// each), resolving mesh files through `meshes`.
     ///
     /// # Errors
-    /// A configuration of the wrong size or not on the model's configuration space, or
-    /// a number of frames other than the scene's other bodies have.
+    /// No configuration, a configuration of the wrong size or not on the model's
+    /// configuration space, or a number of frames other than the scene's other bodies
+    /// have.
     pub fn add_robot(&mut self, model: &Model, qs: &[Vec<f64>], meshes: &MeshSearch) -> Result<RobotReport> {
+        if qs.is_empty() {
+            return Err(Error::Invalid("viewer: no configurations to show".into()));
+        }
         if let Some(b) = self.bodies.first()
             && b.poses.len() != qs.len()
         {

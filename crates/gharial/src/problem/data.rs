@@ -8,7 +8,7 @@ use faer::{Accum, Col, Mat};
 use super::{InitialCondition, Problem, StageConstraint, StageModel};
 use crate::costs::CostData;
 use crate::dynamics::{Dynamics, ExplicitDynamicsData, ImplicitDynamicsData};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, check_dim, check_finite};
 use crate::functions::StageFunctionData;
 use crate::linalg::{identity_block, matmul_identity_block, matvec_t, slice, slice_mut};
 use crate::spaces::Arg;
@@ -678,8 +678,21 @@ impl ProblemData {
     /// not valid).
     ///
     /// # Errors
-    /// If a state becomes non-finite or an implicit solve does not converge.
+    /// If the numbers or sizes of the states and controls do not fit the problem, `xs[0]`
+    /// or a control is not finite, a state becomes non-finite or an implicit solve does
+    /// not converge.
     pub fn rollout(&mut self, problem: &Problem, xs: &mut [Vec<f64>], us: &[Vec<f64>]) -> Result<()> {
+        let n = problem.horizon();
+        check_dim("rollout: number of states xs (N + 1)", n + 1, xs.len())?;
+        check_dim("rollout: number of controls us (N)", n, us.len())?;
+        for (t, x) in xs.iter().enumerate() {
+            check_dim(format_args!("rollout: xs[{t}] size"), problem.space(t).nx(), x.len())?;
+        }
+        for (t, u) in us.iter().enumerate() {
+            check_dim(format_args!("rollout: us[{t}] size"), problem.nu(t), u.len())?;
+            check_finite(format_args!("rollout: us[{t}]"), u)?;
+        }
+        check_finite("rollout: xs[0]", &xs[0])?;
         for (t, stage) in problem.stages().iter().enumerate() {
             let (done, rest) = xs.split_at_mut(t + 1);
             let y = &mut rest[0];

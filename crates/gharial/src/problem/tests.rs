@@ -582,6 +582,29 @@ fn set_x0_rejects_what_new_rejects_and_keeps_the_old_state() {
     assert_eq!(p.x0(), Some(&[0.0, 1.0][..]));
 }
 
+/// Wrong numbers or sizes of states and controls, and non-finite controls, are errors
+/// that name the entry (they once indexed out of bounds).
+#[test]
+fn rollout_checks_its_inputs() {
+    let p = problem(3);
+    let mut d = ProblemData::new(&p, 1).unwrap();
+    let xs = || vec![vec![1.0, 0.0]; 4];
+    type Case = (Vec<Vec<f64>>, Vec<Vec<f64>>, &'static str);
+    let cases: [Case; 6] = [
+        (xs(), vec![vec![0.0]; 2], "number of controls"),
+        (xs(), vec![vec![0.0]; 4], "number of controls"),
+        (xs(), vec![vec![0.0, 0.0]; 3], "us[0] size"),
+        (vec![vec![1.0, 0.0]; 3], vec![vec![0.0]; 3], "number of states"),
+        (xs(), vec![vec![0.0], vec![f64::NAN], vec![0.0]], "us[1]"),
+        (vec![vec![f64::INFINITY, 0.0]; 4], vec![vec![0.0]; 3], "xs[0]"),
+    ];
+    for (mut xs, us, what) in cases {
+        let e = d.rollout(&p, &mut xs, &us).err().unwrap();
+        assert!(e.to_string().contains(what), "{what}: {e}");
+    }
+    d.rollout(&p, &mut xs(), &vec![vec![0.0]; 3]).unwrap();
+}
+
 #[test]
 fn rollout_solves_implicit_dynamics() {
     use crate::dynamics::{ImplicitEuler, LinearOde};
