@@ -107,6 +107,7 @@ fn build_scenario(args: &SimulateArgs) -> gharial::Result<MpcScenario> {
     settings.speed = args.speed;
     settings.mismatch = Mismatch::payload(args.payload.unwrap_or(0.0));
     let mut sc = gharial_problems::mpc::scenario_with(&args.scenario, &settings)?;
+    sc.check_duration(args.duration)?;
     for &(t, dv) in &args.push {
         sc.push_base(t, dv)?;
     }

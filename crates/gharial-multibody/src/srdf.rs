@@ -127,6 +127,7 @@ impl Model {
             return Err(err(file, &robot, "the root element must be <robot>"));
         }
         let elements = || robot.children().filter(|n| n.is_element());
+        self.check_some_joint_is_known(file, &robot)?;
         let mut configs = Vec::new();
         if options.reference_configurations {
             let count = elements().filter(|n| n.tag_name().name() == "group_state").count();
@@ -161,6 +162,29 @@ impl Model {
             self.armature[k] = mass * ratio * ratio;
         }
         Ok(())
+    }
+
+    /// Joints the model does not have are skipped (a reduced model), but an SRDF none of
+    /// whose joints is in the model is another robot's: an error, not a set of neutral
+    /// configurations.
+    fn check_some_joint_is_known(&self, file: &str, robot: &Node) -> Result<()> {
+        let mut names = robot
+            .children()
+            .filter(|n| matches!(n.tag_name().name(), "group_state" | "rotor_params"))
+            .flat_map(|n| joint_children(&n).collect::<Vec<_>>())
+            .filter_map(|j| j.attribute("name"))
+            .peekable();
+        if names.peek().is_none() || names.any(|name| self.joint_id(name).is_ok()) {
+            return Ok(());
+        }
+        Err(err(
+            file,
+            robot,
+            format!(
+                "none of the joints of this SRDF is in model `{}` (an SRDF of another robot?)",
+                self.name
+            ),
+        ))
     }
 
     /// The configuration of one `<group_state>`.

@@ -522,12 +522,19 @@ fn joint_type_and_limits(ctx: &Ctx, j: &JointInfo) -> Result<(JointType, JointLi
     if let Some(l) = child(&j.node, "limit") {
         let nv = kind.nv();
         if matches!(kind, JointType::Revolute(_) | JointType::Prismatic(_)) {
-            limits.lower = vec![ctx.float_or(&l, "lower", 0.0)?];
-            limits.upper = vec![ctx.float_or(&l, "upper", 0.0)?];
+            let (lower, upper) = (ctx.float_or(&l, "lower", 0.0)?, ctx.float_or(&l, "upper", 0.0)?);
+            if lower > upper {
+                return Err(ctx.err(&l, format!("limit lower = {lower} exceeds upper = {upper}")));
+            }
+            (limits.lower, limits.upper) = (vec![lower], vec![upper]);
         }
         if nv == 1 {
-            limits.effort = vec![ctx.float(&l, "effort")?];
-            limits.velocity = vec![ctx.float(&l, "velocity")?];
+            let nonnegative = |key: &str| match ctx.float(&l, key)? {
+                v if v < 0.0 => Err(ctx.err(&l, format!("limit {key} = {v} is negative"))),
+                v => Ok(v),
+            };
+            limits.effort = vec![nonnegative("effort")?];
+            limits.velocity = vec![nonnegative("velocity")?];
         }
     }
     if let Some(d) = child(&j.node, "dynamics") {

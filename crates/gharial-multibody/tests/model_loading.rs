@@ -63,6 +63,18 @@ fn malformed_urdf_names_the_element() {
     assert!(msg.contains("root"), "{msg}");
     let (e, _) = element_error(&TWO_LINKS.replace(r#"effort="10" "#, ""));
     assert_eq!(e, "limit");
+    // Limits that no joint can have: lower above upper, a negative effort or velocity.
+    for (from, to, what) in [
+        (r#"effort="10" "#, r#"effort="-10" "#, "effort"),
+        (r#"velocity="2""#, r#"velocity="-2""#, "velocity"),
+    ] {
+        let (e, msg) = element_error(&TWO_LINKS.replace(from, to));
+        assert_eq!(e, "limit");
+        assert!(msg.contains(what) && msg.contains("negative"), "{msg}");
+    }
+    let swapped = TWO_LINKS.replace(r#"lower="-1" upper="1""#, r#"lower="1" upper="-1""#);
+    let (e, msg) = element_error(&swapped);
+    assert!(e == "limit" && msg.contains("exceeds"), "{e}: {msg}");
     let (e, _) = element_error("<model/>");
     assert_eq!(e, "model");
     assert!(matches!(
@@ -101,6 +113,11 @@ fn srdf_rotor_parameters_set_the_armature() {
     let mut solo = Model::from_urdf_file(robots().join("solo12.urdf"), RootJoint::FreeFlyer).unwrap();
     solo.load_srdf_file(solo_srdf).unwrap();
     assert_eq!(solo.reference_configuration("standing").unwrap()[2], 0.235);
+    // Solo's SRDF on the UR5: none of its joints is there.
+    let mut ur5 = Model::from_urdf_file(robots().join("ur5_robot.urdf"), RootJoint::Fixed).unwrap();
+    let e = ur5.load_srdf_file(robots().join("solo.srdf")).err().unwrap();
+    assert!(e.to_string().contains("another robot"), "{e}");
+    assert!(ur5.reference_configurations.is_empty());
 }
 
 #[test]

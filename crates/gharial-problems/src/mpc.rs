@@ -140,15 +140,7 @@ impl MpcScenario {
     /// As [`simulate()`], or if `duration` is not finite or shorter than half a plant
     /// step (no step to simulate).
     pub fn run<S: Solver>(&mut self, mpc: &mut Mpc<S>, duration: f64) -> Result<Record> {
-        if !(duration.is_finite() && duration >= 0.5 * self.plant_dt) {
-            return Err(Error::option(
-                "duration",
-                format!(
-                    "must be finite and at least one plant step ({} s), got {duration}",
-                    self.plant_dt
-                ),
-            ));
-        }
+        self.check_duration(duration)?;
         let x0 = self
             .example
             .problem
@@ -159,6 +151,24 @@ impl MpcScenario {
         let mut settings = ClosedLoop::new(steps, self.steps_per_cycle);
         settings.pushes.clone_from(&self.pushes);
         simulate(mpc, self.plant.as_mut(), &x0, &settings, &mut self.on_shift)
+    }
+
+    /// Checks a duration for [`MpcScenario::run`].
+    ///
+    /// # Errors
+    /// If `duration` is not finite or shorter than half a plant step (no step to
+    /// simulate).
+    pub fn check_duration(&self, duration: f64) -> Result<()> {
+        if duration.is_finite() && duration >= 0.5 * self.plant_dt {
+            return Ok(());
+        }
+        Err(Error::option(
+            "duration",
+            format!(
+                "must be finite and at least one plant step ({} s), got {duration}",
+                self.plant_dt
+            ),
+        ))
     }
 
     /// Adds a push at time `time` (s) that changes the floating base's linear velocity by

@@ -16,7 +16,7 @@ use crate::solvers::{PyResults, PySolver};
 
 /// A receding-horizon controller (ALIGATOR's MPC loop, ProxDDP paper §VII-E):
 /// `solve(x)` runs one cycle from the measured state `x` within the budget
-/// (`max_iters`, `max_time` in seconds), warm-started from the shifted last solution;
+/// (`max_iters`, `max_time` in seconds, `None` or `inf` for none), warm-started from the shifted last solution;
 /// `shift()` moves the horizon one stage along (the next stage of `queue` enters; with
 /// no queue the stage that leaves comes back at the end) and returns the number of the
 /// stage object that entered (horizon stages `0..N`, queued ones `N..`); `control(x)` is
@@ -47,6 +47,7 @@ impl PyMpc {
         let (xs, us) = (vectors(xs_init, "xs_init")?, vectors(us_init, "us_init")?);
         let max_time = match max_time {
             Some(t) if t.is_finite() && t > 0.0 => Some(Duration::from_secs_f64(t)),
+            Some(t) if t == f64::INFINITY => None,
             Some(t) => {
                 return Err(value_error(format!(
                     "max_time: must be a positive number of seconds, got {t}"

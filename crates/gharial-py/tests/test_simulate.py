@@ -105,6 +105,11 @@ def test_the_mpc_class_refuses_bad_input():
         gharial.MPC(problem, gharial.solver("fddp"), xs0, us0, max_iters=0)
     with pytest.raises(ValueError, match="max_time"):
         gharial.MPC(problem, gharial.solver("fddp"), xs0, us0, max_time=-1.0)
+    with pytest.raises(ValueError, match="max_time"):
+        gharial.MPC(problem, gharial.solver("fddp"), xs0, us0, max_time=float("nan"))
+    # An infinite budget is no budget, for the controller and for a solver option.
+    unlimited = gharial.MPC(problem, gharial.solver("fddp", max_time=float("inf")), xs0, us0, max_time=float("inf"))
+    assert unlimited.solve(np.ones(4)).status == "converged"
     mpc = gharial.MPC(problem, gharial.solver("fddp"), xs0, us0)
     with pytest.raises(ValueError):
         mpc.solve(np.zeros(3))
