@@ -620,7 +620,7 @@ impl Model {
 
     /// Total mass of the bodies (the universe excluded).
     pub fn total_mass(&self) -> f64 {
-        self.inertias[1..].iter().map(|y| y.mass).sum()
+        self.inertias[1..].iter().fold(0.0, |m, y| m + y.mass)
     }
 
     /// Allocates the workspace of every algorithm for this model.

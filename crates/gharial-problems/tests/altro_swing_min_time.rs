@@ -155,16 +155,17 @@ fn parallel_park_min_time_is_shorter_with_equal_steps() {
     let t_altro = check_steps(name, &a, bounds);
     // (ALTRO's multipliers are not a KKT certificate here: complementarity 1.0 and
     // stationarity 3e-2 with them, measured; ProxDDP's are.)
-    // ProxDDP from the catalogue guess: steps 0.25% shorter, a cost 0.2% lower (measured
-    // T = 1.5344 s and 3.12331 against ALTRO's 1.5382 s and 3.13000: ALTRO's iLQR stops on
-    // its expected decrease while the steps still move slowly).
+    // ProxDDP from the catalogue guess: steps 0.7% shorter, a cost 0.7% lower (measured
+    // T = 1.5344 s and 3.12331 against ALTRO's 1.5458 s and 3.14482: ALTRO's iLQR stops on
+    // its expected decrease while the steps still move slowly; where it stops moves with
+    // the rounding of its passes, 1.5382 s and 3.13000 before the Bunch-Kaufman fix).
     let p = solve_from(&ex, ex.options("proxddp").unwrap(), &ex.xs0, &ex.us0);
     assert_eq!(p.status, Status::Converged);
     let t = check_steps(name, &p, bounds);
     let kkt = kkt_residuals(&ex.problem, &p.xs, &p.us, &p.lambdas, &p.nus).unwrap();
     assert!(kkt.max() < 1e-5, "{kkt:?}");
-    assert!((t_altro - t).abs() < 5e-3 * t, "ALTRO T = {t_altro}, ProxDDP T = {t}");
-    assert!((a.cost - p.cost).abs() < 5e-3 * p.cost, "{} vs {}", a.cost, p.cost);
+    assert!((t_altro - t).abs() < 1e-2 * t, "ALTRO T = {t_altro}, ProxDDP T = {t}");
+    assert!((a.cost - p.cost).abs() < 1e-2 * p.cost, "{} vs {}", a.cost, p.cost);
     // Half the fixed 3 s (measured: 1.534 s), the goal reached.
     assert!(t < 0.6 * 3.0, "{t}");
     assert!(goal_error(&p, &[(0, 0.0), (1, 1.0), (2, 0.0)]) < 1e-6);

@@ -474,13 +474,7 @@ fn ode_problem() -> Problem {
 /// conditions (a convex QP: the optimum) with the controls inside the box.
 #[test]
 fn box_variants_converge_with_every_control_of_a_knot_clamped() {
-    for (n, x0, w) in [
-        (1, [1.0, 1.0, 1.0, 1.0], 1.0),
-        (1, [0.0, 0.0, 3.0, 3.0], 1.0),
-        (1, [1.0, 1.0, 0.5, 1.0], 1.0),
-        (20, [1.0, 1.0, 1.0, 1.0], 1.0),
-        (20, [1.0, -1.0, 0.0, 0.0], 100.0),
-    ] {
+    for (n, x0, w) in clamped_point_mass_cases() {
         let p = ocp(&point_mass(n, x0, w), Some(2.0), None);
         let (_, us) = zero_guess(&p);
         let xs = rollout(&p, &us);

@@ -133,14 +133,7 @@ fn box_constrained_lq_satisfies_the_kkt_conditions_for_every_step_acceptance() {
 /// factorization read as one of the next).
 #[test]
 fn box_constrained_point_mass_with_every_control_of_a_knot_clamped() {
-    for (n, x0, w) in [
-        (1, [1.0, 1.0, 1.0, 1.0], 1.0),
-        (1, [0.0, 0.0, 3.0, 3.0], 1.0),
-        (1, [1.0, 1.0, 0.5, 1.0], 1.0),
-        (2, [1.0, 1.0, 1.0, 1.0], 1.5),
-        (20, [1.0, 1.0, 1.0, 1.0], 1.0),
-        (20, [1.0, -1.0, 0.0, 0.0], 100.0),
-    ] {
+    for (n, x0, w) in clamped_point_mass_cases() {
         let p = ocp(&point_mass(n, x0, w), Some(2.0), None);
         for active_set_iters in [0, 10] {
             let what = format!("N = {n}, x0 = {x0:?}, active_set_iters = {active_set_iters}");

@@ -106,6 +106,19 @@ pub fn point_mass(n: usize, x0: [f64; 4], w_final: f64) -> Lq {
     }
 }
 
+/// Point-mass cases `(N, x0, w_final)` whose optimum under `|u| <= 2` has every control
+/// of some knot at its bound (the first knot's with `x0 = (1, 1, 1, 1)`).
+pub fn clamped_point_mass_cases() -> [(usize, [f64; 4], f64); 6] {
+    [
+        (1, [1.0, 1.0, 1.0, 1.0], 1.0),
+        (1, [0.0, 0.0, 3.0, 3.0], 1.0),
+        (1, [1.0, 1.0, 0.5, 1.0], 1.0),
+        (2, [1.0, 1.0, 1.0, 1.0], 1.5),
+        (20, [1.0, 1.0, 1.0, 1.0], 1.0),
+        (20, [1.0, -1.0, 0.0, 0.0], 100.0),
+    ]
+}
+
 /// The OCP with optional control bounds and a terminal equality `x_N = x_target`.
 pub fn ocp(lq: &Lq, umax: Option<f64>, x_target: Option<&[f64]>) -> Problem {
     let sp = space(lq);
