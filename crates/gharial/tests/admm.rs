@@ -205,6 +205,34 @@ fn the_returned_solution_solves_the_last_lq_whole() {
     }
 }
 
+/// A QP without constraint rows (an unconstrained LQ) is solved by the first x-update:
+/// one iteration, the dense KKT solution with its co-states.
+#[test]
+fn a_qp_without_rows_takes_one_iteration() {
+    use gharial::lq::dense;
+    let mut lq = exact_lq(&random_lq(4, 2, 12, 5), None);
+    let empty = vec![Vec::new(); lq.knots.len()];
+    let mut admm = AdmmQp::new(&lq, AdmmOptions::default()).unwrap();
+    assert_eq!(
+        admm.solve(&mut lq, &empty, &empty, false).unwrap(),
+        AdmmStatus::Converged
+    );
+    assert_eq!(admm.iterations(), 1);
+    let reference = dense::solve(&lq).unwrap();
+    let sol = admm.solution();
+    for (got, want) in [
+        (&sol.xs, &reference.xs),
+        (&sol.us, &reference.us),
+        (&sol.lambdas, &reference.lambdas),
+    ] {
+        for (g, w) in got.iter().zip(want) {
+            for (a, b) in g.iter().zip(w.iter()) {
+                assert!((a - b).abs() <= 1e-9 * (1.0 + b.abs()), "{a} vs {b}");
+            }
+        }
+    }
+}
+
 /// An infeasible QP (a terminal target out of reach of the bounded controls) ends at the
 /// iteration limit with a large primal residual, not in a hang.
 #[test]

@@ -251,6 +251,13 @@ impl AdmmQp {
         }
         self.set_rows(lq);
         self.factor(lq)?;
+        if lq.knots.iter().all(|k| k.nc == 0) {
+            // No constraint rows: the first x-update is the QP's solution.
+            self.iters = 1;
+            (self.prim, self.dual) = (0.0, 0.0);
+            self.x_update(lq, Outputs::All)?;
+            return Ok(AdmmStatus::Converged);
+        }
         let o = self.options;
         for it in 0..o.max_iters {
             self.iters = it + 1;
