@@ -104,7 +104,7 @@ impl SolverKind {
                 "stagewise SQP, Gauss-Newton multiple shooting with a filter line search (Jordana et al. 2023); no constraints"
             }
             SolverKind::Csqp => {
-                "SQP with QPs by stagewise ADMM (Jordana et al. 2023); equality, orthant and box constraints"
+                "SQP with QPs by stagewise ADMM (Jordana et al. 2023); equality, orthant, box and second-order-cone constraints"
             }
             SolverKind::BclDdp => {
                 "augmented-Lagrangian DDP with the BCL globalisation (El Kazdadi et al. 2021); equality constraints"

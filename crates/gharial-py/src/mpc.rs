@@ -20,7 +20,8 @@ use crate::solvers::{PyResults, PySolver};
 /// `shift()` moves the horizon one stage along (the next stage of `queue` enters; with
 /// no queue the stage that leaves comes back at the end) and returns the number of the
 /// stage object that entered (horizon stages `0..N`, queued ones `N..`); `control(x)` is
-/// the feedback policy `u = u_0 + K_0 (x ⊖ x_0)` of the last cycle at any state.
+/// the feedback policy `u = u_0 + K_0 (x ⊖ x_0)` of the last cycle at any state (before
+/// the first cycle, the guess's first control).
 #[pyclass(name = "MPC", module = "gharial")]
 pub struct PyMpc {
     /// Behind a lock for Python's threads (the methods that run it take `&mut self`).

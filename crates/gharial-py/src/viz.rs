@@ -58,7 +58,8 @@ pub fn plot_solution(
     Ok(vec![c.display().to_string(), t.display().to_string()])
 }
 
-/// Draws the residuals of several solves on one plot: `runs` maps labels to `Results`.
+/// Draws the residuals of several solves on one plot: `runs` is a list of `(label,
+/// Results)` pairs (`list(d.items())` of a dict).
 #[pyfunction]
 #[pyo3(signature = (runs, path, title = "convergence"))]
 fn plot_convergence(runs: Vec<(String, PyRef<'_, PyResults>)>, path: &str, title: &str) -> PyResult<()> {

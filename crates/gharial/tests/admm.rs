@@ -289,6 +289,36 @@ fn csqp_reaches_the_optimum_of_an_independent_qp_solver() {
     }
 }
 
+/// CSQP on QPs whose Hessian is singular in the controls (no running cost, a terminal
+/// cost on one state: most knots' `Q_uu` vanish) regularises them as SQP does instead
+/// of stopping at the first factorization: converged at the optimal cost 0, with and
+/// without control bounds.
+#[test]
+fn csqp_regularises_singular_qps() {
+    use faer::Mat;
+    use gharial::problem::kkt_residuals;
+    use gharial::solvers::csqp::{Csqp, CsqpOptions};
+    use gharial::solvers::{InitialGuess, Solver, Status};
+    let mut lq = random_lq(4, 2, 10, 17);
+    lq.q = Mat::zeros(4, 4);
+    lq.s = Mat::zeros(4, 2);
+    lq.r = Mat::zeros(2, 2);
+    lq.qf = Mat::from_fn(4, 4, |i, j| if i == 0 && j == 0 { 1.0 } else { 0.0 });
+    lq.c = vec![0.0; 4];
+    (lq.qv, lq.rv, lq.qfv) = (vec![0.0; 4], vec![0.0; 2], vec![0.0; 4]);
+    for umax in [None, Some(5.0)] {
+        let p = ocp(&lq, umax, None);
+        let (xs, us) = zero_guess(&p);
+        let mut solver = Csqp::new(CsqpOptions::default());
+        solver.setup(&p).unwrap();
+        let sol = solver.solve(&p, InitialGuess::primal(&xs, &us)).unwrap();
+        assert_eq!(sol.status, Status::Converged, "{umax:?}");
+        assert!(sol.cost < 1e-10, "{umax:?}: {}", sol.cost);
+        let kkt = kkt_residuals(&p, &sol.xs, &sol.us, &sol.lambdas, &sol.nus).unwrap();
+        assert!(kkt.max() < 1e-6, "{umax:?}: {kkt:?}");
+    }
+}
+
 /// CSQP with second-order-cone constraints (a cone on the controls of a random LQ,
 /// `‖(u_1, u_2)‖ ≤ u_0 + 0.3`, the shape of a friction cone) reaches ProxDDP's optimum,
 /// with the cone active; a penalty (L1) is refused at setup.

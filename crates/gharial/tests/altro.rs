@@ -141,6 +141,29 @@ fn a_warm_start_from_the_solution_converges_at_once() {
     assert!((warm.cost - cold.cost).abs() < 1e-8 * cold.cost.abs().max(1.0));
 }
 
+/// A solver set up once follows a new `x_0` of the problem (its augmented problem once
+/// kept the first one): the same solution as a fresh solver, from `x_0`.
+#[test]
+fn a_reused_solver_follows_a_new_initial_state() {
+    let case = &qp_reference_cases()[0];
+    let mut p = ocp(&case.lq, Some(case.umax), None);
+    for projected_newton in [false, true] {
+        let opts = tight().with(|o| o.projected_newton = projected_newton);
+        let mut reused = Altro::new(opts.clone());
+        reused.setup(&p).unwrap();
+        let (xs, us) = zero_guess(&p);
+        reused.solve(&p, InitialGuess::primal(&xs, &us)).unwrap();
+        let x1: Vec<f64> = case.lq.x0.iter().map(|v| v + 0.3).collect();
+        p.set_x0(&x1).unwrap();
+        let again = reused.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().clone();
+        let fresh = altro(&p, opts);
+        assert_eq!(again.xs[0], x1);
+        assert!(traj_diff(&again.xs, &fresh.xs) < 1e-9, "{projected_newton}");
+        assert!((again.cost - fresh.cost).abs() < 1e-9 * fresh.cost.abs().max(1.0));
+        p.set_x0(&case.lq.x0).unwrap();
+    }
+}
+
 #[test]
 fn altro_is_built_by_name_and_refuses_bad_options() {
     let opts = SolverOptions::from_name("altro").unwrap();

@@ -304,7 +304,8 @@ fn lq_problem(x0: &[f64]) -> Problem {
 fn the_policy_of_an_lq_is_the_optimal_control_of_a_perturbed_state() {
     let x = [0.4, -0.3];
     let p = lq_problem(&x);
-    let (xs, us) = zero_guess(&p);
+    let (xs, mut us) = zero_guess(&p);
+    us[0][0] = 0.7;
     for solver in ["proxddp", "fddp"] {
         let boxed: Box<dyn Solver> = match solver {
             "proxddp" => Box::new(tight_proxddp()),
@@ -318,6 +319,10 @@ fn the_policy_of_an_lq_is_the_optimal_control_of_a_perturbed_state() {
             MpcOptions::default(),
         )
         .unwrap();
+        // Before the first cycle: the guess's first control, without feedback.
+        let mut u0 = [0.0];
+        mpc.control(&x, &mut u0).unwrap();
+        assert_eq!(u0[0], 0.7, "{solver}");
         assert!(
             mpc.solve(&x).unwrap().status.converged(),
             "{solver}: one iteration solves an LQ"

@@ -130,7 +130,8 @@ fn repeat_last_after_shift(v: &mut [Vec<f64>]) {
     tail[0].copy_from_slice(&head[n - 2]);
 }
 
-/// The feedback policy of ProxDDP (57), `u(x) = u_0 + K_0 (x ⊖ x_0)`, of the last cycle.
+/// The feedback policy of ProxDDP (57), `u(x) = u_0 + K_0 (x ⊖ x_0)`, of the last cycle
+/// (before the first, the initial guess's first control without feedback).
 #[derive(Debug, Clone)]
 pub struct Policy {
     space: Arc<dyn Manifold>,
@@ -144,12 +145,13 @@ pub struct Policy {
 }
 
 impl Policy {
-    fn new(problem: &Problem) -> Self {
+    /// The policy before the first cycle: the guess's first control, no feedback.
+    fn new(problem: &Problem, guess: &Guess) -> Self {
         let space = problem.space(0).clone();
-        let (nx, ndx, nu) = (space.nx(), space.ndx(), problem.nu(0));
+        let (ndx, nu) = (space.ndx(), problem.nu(0));
         Self {
-            x0: vec![0.0; nx],
-            u0: vec![0.0; nu],
+            x0: guess.xs[0].clone(),
+            u0: guess.us[0].clone(),
             k0: Mat::zeros(nu, ndx),
             dx: vec![0.0; ndx],
             space,
@@ -248,7 +250,7 @@ impl<S: Solver> Mpc<S> {
         let n = problem.horizon();
         skeleton::Receding::of(&problem, &queue)?.reserve_rows(&mut g.nus, n);
         Ok(Self {
-            policy: Policy::new(&problem),
+            policy: Policy::new(&problem, &g),
             knot_ids: (0..n).collect(),
             queue_ids: (n..n + queue.len()).collect(),
             problem,

@@ -170,6 +170,8 @@ pub struct AdmmQp {
     tx: Vec<Vec<f64>>,
     tu: Vec<Vec<f64>>,
     rho: f64,
+    /// Primal regularisation of the factorizations ([`AdmmQp::set_regularization`]).
+    reg: f64,
     iters: usize,
     prim: f64,
     dual: f64,
@@ -210,6 +212,7 @@ impl AdmmQp {
             tu: lq.knots.iter().map(|k| vec![0.0; k.nu]).collect(),
             z,
             rho: options.rho_init,
+            reg: 0.0,
             iters: 0,
             prim: 0.0,
             dual: 0.0,
@@ -329,8 +332,15 @@ impl AdmmQp {
         }
     }
 
+    /// Adds `reg I` to the Hessian of the QPs solved from now on (Levenberg-Marquardt:
+    /// their solution is the regularised step; 0 by default), for QPs whose Hessian is
+    /// singular on the controls.
+    pub fn set_regularization(&mut self, reg: f64) {
+        self.reg = reg;
+    }
+
     fn factor(&mut self, lq: &LqProblem) -> Result<()> {
-        self.riccati.backward(lq, 0.0).map_err(lq_error)?;
+        self.riccati.backward(lq, self.reg).map_err(lq_error)?;
         self.use_offsets = OffsetMap::applies(lq);
         if self.use_offsets {
             self.offsets.form(&mut self.riccati, lq);

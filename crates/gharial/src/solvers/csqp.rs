@@ -32,6 +32,10 @@ use crate::linalg::{norm_inf, slice, slice_mut};
 use crate::lq::LqProblem;
 use crate::problem::{Problem, ProblemData, StageData, StageModel};
 
+/// Smallest and largest regularisation of a singular QP ([`Workspace::solve_qp_regularized`]).
+const REG_MIN: f64 = 1e-9;
+const REG_MAX: f64 = 1e9;
+
 /// Options of [`Csqp`].
 #[derive(Debug, Clone)]
 #[non_exhaustive]
@@ -182,6 +186,8 @@ struct Workspace {
     cons: Vec<ConstraintEntry>,
     filter: SqpFilter,
     cost: f64,
+    /// Regularisation of the next QP (0 unless a QP's Hessian was singular).
+    reg: f64,
     /// Receding horizon: the data of the queued stages, slot by slot.
     spare: Vec<StageData>,
     receding: bool,
@@ -247,6 +253,7 @@ impl Workspace {
             cons,
             filter: SqpFilter::new(opts.filter_size),
             cost: 0.0,
+            reg: 0.0,
             spare: queue.iter().map(StageData::new).collect(),
             receding: receding.is_some(),
         };
@@ -396,6 +403,25 @@ impl Workspace {
         self.admm.solve_sets(&mut self.lq, &mut sets, warm).map(|_| ())
     }
 
+    /// [`Workspace::solve_qp`], regularised when the QP's Hessian is singular (a zero
+    /// control weight): `reg` from 1e-9, ten times larger per failed factorization up to
+    /// 1e9, then ten times smaller per QP solved, as SQP's schedule. Returns whether a
+    /// QP was solved.
+    fn solve_qp_regularized(&mut self, problem: &Problem, warm: bool) -> bool {
+        loop {
+            self.admm.set_regularization(self.reg);
+            if self.solve_qp(problem, warm).is_ok() {
+                self.reg = if self.reg > REG_MIN { 0.1 * self.reg } else { 0.0 };
+                return true;
+            }
+            self.reg = (10.0 * self.reg).max(REG_MIN);
+            if self.reg > REG_MAX {
+                self.reg = 0.0;
+                return false;
+            }
+        }
+    }
+
     /// The KKT residual with the multipliers of the last QP.
     fn kkt(&mut self, problem: &Problem, infeasibility: f64) -> f64 {
         self.data
@@ -524,6 +550,7 @@ fn iterate(
 ) -> (Status, usize, f64, Infeasibility) {
     // The data's last evaluation is the current point.
     let mut inf = ws.infeasibility(problem);
+    ws.reg = 0.0;
     let mut warm = false;
     let mut failures = 0;
     for iter in 0.. {
@@ -539,7 +566,7 @@ fn iterate(
         if iter >= opts.max_iters {
             return stop(Status::MaxIterations);
         }
-        if ws.solve_qp(problem, warm).is_err() {
+        if !ws.solve_qp_regularized(problem, warm) {
             return stop(Status::RegularizationFailure);
         }
         warm = opts.warm_qp;

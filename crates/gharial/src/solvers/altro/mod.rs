@@ -239,6 +239,8 @@ impl Workspace {
         copy_trajectory(&mut self.us_orig, guess.us);
         if let Some(x0) = problem.x0() {
             self.xs[0].copy_from_slice(x0);
+            // The augmented problem was built with the x_0 of the setup.
+            self.aug.set_x0(x0)?;
         }
         for (u, g) in self.us.iter_mut().zip(guess.us) {
             u[..g.len()].copy_from_slice(g);
