@@ -785,3 +785,59 @@ fn spaces_print_the_model_name_and_sizes() {
     let text = format!("{:?}", space.configuration());
     assert!(text.len() < 200 && text.contains("MultibodyConfiguration"), "{text}");
 }
+
+/// Implicit Euler on stiff contact dynamics (Solo-12 standing on three feet, `kd = 50`,
+/// `dt = 0.02`, the four-feet quasi-static torques): one step is solved near the start.
+/// Full Newton steps once carried the state to a spurious root of the step equation
+/// (the base 5e6 m away) that the rollout returned as converged; the damped iteration
+/// gives the physical step, checked by the step equation written out independently
+/// (`q⁺ ⊖ q = dt v⁺`, `v⁺ - v = dt a(q⁺, v⁺, u)`).
+#[test]
+fn implicit_euler_steps_of_stiff_contact_dynamics_stay_near_the_start() {
+    use gharial::dynamics::{Dynamics, ImplicitEuler};
+    use gharial::problem::{Problem, ProblemData, StageModel};
+    let mut model = (*common::solo12()).clone();
+    model
+        .load_srdf_file(common::data_dir().join("robots/solo.srdf"))
+        .unwrap();
+    let model = Arc::new(model);
+    let q0 = model.reference_configuration("standing").unwrap().to_vec();
+    let space = space_of(&model);
+    let spec = ContactSpec::point(ReferenceFrame::LocalWorldAligned).with_gains(0.0, 50.0);
+    let b = Actuation::floating_base(&model).unwrap();
+    let feet = ["FL_FOOT", "FR_FOOT", "HL_FOOT", "HR_FOOT"];
+    let four = MultibodyConstraintFwdDynamics::at_frames(space.clone(), b.clone(), &feet, spec).unwrap();
+    let u = four.quasi_static_torque(&q0).unwrap().u;
+    let three = Arc::new(MultibodyConstraintFwdDynamics::at_frames(space.clone(), b, &feet[..3], spec).unwrap());
+    let dt = 0.02;
+    let step = Arc::new(ImplicitEuler::new(three.clone(), dt).unwrap());
+    let manifold: Arc<dyn Manifold> = space.clone();
+    let x0 = [q0.clone(), vec![0.0; model.nv()]].concat();
+    let w = vec![1.0; manifold.ndx()];
+    let cost = Arc::new(gharial::costs::QuadraticStateCost::diagonal(manifold.clone(), &x0, &w, 12).unwrap());
+    let terminal = Arc::new(gharial::costs::QuadraticStateCost::diagonal(manifold.clone(), &x0, &w, 0).unwrap());
+    let stage = StageModel::new(cost, Dynamics::Implicit(step)).unwrap();
+    let problem = Problem::new(&x0, vec![stage], terminal).unwrap();
+    let mut xs = vec![x0.clone(); 2];
+    ProblemData::new(&problem, 1)
+        .unwrap()
+        .rollout(&problem, &mut xs, std::slice::from_ref(&u))
+        .unwrap();
+    let (x1, nq, nv) = (&xs[1], model.nq(), model.nv());
+    assert!(
+        (0..3).all(|i| (x1[i] - x0[i]).abs() < 0.01),
+        "base moved to {:?}",
+        &x1[..3]
+    );
+    let mut dq = vec![0.0; nv];
+    gharial_multibody::difference(&model, &x0[..nq], &x1[..nq], &mut dq).unwrap();
+    let mut data = three.create_data();
+    three.evaluate(x1, &u, &mut data);
+    for i in 0..nv {
+        assert!((dq[i] - dt * x1[nq + i]).abs() < 1e-9, "q: {i}");
+        assert!(
+            (x1[nq + i] - x0[nq + i] - dt * data.xdot()[nv + i]).abs() < 1e-9,
+            "v: {i}"
+        );
+    }
+}

@@ -7,11 +7,11 @@ use faer::{Accum, Col, Mat};
 
 use super::{InitialCondition, Problem, StageConstraint, StageModel};
 use crate::costs::CostData;
-use crate::dynamics::{Dynamics, ExplicitDynamicsData, ImplicitDynamicsData};
+use crate::dynamics::{Dynamics, ExplicitDynamicsData, ImplicitDynamics, ImplicitDynamicsData};
 use crate::error::{Error, Result, check_dim, check_finite};
 use crate::functions::StageFunctionData;
 use crate::linalg::{identity_block, matmul_identity_block, matvec_t, slice, slice_mut};
-use crate::spaces::Arg;
+use crate::spaces::{Arg, Manifold};
 use crate::team::{PassKind, Team, for_each_indexed};
 
 /// What the dynamics model of a stage writes.
@@ -86,6 +86,83 @@ struct NextStateScratch {
     lu: Option<crate::linalg::Lu>,
     step: Vec<f64>,
     ynew: Vec<f64>,
+}
+
+/// Step halvings at most per Newton iteration of [`NextStateScratch::newton`].
+const MAX_HALVINGS: usize = 10;
+
+impl NextStateScratch {
+    /// Newton-Raphson for `f(x, u, y) = s` (`-s` in `shift`) from `y`, damped: a step is
+    /// halved (up to [`MAX_HALVINGS`] times) until it decreases `|f - s|²`, so that a full
+    /// step far outside the model's linearisation (stiff contact dynamics and a large
+    /// `dt`) cannot carry `y` to a spurious root; full steps that decrease it are taken
+    /// as they are. `false` without convergence within `solve`. The data hold the
+    /// evaluation at the returned `y`.
+    fn newton(
+        &mut self,
+        m: &dyn ImplicitDynamics,
+        d: &mut ImplicitDynamicsData,
+        sn: &dyn Manifold,
+        (x, u): (&[f64], &[f64]),
+        y: &mut [f64],
+        solve: ImplicitSolve,
+    ) -> bool {
+        let lu = self.lu.as_mut().expect("LU allocated for implicit stages");
+        let tol = solve.tol * (1.0 + crate::linalg::norm_inf(&self.shift));
+        let (mut err, mut sq) = shifted_residual(m, d, &self.shift, (x, u), y);
+        for _ in 0..solve.max_iters {
+            if !err.is_finite() {
+                return false;
+            }
+            if err <= tol {
+                return true;
+            }
+            m.jacobians(x, u, y, d);
+            if lu.factor(d.jy.as_ref()).is_err() {
+                return false;
+            }
+            self.step.copy_from_slice(d.value());
+            lu.solve_in_place(crate::linalg::as_mat_mut(&mut self.step));
+            self.step.iter_mut().for_each(|v| *v = -*v);
+            let mut accepted = false;
+            for _ in 0..=MAX_HALVINGS {
+                sn.integrate(y, &self.step, &mut self.ynew);
+                let (e, q) = shifted_residual(m, d, &self.shift, (x, u), &self.ynew);
+                if q < sq {
+                    y.copy_from_slice(&self.ynew);
+                    (err, sq, accepted) = (e, q, true);
+                    break;
+                }
+                self.step.iter_mut().for_each(|v| *v *= 0.5);
+            }
+            if !accepted {
+                return false;
+            }
+        }
+        false
+    }
+}
+
+/// `f(x, u, y) + shift` in the data's value (`shift = -s`), and its largest entry and
+/// squared norm (NaN when not finite).
+fn shifted_residual(
+    m: &dyn ImplicitDynamics,
+    d: &mut ImplicitDynamicsData,
+    shift: &[f64],
+    (x, u): (&[f64], &[f64]),
+    y: &[f64],
+) -> (f64, f64) {
+    m.evaluate(x, u, y, d);
+    let (mut err, mut sq): (f64, f64) = (0.0, 0.0);
+    for (ri, si) in d.value_mut().iter_mut().zip(shift) {
+        *ri += si;
+        err = err.max(ri.abs());
+        sq += *ri * *ri;
+    }
+    if !sq.is_finite() {
+        return (f64::NAN, f64::NAN);
+    }
+    (err, sq)
 }
 
 impl StageData {
@@ -172,38 +249,7 @@ impl StageData {
                 }
             }
             (Dynamics::Implicit(m), DynamicsData::Implicit(d)) => {
-                let lu = scratch.lu.as_mut().expect("LU allocated for implicit stages");
-                let mut converged = false;
-                for _ in 0..solve.max_iters {
-                    m.evaluate(x, u, y, d);
-                    let r = d.value_mut();
-                    let mut err: f64 = 0.0;
-                    for i in 0..r.len() {
-                        // r - s = r + shift
-                        r[i] += scratch.shift[i];
-                        err = err.max(r[i].abs());
-                    }
-                    if !err.is_finite() {
-                        return false;
-                    }
-                    if err <= solve.tol * (1.0 + crate::linalg::norm_inf(&scratch.shift)) {
-                        converged = true;
-                        break;
-                    }
-                    m.jacobians(x, u, y, d);
-                    if lu.factor(d.jy.as_ref()).is_err() {
-                        return false;
-                    }
-                    let step = &mut scratch.step;
-                    step.copy_from_slice(d.value());
-                    lu.solve_in_place(crate::linalg::as_mat_mut(step));
-                    for si in step.iter_mut() {
-                        *si = -*si;
-                    }
-                    sn.integrate(y, step, &mut scratch.ynew);
-                    y.copy_from_slice(&scratch.ynew);
-                }
-                if !converged {
+                if !scratch.newton(m.as_ref(), d, sn.as_ref(), (x, u), y, solve) {
                     return false;
                 }
             }
@@ -697,8 +743,14 @@ impl ProblemData {
             let (done, rest) = xs.split_at_mut(t + 1);
             let y = &mut rest[0];
             if !stage.space_next().is_valid(y) {
-                // An implicit solve starts from the state guess; any valid point will do.
-                stage.space_next().neutral(y);
+                // An implicit solve starts from the state guess; where that is no point of
+                // the space, from x_t (near the solution for a small step), or the
+                // neutral point between spaces of other sizes.
+                if stage.space().nx() == y.len() && stage.space_next().is_valid(&done[t]) {
+                    y.copy_from_slice(&done[t]);
+                } else {
+                    stage.space_next().neutral(y);
+                }
             }
             if !self.stages[t].solve_next_state(stage, &done[t], &us[t], None, y, ImplicitSolve::default()) {
                 return Err(Error::non_finite(format!(
