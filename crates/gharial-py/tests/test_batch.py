@@ -53,6 +53,16 @@ def test_unpicklable_build_is_an_error_per_instance_with_processes():
     assert all(r["status"] == "error" for r in results)
 
 
+def test_misspelt_solver_options_and_bad_worker_counts_fail_up_front():
+    with pytest.raises(ValueError, match="unknown solver"):
+        gharial.solve_batch(batch_build.lqr_standalone, PARAMS[:2], solver="prox-ddp")
+    with pytest.raises(AttributeError, match="no option"):
+        gharial.solve_batch(batch_build.lqr_standalone, PARAMS[:2], options={"tolerance": 1e-6})
+    for bad in (0, -3, 1.5):
+        with pytest.raises(ValueError, match="max_workers"):
+            gharial.solve_batch(batch_build.lqr_standalone, PARAMS[:2], max_workers=bad)
+
+
 def test_unknown_backend():
     with pytest.raises(ValueError, match="backend"):
         gharial.solve_batch(batch_build.lqr_standalone, PARAMS, backend="mpi")

@@ -74,6 +74,12 @@ def solve_batch(build, params, solver="proxddp", backend="threads", options=None
     params = list(params)
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if max_workers is not None and not (isinstance(max_workers, int) and max_workers > 0):
+        raise ValueError(f"max_workers must be a positive integer or None, got {max_workers!r}")
+    # A misspelt solver or option fails every instance alike: say so once, up front.
+    from . import solver as _solver
+
+    _solver(solver, **dict(options or {}))
     if backend == "ray":
         return _ray(build, params, solver, options)
     workers = max_workers or _os.cpu_count() or 1
