@@ -1,6 +1,6 @@
 //! `gharial bench solve` (the catalogue's examples, with any solver) and `gharial bench
-//! peers` (the peer harness's problems with ProxDDP and the DDP family, as JSON lines in
-//! the harness's format).
+//! peers` (the peer harness's problems with every gharial solver that takes them, as
+//! JSON lines in the harness's format).
 //!
 //! Each timed solve starts from the same guess with a freshly constructed and set-up
 //! solver (construction and setup are not timed, as in the harness); the median and

@@ -56,8 +56,8 @@ enum BenchCommand {
     /// Iterations, time per solve and per iteration of the built-in problems, with any
     /// solver (problems it does not take are listed as skipped).
     Solve(bench_solve::ExamplesArgs),
-    /// The problems of the peer harness, as JSON lines in its format: ProxDDP and the
-    /// DDP family on the problems each takes.
+    /// The problems of the peer harness, as JSON lines in its format: every gharial
+    /// solver on the problems it takes.
     Peers(bench_solve::PeersArgs),
     /// The stagewise-SQP paper's Fig. 1: the fraction of a randomised family's instances
     /// each solver solves within an iteration budget, as CSV.

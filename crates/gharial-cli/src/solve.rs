@@ -23,14 +23,14 @@ pub struct SolveArgs {
     /// Write the solution, settings and history to this JSON file.
     #[arg(long)]
     pub output: Option<String>,
-    /// Draw the convergence and trajectory plots into this directory.
+    /// Draw the convergence and trajectory plots into this directory (created if missing).
     #[arg(long)]
     pub plot: Option<String>,
     /// Image format of `--plot`.
     #[arg(long, value_enum, default_value = "png")]
     pub plot_format: crate::plot::Format,
-    /// Write the data of the paper's figures as CSV files into this directory (for the
-    /// experiments that have them: ur10-ballistic, solo-jump).
+    /// Write the data of the paper's figures as CSV files into this directory (created if
+    /// missing; for the experiments that have them: ur10-ballistic, solo-jump).
     #[arg(long)]
     pub figures: Option<String>,
     // The solver and its options (last: their help headings follow).
@@ -122,11 +122,12 @@ fn prepare(args: &SolveArgs) -> Result<(Example, Option<crate::Output<'_>>), i32
     })?;
     // Unwritable outputs are invalid input: refuse them before the solve.
     let output = crate::Output::create("solve", args.output.as_deref())?;
+    // Directories are created if missing, as `gharial plot --out` does.
     for (option, dir) in [("--figures", &args.figures), ("--plot", &args.plot)] {
         if let Some(dir) = dir
-            && !std::path::Path::new(dir).is_dir()
+            && let Err(e) = std::fs::create_dir_all(dir)
         {
-            eprintln!("gharial solve: {option} {dir}: not a directory");
+            eprintln!("gharial solve: {option} {dir}: cannot create the directory: {e}");
             return Err(2);
         }
     }

@@ -244,7 +244,7 @@ pub struct CommonArgs {
     /// decrease of a full step below tol² N, with the gaps closed).
     #[arg(long, value_parser = positive_real)]
     pub tol: Option<f64>,
-    /// Iteration limit.
+    /// Iteration limit (ALTRO: of its outer, augmented-Lagrangian iterations).
     #[arg(long, value_parser = positive_int)]
     pub max_iters: Option<usize>,
     /// Threads for stage-wise evaluation.

@@ -845,9 +845,18 @@ fn solve_writes_the_figures_of_an_experiment() {
     let traj = std::fs::read_to_string(dir.join("solo-jump-trajectory.csv")).unwrap();
     assert_eq!(traj.lines().count(), 1 + 61, "a header and one row per node");
     std::fs::remove_dir_all(&dir).ok();
-    let o = gharial(&["solve", "lqr", "--figures", "/nonexistent/dir"]);
+    // A directory that cannot be made (below a file) is refused; a missing one is made.
+    let file = std::env::temp_dir().join(format!("gharial-cli-file-{}", std::process::id()));
+    std::fs::write(&file, "x").unwrap();
+    let below = file.join("sub");
+    let o = gharial(&["solve", "lqr", "--figures", below.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("not a directory"));
+    assert!(stderr(&o).contains("cannot create the directory"), "{}", stderr(&o));
+    std::fs::remove_file(&file).ok();
+    let fresh = std::env::temp_dir().join(format!("gharial-cli-new-{}/plots", std::process::id()));
+    let o = gharial(&["solve", "lqr", "--plot", fresh.to_str().unwrap()]);
+    assert!(o.status.success() && fresh.is_dir(), "{}", stderr(&o));
+    std::fs::remove_dir_all(fresh.parent().unwrap()).ok();
     let o = gharial(&["solve", "lqr", "--figures", std::env::temp_dir().to_str().unwrap()]);
     assert!(o.status.success() && stdout(&o).contains("no figure data"));
 }

@@ -40,6 +40,7 @@ use gharial::costs::{ConstantCost, CostStack, QuadraticControlCost};
 use gharial::dynamics::{Dynamics, SemiImplicitEuler};
 use gharial::functions::{StageFunction, Unary};
 use gharial::problem::{Problem, StageConstraint, StageModel};
+use gharial::solvers::bcl_ddp::BclDdpOptions;
 use gharial::solvers::proxddp::{ProxDdpOptions, Rollout};
 use gharial::spaces::{Manifold, VectorSpace};
 use gharial_robotics::residuals::FrameTranslationResidual;
@@ -182,6 +183,17 @@ pub fn cartpole(advanced: bool) -> Result<Example> {
 /// nonmonotone line search on the primal merit it converges in about 480 (the defaults:
 /// about 780) to the optimum within 2e-7 relative.
 pub const CARTPOLE_PROXDDP_TOL: f64 = 1e-5;
+
+/// The BCL-DDP settings of the authors' example for the ECDDP problems (`mu_init = 1e2`
+/// and the penalty factor of Fig. 2, `μ ← 100 μ`); `None` for other problems.
+pub fn recommended_bcl(name: &str) -> Option<BclDdpOptions> {
+    matches!(name, "ecddp-cartpole" | "ecddp-cartpole-advanced" | "ecddp-ur5").then(|| {
+        BclDdpOptions::default().with(|o| {
+            o.mu_init = 100.0;
+            o.penalty_factor = 100.0;
+        })
+    })
+}
 
 /// Builds `ecddp-ur5` (module documentation).
 ///

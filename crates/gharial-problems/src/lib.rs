@@ -109,8 +109,8 @@ impl Example {
     /// The options of the solver `name` (one of [`SolverOptions::names`]) for this
     /// problem: ProxDDP's are the recommended [`Example::proxddp`], ProxNLP's the ones of
     /// those it shares (`ProxNlpOptions::from`), ALTRO's the authors' where the paper's
-    /// result needs them ([`altro_table::recommended_altro`]), the other solvers' their
-    /// defaults.
+    /// result needs them ([`altro_table::recommended_altro`]), BCL-DDP's the authors' on
+    /// the ECDDP problems ([`ecddp::recommended_bcl`]), the other solvers' their defaults.
     ///
     /// # Errors
     /// If `name` is not a solver's name (the message lists the valid names).
@@ -120,6 +120,9 @@ impl Example {
             SolverOptions::ProxNlp(_) => Ok(SolverOptions::ProxNlp((&self.proxddp).into())),
             SolverOptions::Altro(defaults) => Ok(SolverOptions::Altro(
                 altro_table::recommended_altro(self.name).unwrap_or(defaults),
+            )),
+            SolverOptions::BclDdp(defaults) => Ok(SolverOptions::BclDdp(
+                ecddp::recommended_bcl(self.name).unwrap_or(defaults),
             )),
             defaults => Ok(defaults),
         }

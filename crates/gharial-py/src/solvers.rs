@@ -374,25 +374,56 @@ macro_rules! named_solver {
                 options: Option<&Bound<'_, PyDict>>,
             ) -> PyResult<PyClassInitializer<Self>> {
                 let all = options.cloned().unwrap_or_else(|| PyDict::new(py));
-                if let Some(t) = tol {
-                    all.set_item("tol", t)?;
-                }
-                if let Some(m) = max_iters {
-                    all.set_item("max_iters", m)?;
-                }
-                all.set_item("verbose", verbose)?;
-                Ok(PyClassInitializer::from(PySolver::with($solver, Some(&all))?).add_subclass(Self))
+                let base = named_solver_base($solver, tol, max_iters, verbose, &all)?;
+                Ok(PyClassInitializer::from(base).add_subclass(Self))
             }
         }
     };
 }
 
-named_solver!(
-    PyProxDdp,
-    "SolverProxDDP",
-    "proxddp",
-    "ProxDDP (Jallet et al. 2023), ALIGATOR's solver."
-);
+/// ProxDDP (Jallet et al. 2023), ALIGATOR's solver, with ALIGATOR's constructor
+/// `SolverProxDDP(tol, mu_init, max_iters=..., verbose=...)`.
+#[pyclass(extends = PySolver, name = "SolverProxDDP", module = "gharial")]
+pub struct PyProxDdp;
+
+#[pymethods]
+impl PyProxDdp {
+    #[new]
+    #[pyo3(signature = (tol = None, mu_init = None, max_iters = None, verbose = false, **options))]
+    fn new(
+        py: Python<'_>,
+        tol: Option<f64>,
+        mu_init: Option<f64>,
+        max_iters: Option<usize>,
+        verbose: bool,
+        options: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let all = options.cloned().unwrap_or_else(|| PyDict::new(py));
+        if let Some(m) = mu_init {
+            all.set_item("mu_init", m)?;
+        }
+        let base = named_solver_base("proxddp", tol, max_iters, verbose, &all)?;
+        Ok(PyClassInitializer::from(base).add_subclass(Self))
+    }
+}
+
+/// The solver `name` with the options of a named class's constructor.
+fn named_solver_base(
+    name: &str,
+    tol: Option<f64>,
+    max_iters: Option<usize>,
+    verbose: bool,
+    all: &Bound<'_, PyDict>,
+) -> PyResult<PySolver> {
+    if let Some(t) = tol {
+        all.set_item("tol", t)?;
+    }
+    if let Some(m) = max_iters {
+        all.set_item("max_iters", m)?;
+    }
+    all.set_item("verbose", verbose)?;
+    PySolver::with(name, Some(all))
+}
 named_solver!(PyDdp, "SolverDDP", "ddp", "DDP / iLQR (crocoddyl's SolverDDP).");
 named_solver!(
     PyFddp,

@@ -51,6 +51,9 @@ def test_catalogue_examples_and_failing_builds_in_a_batch():
 def test_unpicklable_build_is_an_error_per_instance_with_processes():
     results = gharial.solve_batch(lambda p: batch_build.lqr_standalone(p), PARAMS[:2], backend="processes")
     assert all(r["status"] == "error" for r in results)
+    # A failed instance has every key of a solved one.
+    solved = gharial.solve_batch(batch_build.lqr_standalone, PARAMS[:1])[0]
+    assert all(set(r) == set(solved) and r["iterations"] is None for r in results)
 
 
 def test_misspelt_solver_options_and_bad_worker_counts_fail_up_front():

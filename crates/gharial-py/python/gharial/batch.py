@@ -56,9 +56,16 @@ def solve_one(build, param, solver="proxddp", options=None):
         return _error(param, e)
 
 
+_RESULT_KEYS = ("iterations", "cost", "primal_infeas", "dual_infeas", "solve_time", "xs", "us")
+
+
 def _error(param, e):
+    """The result of a failed instance: every key of a solved one, ``None`` but for the
+    status and the error message."""
     message = "".join(_traceback.format_exception_only(type(e), e)).strip()
-    return {"param": param, "status": "error", "converged": False, "error": message}
+    result = {"param": param, "status": "error", "converged": False, "error": message}
+    result.update(dict.fromkeys(_RESULT_KEYS))
+    return result
 
 
 def solve_batch(build, params, solver="proxddp", backend="threads", options=None, max_workers=None):
