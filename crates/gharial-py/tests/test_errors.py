@@ -68,6 +68,13 @@ def test_model_errors_carry_the_rust_message():
     assert issubclass(gharial.GharialError, ValueError)
 
 
+def test_solver_constructors_take_aligators_positional_arguments():
+    s = gharial.SolverProxDDP(1e-7, 1e-3, max_iters=50, verbose=False)
+    assert (s.tol, s.mu_init, s.max_iters) == (1e-7, 1e-3, 50)
+    f = gharial.SolverFDDP(1e-7, 20)
+    assert (f.tol, f.max_iters) == (1e-7, 20)
+
+
 def test_options_are_checked_attributes():
     s = gharial.SolverProxDDP()
     s.mu_init = 1e-3
