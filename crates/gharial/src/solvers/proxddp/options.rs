@@ -156,7 +156,8 @@ pub struct ProxDdpOptions {
     /// replaced by the Newton step. 0 disables it (default 0; at most
     /// [`ACTIVE_SET_ITERS_MAX`]).
     pub active_set_iters: usize,
-    /// Wall-time budget; the best iterate so far is returned when it runs out.
+    /// Wall-time budget, checked between iterations (an iteration that has started
+    /// finishes); the best iterate so far is returned when it runs out.
     pub max_time: Option<Duration>,
     /// Whether a solve that ends at `max_iters` right after a step evaluates the
     /// derivatives and residuals at the point it returns (default true). Off, it returns
