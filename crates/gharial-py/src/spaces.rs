@@ -2,12 +2,13 @@
 
 use std::sync::Arc;
 
-use gharial::spaces::{CartesianProduct, Manifold, SE2, SE3, SO2, SO3, TangentBundle, VectorSpace};
-use numpy::PyArray1;
+use faer::{Mat, MatMut};
+use gharial::spaces::{Arg, CartesianProduct, Manifold, SE2, SE3, SO2, SO3, TangentBundle, VectorSpace};
+use numpy::{PyArray1, PyArray2};
 use pyo3::PyClassInitializer;
 use pyo3::prelude::*;
 
-use crate::convert::{array1, value_error, vector};
+use crate::convert::{array1, array2, value_error, vector};
 
 /// A state manifold (base class of every space).
 #[pyclass(subclass, frozen, name = "Manifold", module = "gharial.manifolds")]
@@ -28,6 +29,34 @@ impl PyManifold {
 
     fn tangent(&self, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
         vector(obj, what, Some(self.inner.ndx()))
+    }
+
+    /// A point that must be valid (the Jacobians are defined on the manifold only).
+    fn valid_point(&self, obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
+        let x = self.point(obj, what)?;
+        if !self.inner.is_valid(&x) {
+            return Err(value_error(format!(
+                "{what} is not a valid point of the space (e.g. a quaternion that is not unit)"
+            )));
+        }
+        Ok(x)
+    }
+
+    /// The Jacobian `ndx × ndx` written by `f` into a fresh matrix.
+    fn jacobian<'py>(&self, py: Python<'py>, f: impl FnOnce(MatMut<'_, f64>)) -> Bound<'py, PyArray2<f64>> {
+        let n = self.inner.ndx();
+        let mut j = Mat::<f64>::zeros(n, n);
+        f(j.as_mut());
+        array2(py, j.as_ref())
+    }
+}
+
+/// The argument of a Jacobian: 0 (`x`, `x0`) or 1 (`v`, `x1`), ALIGATOR's `ARG0`, `ARG1`.
+fn arg(a: usize) -> PyResult<Arg> {
+    match a {
+        0 => Ok(Arg::First),
+        1 => Ok(Arg::Second),
+        _ => Err(value_error(format!("arg: expected 0 or 1, got {a}"))),
     }
 }
 
@@ -76,6 +105,35 @@ impl PyManifold {
         let mut out = vec![0.0; self.inner.ndx()];
         self.inner.difference(&x0, &x1, &mut out);
         Ok(array1(py, &out))
+    }
+
+    /// The Jacobian of `x ⊕ v` with respect to `x` (`arg = 0`) or `v` (`arg = 1`),
+    /// `ndx × ndx` (ALIGATOR's `Jintegrate`).
+    #[pyo3(name = "Jintegrate")]
+    fn jintegrate<'py>(
+        &self,
+        py: Python<'py>,
+        x: &Bound<'py, PyAny>,
+        v: &Bound<'py, PyAny>,
+        arg: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let (x, v, a) = (self.valid_point(x, "x")?, self.tangent(v, "v")?, self::arg(arg)?);
+        Ok(self.jacobian(py, |j| self.inner.jintegrate(&x, &v, a, j)))
+    }
+
+    /// The Jacobian of `x1 ⊖ x0` with respect to `x0` (`arg = 0`) or `x1` (`arg = 1`),
+    /// `ndx × ndx` (ALIGATOR's `Jdifference`).
+    #[pyo3(name = "Jdifference")]
+    fn jdifference<'py>(
+        &self,
+        py: Python<'py>,
+        x0: &Bound<'py, PyAny>,
+        x1: &Bound<'py, PyAny>,
+        arg: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let (x0, x1) = (self.valid_point(x0, "x0")?, self.valid_point(x1, "x1")?);
+        let a = self::arg(arg)?;
+        Ok(self.jacobian(py, |j| self.inner.jdifference(&x0, &x1, a, j)))
     }
 
     /// Whether `x` is a valid point (e.g. unit quaternions).

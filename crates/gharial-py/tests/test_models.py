@@ -204,3 +204,47 @@ def test_python_models_with_wrong_shapes_are_refused_once():
 
     with pytest.raises(TypeError, match="super"):
         gharial.StageModel(NoInit(), dynamics.IntegratorEuler(Pendulum(), 0.1))
+
+
+def _fd_jacobian(f, z, n, h=1e-6):
+    """Central differences of `f` along the `n` tangent directions applied by `z(e)`."""
+    cols = []
+    for i in range(n):
+        e = np.zeros(n)
+        e[i] = h
+        cols.append((f(z(e)) - f(z(-e))) / (2 * h))
+    return np.array(cols).T
+
+
+@pytest.mark.parametrize(
+    "space",
+    [
+        manifolds.SE3(),
+        manifolds.SO3(),
+        manifolds.SE2(),
+        manifolds.SO2(),
+        manifolds.SE3() * manifolds.VectorSpace(2),
+    ],
+)
+def test_manifold_jacobians_equal_finite_differences(space):
+    rng = np.random.default_rng(3)
+    n = space.ndx
+    x0 = space.integrate(space.neutral(), rng.normal(size=n) * 0.7)
+    x1 = space.integrate(x0, rng.normal(size=n) * 0.7)
+    v = space.difference(x0, x1)
+    checks = [
+        (space.Jintegrate(x0, v, 0), lambda x: space.difference(x1, space.integrate(x, v)), lambda e: space.integrate(x0, e)),
+        (space.Jintegrate(x0, v, 1), lambda w: space.difference(x1, space.integrate(x0, w)), lambda e: v + e),
+        (space.Jdifference(x0, x1, 0), lambda x: space.difference(x, x1), lambda e: space.integrate(x0, e)),
+        (space.Jdifference(x0, x1, 1), lambda x: space.difference(x0, x), lambda e: space.integrate(x1, e)),
+    ]
+    for j, f, z in checks:
+        np.testing.assert_allclose(j, _fd_jacobian(f, z, n), atol=1e-6)
+    with pytest.raises(ValueError, match="arg"):
+        space.Jdifference(x0, x1, 2)
+
+
+def test_manifold_jacobians_refuse_invalid_points():
+    se3 = manifolds.SE3()
+    with pytest.raises(ValueError, match="not a valid point"):
+        se3.Jdifference(np.zeros(7), se3.neutral(), 0)
