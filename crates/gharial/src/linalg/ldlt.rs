@@ -7,6 +7,7 @@ use faer::{Mat, MatMut, MatRef, Par};
 
 #[cfg(test)]
 use super::copy::copy_lower;
+use super::matvec::axpy;
 use super::reduce::{dot, lower_sum_is_finite};
 use super::small::{ldlt_solve_fixed, small_factor};
 use super::{FactorError, Inertia, stack_buffer};
@@ -136,8 +137,8 @@ impl Ldlt {
             let (head, tail) = x.split_at_mut((j + 1) * w);
             let x_j = &head[j * w..];
             for (i, x_i) in (j + 1..n).zip(tail.chunks_exact_mut(w)) {
-                let l = f[(i, j)];
-                x_i.iter_mut().zip(x_j).for_each(|(a, b)| *a -= l * b);
+                // x_i - l x_j, as x_i + (-l) x_j: the same rounding.
+                axpy(x_i, -f[(i, j)], x_j);
             }
         }
         for (j, x_j) in x.chunks_exact_mut(w).enumerate() {

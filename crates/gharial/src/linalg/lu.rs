@@ -6,6 +6,7 @@ use faer::perm::PermRef;
 use faer::prelude::ReborrowMut;
 use faer::{Mat, MatMut, MatRef, Par};
 
+use super::matvec::axpy;
 use super::reduce::all_finite;
 use super::views::{col_slice, col_slice_mut};
 use super::{FactorError, stack_buffer};
@@ -148,12 +149,5 @@ impl Lu {
         let perm = PermRef::new_checked(&self.perm[..n], &self.perm_inv[..n], n);
         let f = self.factors.as_ref().submatrix(0, 0, n, n);
         lu::solve::solve_transpose_in_place(f, f, perm, rhs, Par::Seq, stack);
-    }
-}
-
-/// `y += a x`.
-fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
-    for (yi, xi) in y.iter_mut().zip(x) {
-        *yi += a * xi;
     }
 }

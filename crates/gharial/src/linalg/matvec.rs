@@ -156,6 +156,14 @@ fn matvec_t_fixed<const M: usize>(y: &mut [f64], accum: Accum, a: MatRef<'_, f64
     }
 }
 
+/// `y += a x` for slices of one length: the row operation of the row-wise triangular
+/// solves ([`super::Ldlt::solve_rows_in_place`], [`super::Lu::solve_rows_in_place`]).
+pub(super) fn axpy(y: &mut [f64], a: f64, x: &[f64]) {
+    for (yi, xi) in y.iter_mut().zip(x) {
+        *yi += a * xi;
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use faer::{Accum, Mat};

@@ -94,7 +94,7 @@ impl EFactor {
 
     /// `X ← -E⁻¹X = diag(-E_b⁻¹, I) X`: the rows past the block stay as they are.
     pub(crate) fn neg_solve_in_place(&mut self, x: MatMut<'_, f64>) {
-        let (k, m) = (self.k, x.ncols());
+        let k = self.k;
         if k == 0 {
             return;
         }
@@ -103,15 +103,12 @@ impl EFactor {
             self.lu.solve_in_place(x_b.rb_mut());
             return linalg::negate(x_b);
         }
-        let mut top = self.top.as_mut().submatrix_mut(0, 0, k, m);
-        linalg::copy(top.rb_mut(), x_b.as_ref());
-        let n = self.neg_inv.as_ref().submatrix(0, 0, k, k);
-        linalg::matmul_loops(x_b, n, top.as_ref(), 1.0);
+        self.apply_small_inverse(x_b, false, 1.0);
     }
 
     /// `X ← E⁻ᵀX = diag(E_b⁻ᵀ, -I) X`.
     pub(crate) fn solve_transpose_in_place(&mut self, mut x: MatMut<'_, f64>) {
-        let (k, m) = (self.k, x.ncols());
+        let k = self.k;
         let rest = x.nrows() - k;
         linalg::negate(x.rb_mut().subrows_mut(k, rest));
         if k == 0 {
@@ -121,10 +118,17 @@ impl EFactor {
         if !self.small() {
             return self.lu.solve_transpose_in_place(x_b);
         }
+        self.apply_small_inverse(x_b, true, -1.0);
+    }
+
+    /// `X_b ← alpha (-E_b⁻¹) X_b` (or `-E_b⁻ᵀ` with `transposed`) for small blocks, on
+    /// a copy of `X_b` in the scratch.
+    fn apply_small_inverse(&mut self, x_b: MatMut<'_, f64>, transposed: bool, alpha: f64) {
+        let (k, m) = (self.k, x_b.ncols());
         let mut top = self.top.as_mut().submatrix_mut(0, 0, k, m);
         linalg::copy(top.rb_mut(), x_b.as_ref());
-        let n_t = self.neg_inv_t.as_ref().submatrix(0, 0, k, k);
-        linalg::matmul_loops(x_b, n_t, top.as_ref(), -1.0);
+        let n = if transposed { &self.neg_inv_t } else { &self.neg_inv };
+        linalg::matmul_loops(x_b, n.as_ref().submatrix(0, 0, k, k), top.as_ref(), alpha);
     }
 
     /// `X ← EᵀX`; `w` is scratch of at least `k` rows and `X`'s columns.
