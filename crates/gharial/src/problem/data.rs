@@ -52,8 +52,11 @@ pub struct StageData {
     /// Per path constraint: whether its `jx` is constant and zero (a constraint on the
     /// controls only), so that products with it can be skipped.
     constraint_jx_zero: Vec<bool>,
-    /// `d(φ ⊖ y)/dφ` for explicit dynamics (scratch).
+    /// `d(φ ⊖ y)/dφ` for explicit dynamics (scratch; not written at a closed gap).
     jdiff_phi: Mat<f64>,
+    /// Whether the last derivatives were taken at a closed gap, `y = φ(x, u)` bit for
+    /// bit: `d(φ ⊖ y)/dφ = I` and `E = -I` there.
+    pub(crate) gap_closed: bool,
     /// Scratch for the co-state mapped through `jdiff_phi`.
     lambda_phi: Vec<f64>,
     /// Scratch of the next-state solve ([`StageData::solve_next_state`]).
@@ -203,6 +206,7 @@ impl StageData {
             constraints: stage.constraints().iter().map(|c| c.func.create_data()).collect(),
             constraint_jx_zero: vec![false; stage.constraints().len()],
             jdiff_phi: Mat::zeros(ndx2, ndx2),
+            gap_closed: false,
             lambda_phi: vec![0.0; ndx2],
             next: NextStateScratch {
                 shift: vec![0.0; ndx2],
@@ -355,9 +359,16 @@ impl StageData {
             (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
                 m.jacobians(x, u, d);
                 let sn = stage.space_next();
-                if sn.is_vector_space() {
+                // `y ⊖ y = 0` for every `y` and the retraction's differential at 0 is the
+                // identity, so at a closed gap the difference's Jacobians are exactly `I`
+                // (in `φ`) and `-I` (in `y`): `E = -I`, the Riccati stage's fast path.
+                self.gap_closed = !sn.is_vector_space() && y == d.xnext();
+                if sn.is_vector_space() || self.gap_closed {
                     crate::linalg::copy(self.dyn_jx.as_mut(), d.jx.as_ref());
                     crate::linalg::copy(self.dyn_ju.as_mut(), d.ju.as_ref());
+                    if self.gap_closed {
+                        crate::spaces::set_identity(self.dyn_jy.as_mut(), -1.0);
+                    }
                 } else {
                     // f = φ ⊖ y: df/dx = J_φ φ_x, df/du = J_φ φ_u, df/dy = d(φ ⊖ y)/dy;
                     // J_φ is the identity outside its group block.
@@ -391,7 +402,7 @@ impl StageData {
             (Dynamics::Explicit(m), DynamicsData::Explicit(d)) => {
                 if m.has_vhp() {
                     // λᵀ(φ ⊖ y) ≈ (J_φᵀ λ)ᵀ ψ to second order in (x, u); exact when y = φ.
-                    if stage.space_next().is_vector_space() {
+                    if stage.space_next().is_vector_space() || self.gap_closed {
                         self.lambda_phi.copy_from_slice(lambda);
                     } else {
                         matvec_t(

@@ -635,3 +635,70 @@ fn rollout_solves_implicit_dynamics() {
         );
     }
 }
+
+/// At a closed gap (`y = φ(x, u)` bit for bit) the Jacobians of `f = φ ⊖ y` are taken
+/// without the Lie-group Jacobians of `⊖` (`E = -I`): they agree with central finite
+/// differences of `f` in the tangent coordinates of `x`, `u` and `y`, as at an open gap.
+#[test]
+fn closed_gap_jacobians_match_finite_differences() {
+    use crate::dynamics::{ExplicitRungeKutta, RkMethod};
+    let mut g = crate::functions::testing::rng(17);
+    for (name, ode) in crate::dynamics::manifold_tests::models() {
+        let space = ode.space().clone();
+        let (nx, ndx, nu) = (space.nx(), space.ndx(), ode.nu());
+        let rk = Arc::new(ExplicitRungeKutta::new(ode, 0.05, RkMethod::Rk4).unwrap());
+        let cost = Arc::new(crate::costs::ConstantCost::new(space.as_ref(), nu, 0.0).unwrap());
+        let stage = StageModel::new(cost, Dynamics::Explicit(rk.clone())).unwrap();
+        let x0 = crate::dynamics::manifold_tests::random_point(space.as_ref(), &mut g);
+        let p = Problem::new(
+            &x0,
+            vec![stage],
+            Arc::new(crate::costs::ConstantCost::new(space.as_ref(), 0, 0.0).unwrap()),
+        )
+        .unwrap();
+        let us = vec![(0..nu).map(|i| 0.3 - 0.2 * i as f64).collect::<Vec<_>>()];
+        let mut rd = rk.create_data();
+        rk.forward(&x0, &us[0], &mut rd);
+        let phi = rd.xnext().to_vec();
+        let mut y_open = vec![0.0; nx];
+        space.integrate(&phi, &vec![1e-3; ndx], &mut y_open);
+        for (y, closed) in [(phi.clone(), true), (y_open, false)] {
+            let xs = vec![x0.clone(), y.clone()];
+            let mut d = ProblemData::new(&p, 1).unwrap();
+            d.evaluate(&p, &xs, &us);
+            d.compute_derivatives(&p, &xs, &us);
+            let s = &d.stages[0];
+            assert_eq!(s.gap_closed, closed, "{name}");
+            // f(x ⊕ δx, u + δu, y ⊕ δy) by central differences, column by column.
+            let f = |dx: &[f64], du: &[f64], dy: &[f64]| {
+                let (mut xp, mut yp) = (vec![0.0; nx], vec![0.0; nx]);
+                space.integrate(&x0, dx, &mut xp);
+                space.integrate(&y, dy, &mut yp);
+                let up: Vec<f64> = us[0].iter().zip(du).map(|(a, b)| a + b).collect();
+                let mut dd = rk.create_data();
+                rk.forward(&xp, &up, &mut dd);
+                let mut out = vec![0.0; ndx];
+                space.difference(&yp, dd.xnext(), &mut out);
+                out
+            };
+            let h = 1e-6;
+            for (which, n, jac) in [(0, ndx, &s.dyn_jx), (1, nu, &s.dyn_ju), (2, ndx, &s.dyn_jy)] {
+                for c in 0..n {
+                    let mut args = [vec![0.0; ndx], vec![0.0; nu], vec![0.0; ndx]];
+                    args[which][c] = h;
+                    let fp = f(&args[0], &args[1], &args[2]);
+                    args[which][c] = -h;
+                    let fm = f(&args[0], &args[1], &args[2]);
+                    for r in 0..ndx {
+                        let fd = (fp[r] - fm[r]) / (2.0 * h);
+                        assert!(
+                            (jac[(r, c)] - fd).abs() < 1e-7,
+                            "{name} closed {closed} arg {which} ({r}, {c}): {} vs {fd}",
+                            jac[(r, c)]
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

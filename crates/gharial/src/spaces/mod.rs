@@ -188,6 +188,10 @@ pub const VALID_TOL: f64 = 1e-8;
 
 /// A smooth manifold with a retraction (`integrate`) and its local inverse (`difference`).
 ///
+/// `difference(x, x) = 0` and the retraction's differential at `v = 0` is the identity,
+/// so that `jdifference(x, x)` is `(-I, I)`: problem evaluation uses this at the closed
+/// gaps of explicit dynamics instead of calling `jdifference`.
+///
 /// Implementations are immutable and shared (`Arc<dyn Manifold>`); no method allocates.
 /// Slices must have the documented sizes (checked in debug builds only: the methods
 /// run in the solvers' inner loops; models validate sizes once at setup).
