@@ -203,3 +203,54 @@ fn csqp_stops_after_repeated_line_search_failures() {
     assert_eq!(status, Status::MaxIterations);
     assert_eq!(iters, 20);
 }
+
+/// CSQP reports the feedback gains of its last QP's active set (the MPC policy (57)
+/// reads `K_0`), checked against two other algorithms at their common optimum: FDDP
+/// on `ur5` (no constraint rows: the same LQ); box-FDDP on `ur5-box` (three torques at
+/// their bounds at the first knots, none at mid-horizon), whose projected-Newton box QP
+/// zeroes the clamped rows; ProxDDP, whose gains come from its own stage KKT with the
+/// active rows' multipliers, on `ur5-box`, `double-pendulum-box-term` (a terminal
+/// equality) and `ur5-circle-half-space` (a constraint on the states only). The ADMM's
+/// own penalised factorization gave `ur5-box` a first-knot gain three times box-FDDP's.
+#[test]
+fn csqp_reports_the_gains_of_its_last_qp() {
+    let gains = |name: &str, solver: &str| -> Vec<faer::Mat<f64>> {
+        let ex = gharial_problems::build(name).unwrap();
+        let mut s = match solver {
+            "fddp" | "box-fddp" => {
+                let variant = if solver == "fddp" {
+                    DdpVariant::Fddp
+                } else {
+                    DdpVariant::BoxFddp
+                };
+                return solve(name, variant).feedback;
+            }
+            _ => ex.options(solver).unwrap().build(),
+        };
+        s.setup(&ex.problem).unwrap();
+        let sol = s.solve(&ex.problem, InitialGuess::primal(&ex.xs0, &ex.us0)).unwrap();
+        assert_eq!(sol.status, Status::Converged, "{name} / {solver}");
+        sol.feedback.clone()
+    };
+    let cases = [
+        ("ur5", "fddp", 1e-5),
+        ("ur5-box", "box-fddp", 1e-4),
+        ("ur5-box", "proxddp", 1e-4),
+        // ProxDDP's penalty on the terminal equality moves its gains by about 1e-4.
+        ("double-pendulum-box-term", "proxddp", 1e-3),
+        ("ur5-circle-half-space", "proxddp", 1e-4),
+    ];
+    for (name, other, rtol) in cases {
+        let (k_csqp, k_other) = (gains(name, "csqp"), gains(name, other));
+        for t in [0, 1, k_csqp.len() / 2] {
+            let (a, b) = (&k_csqp[t], &k_other[t]);
+            let diff = (a - b).norm_l2() / b.norm_l2();
+            assert!(
+                b.norm_l2() > 0.1 && diff < rtol,
+                "{name} knot {t} vs {other}: |K| {} vs {}, relative difference {diff:.1e}",
+                a.norm_l2(),
+                b.norm_l2()
+            );
+        }
+    }
+}

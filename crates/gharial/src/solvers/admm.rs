@@ -33,6 +33,15 @@ use crate::linalg::{matvec, matvec_t, norm_inf, slice, slice_mut};
 use crate::lq::offsets::OffsetMap;
 use crate::lq::{LqError, LqProblem, LqSolution, Outputs, RiccatiSolver};
 
+/// Relative size of a multiplier below which [`AdmmQp::active_set_factor`] counts its
+/// row inactive (the z-update's rounding leaves `|y| ~ ε |y_prev|` there).
+pub const ACTIVE_Y: f64 = 1e-10;
+
+/// Dual regularisation of the active rows in [`AdmmQp::active_set_factor`]: equalities
+/// to `O(ACTIVE_MU)` (an exact `0` would leave the rows on the states only, as a
+/// terminal target, without a pivot).
+pub const ACTIVE_MU: f64 = 1e-9;
+
 /// Options of [`AdmmQp`] (defaults of mim_solvers' CSQP where it has them).
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
@@ -459,6 +468,39 @@ impl AdmmQp {
         for z in &mut self.z {
             z.iter_mut().for_each(|v| *v *= 1.0 - alpha);
         }
+    }
+
+    /// The Riccati stages of the last factorization (after [`AdmmQp::active_set_factor`]:
+    /// the gains of the active-set LQ).
+    pub fn stages(&self) -> &[crate::lq::RiccatiStage] {
+        self.riccati.stages()
+    }
+
+    /// Factors the LQ of the last solve with its active rows as equalities (to
+    /// [`ACTIVE_MU`]) and without its inactive ones, for the feedback gains `K_t` of the QP's solution (the
+    /// sensitivity of its controls to the initial state, as box-DDP's gains): a row is
+    /// active when its multiplier `y` is nonzero: above [`ACTIVE_Y`] times the largest
+    /// (the z-update leaves `y` at rounding level on a row strictly inside its set). The ADMM's own factorization treats every row as a
+    /// penalty `ρ/2 |G δ - z + y/ρ|²`, whose gains stiffen with `ρ` (mim_solvers' CSQP
+    /// reports those). Changes the rows of `lq` (the next solve sets them again).
+    ///
+    /// # Errors
+    /// If the factorization fails (active rows nearly dependent at a knot).
+    pub fn active_set_factor(&mut self, lq: &mut LqProblem) -> Result<()> {
+        let y_max = self.y.iter().map(|y| norm_inf(y)).fold(0.0, f64::max);
+        for (knot, y) in lq.knots.iter_mut().zip(&self.y) {
+            for (i, &yi) in y.iter().enumerate().take(knot.nc) {
+                if yi.abs() <= ACTIVE_Y * y_max {
+                    knot.C.as_mut().row_mut(i).fill(0.0);
+                    knot.D.as_mut().row_mut(i).fill(0.0);
+                    knot.mu_c[i] = 1.0;
+                } else {
+                    knot.mu_c[i] = ACTIVE_MU;
+                }
+                knot.d[i] = 0.0;
+            }
+        }
+        self.riccati.backward(lq, self.reg).map_err(lq_error)
     }
 
     /// The last solution `δ` (states, controls, co-states).

@@ -17,6 +17,12 @@
 //! of the same subproblem): the solve has converged when
 //! `max(|∇L|_∞, |gaps|_∞, |violation|_∞)` is below `tol` (the paper's (20) with the
 //! constraints).
+//!
+//! The reported gains `k_t`, `K_t` (the MPC feedback policy's) are those of the last QP
+//! with its active rows as equalities and its inactive rows dropped
+//! ([`AdmmQp::active_set_factor`], one more Riccati factorization per solve): box-DDP's
+//! gains on control bounds. mim_solvers reports the gains of the ADMM's penalised LQ
+//! instead, which grow with the penalty `ρ`.
 
 use std::time::{Duration, Instant};
 
@@ -188,6 +194,8 @@ struct Workspace {
     cost: f64,
     /// Regularisation of the next QP (0 unless a QP's Hessian was singular).
     reg: f64,
+    /// Whether the current solve has solved a QP (whose gains it reports).
+    qp_solved: bool,
     /// Receding horizon: the data of the queued stages, slot by slot.
     spare: Vec<StageData>,
     receding: bool,
@@ -254,6 +262,7 @@ impl Workspace {
             filter: SqpFilter::new(opts.filter_size),
             cost: 0.0,
             reg: 0.0,
+            qp_solved: false,
             spare: queue.iter().map(StageData::new).collect(),
             receding: receding.is_some(),
         };
@@ -412,6 +421,7 @@ impl Workspace {
             self.admm.set_regularization(self.reg);
             if self.solve_qp(problem, warm).is_ok() {
                 self.reg = if self.reg > REG_MIN { 0.1 * self.reg } else { 0.0 };
+                self.qp_solved = true;
                 return true;
             }
             self.reg = (10.0 * self.reg).max(REG_MIN);
@@ -519,11 +529,20 @@ impl Csqp {
         if opts.log.is_active() {
             opts.log.line(format_args!("{}", TABLE.header()));
         }
+        ws.qp_solved = false;
         let (status, iters, kkt, inf) = if ws.load(problem, &guess) {
             iterate(ws, problem, opts, sol, start, callback)
         } else {
             (Status::NonFinite, 0, f64::NAN, Infeasibility::default())
         };
+        // The gains of the last QP's active set (zero when no QP was solved or its active
+        // rows are dependent).
+        if ws.qp_solved && ws.admm.active_set_factor(&mut ws.lq).is_ok() {
+            super::skeleton::write_gains(sol, ws.admm.stages());
+        } else {
+            sol.feedforward.iter_mut().for_each(|k| k.fill(0.0));
+            sol.feedback.iter_mut().for_each(|kk| kk.fill(0.0));
+        }
         super::skeleton::copy_trajectory(&mut sol.xs, &ws.xs);
         super::skeleton::copy_trajectory(&mut sol.us, &ws.us);
         super::skeleton::copy_trajectory(&mut sol.lambdas, &ws.lams);
