@@ -16,26 +16,27 @@ pub struct SimulateArgs {
     /// Scenario name (see `gharial list`).
     pub scenario: String,
     /// Simulated time in seconds (at most 5000: the record keeps every plant state).
-    #[arg(long, default_value_t = std::f64::consts::PI, value_parser = duration)]
+    #[arg(long, default_value_t = std::f64::consts::PI, value_parser = real)]
     pub duration: f64,
     /// Solo-12 walking only: tilt of the (unmodelled) ground about y, in radians (at most
     /// 0.3; `solo-walk-mpc --slope 0.1` is `solo-walk-mpc-slope`).
-    #[arg(long, value_parser = slope, allow_negative_numbers = true)]
+    #[arg(long, value_parser = real, allow_negative_numbers = true)]
     pub slope: Option<f64>,
     /// Solo-12 walking only: the forward base velocity command in m/s (at most 1).
-    #[arg(long, value_parser = speed, allow_negative_numbers = true)]
+    #[arg(long, value_parser = real, allow_negative_numbers = true)]
     pub speed: Option<f64>,
     /// Mass in kg of a payload the plant carries and the controller does not model: on the
     /// Solo-12's base at its centre of mass, at the UR5's tool frame (at most 100).
-    #[arg(long, value_parser = payload, allow_negative_numbers = true)]
+    #[arg(long, value_parser = real, allow_negative_numbers = true)]
     pub payload: Option<f64>,
     /// Floating-base robots only: a push at time T (s) changing the base's linear
-    /// velocity by (VX, VY, VZ) m/s in the base frame, as `T,VX,VY,VZ` (repeatable).
+    /// velocity by (VX, VY, VZ) m/s in the base frame (each at most 10 in magnitude), as
+    /// `T,VX,VY,VZ` (repeatable).
     #[arg(long, value_parser = push, allow_negative_numbers = true)]
     pub push: Vec<(f64, [f64; 3])>,
     /// Wall-time budget of each MPC cycle in milliseconds (default: none; the iteration
     /// budget is `--max-iters`, default the scenario's).
-    #[arg(long, value_parser = crate::positive_real)]
+    #[arg(long, value_parser = real, allow_negative_numbers = true)]
     pub cycle_budget: Option<f64>,
     /// Write the closed loop (states, controls, cycles, metrics) to this JSON file.
     #[arg(long)]
@@ -45,58 +46,22 @@ pub struct SimulateArgs {
     pub solver: SolverArgs,
 }
 
-/// A simulated duration: finite, positive, at most 5000 s (the scenario refuses one
-/// shorter than its plant step).
-fn duration(s: &str) -> Result<f64, String> {
-    let v = crate::positive_real(s)?;
-    if v <= 5000.0 {
-        Ok(v)
-    } else {
-        Err(format!("must be at most 5000 s, got {v}"))
+/// A finite number of either sign (the scenario checks its range).
+fn real(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        Ok(v) => Err(format!("must be a finite number, got {v}")),
+        Err(e) => Err(e.to_string()),
     }
 }
 
-/// A ground slope in radians: finite, |slope| ≤ 0.3.
-fn slope(s: &str) -> Result<f64, String> {
-    bounded(s, 0.3, "rad")
-}
-
-/// A walking speed command in m/s: finite, |v| ≤ 1.
-fn speed(s: &str) -> Result<f64, String> {
-    bounded(s, 1.0, "m/s")
-}
-
-/// A payload in kg: finite, in [0, 100].
-fn payload(s: &str) -> Result<f64, String> {
-    let v = crate::nonnegative_real(s)?;
-    if v <= 100.0 {
-        Ok(v)
-    } else {
-        Err(format!("must be at most 100 kg, got {v}"))
-    }
-}
-
-/// A push `T,VX,VY,VZ`: a time in seconds (finite, at least 0) and a velocity change in
-/// m/s (finite, each at most 10 in magnitude).
+/// A push `T,VX,VY,VZ`: four finite numbers (the scenario checks their ranges).
 fn push(s: &str) -> Result<(f64, [f64; 3]), String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let [t, vx, vy, vz] = parts[..] else {
         return Err(format!("expected T,VX,VY,VZ (four numbers), got `{s}`"));
     };
-    let v = [
-        bounded(vx, 10.0, "m/s")?,
-        bounded(vy, 10.0, "m/s")?,
-        bounded(vz, 10.0, "m/s")?,
-    ];
-    Ok((crate::nonnegative_real(t)?, v))
-}
-
-fn bounded(s: &str, max: f64, unit: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v.is_finite() && v.abs() <= max => Ok(v),
-        Ok(v) => Err(format!("must be a finite number within ±{max} {unit}, got {v}")),
-        Err(e) => Err(e.to_string()),
-    }
+    Ok((real(t)?, [real(vx)?, real(vy)?, real(vz)?]))
 }
 
 /// The scenario of the command line: by name, with the walking parameters, the model
@@ -115,7 +80,8 @@ fn build_scenario(args: &SimulateArgs) -> gharial::Result<MpcScenario> {
 }
 
 /// Runs `gharial simulate`; returns the process exit code (0: every cycle returned a
-/// finite plan, 1: the loop stopped on an error, 2: invalid input).
+/// finite plan, 1: the loop stopped on an error (the summary and the record cover the
+/// steps done), 2: invalid input).
 pub fn run(args: &SimulateArgs) -> i32 {
     if let Err(e) = args.solver.check() {
         eprintln!("gharial simulate: {e}");
@@ -135,7 +101,15 @@ pub fn run(args: &SimulateArgs) -> i32 {
     if let Some(n) = args.solver.common.max_iters {
         sc.options.max_iters = n;
     }
-    sc.options.max_time = args.cycle_budget.map(|ms| Duration::from_secs_f64(ms * 1e-3));
+    if let Some(ms) = args.cycle_budget {
+        sc.options.max_time = match gharial_problems::mpc::cycle_budget_ms(ms) {
+            Ok(t) => t,
+            Err(e) => {
+                eprintln!("gharial simulate: {e}");
+                return 2;
+            }
+        };
+    }
     let config = args.solver.config(&sc.example);
     let mut mpc = match sc.controller(config.options.build()) {
         Ok(m) => m,
@@ -161,18 +135,32 @@ pub fn run(args: &SimulateArgs) -> i32 {
             return 1;
         }
     };
-    let metrics = match sc.metrics(&rec) {
-        Ok(m) => m,
+    // A loop that diverged may hold states where a metric cannot be evaluated: the
+    // record is still printed and written.
+    let (metrics, metrics_ok) = match sc.metrics(&rec) {
+        Ok(m) => (m, true),
         Err(e) => {
-            eprintln!("gharial simulate: {e}");
-            return 1;
+            eprintln!("gharial simulate: metrics: {e}");
+            (Vec::new(), false)
         }
     };
     print_summary(&rec, &metrics);
+    if let Some(s) = &rec.stopped {
+        eprintln!(
+            "gharial simulate: the closed loop stopped at plant step {} (t = {:.3} s): {}",
+            s.step,
+            s.step as f64 * sc.plant_dt,
+            s.reason
+        );
+    }
     let written = output
         .as_mut()
         .is_none_or(|o| o.write_json("simulate", "record", &record_json(&sc, &rec, &metrics)));
-    if written { 0 } else { 1 }
+    if written && metrics_ok && rec.stopped.is_none() {
+        0
+    } else {
+        1
+    }
 }
 
 /// The `q`-quantile of sorted durations, in milliseconds.
@@ -224,7 +212,7 @@ fn record_json(sc: &MpcScenario, rec: &Record, metrics: &[Metric]) -> serde_json
                 "time": c.step as f64 * sc.plant_dt,
                 "solve_time_ms": c.solve_time.as_secs_f64() * 1e3,
                 "iterations": c.iterations,
-                "status": c.status.to_string(),
+                "status": c.status.name(),
                 "cost": c.cost,
                 "prim_err": c.prim_err,
                 "dual_err": c.dual_err,
@@ -243,5 +231,10 @@ fn record_json(sc: &MpcScenario, rec: &Record, metrics: &[Metric]) -> serde_json
         "us": rec.us,
         "cycles": cycles,
         "metrics": metrics,
+        "stopped": rec.stopped.as_ref().map(|s| json!({
+            "step": s.step,
+            "time": s.step as f64 * sc.plant_dt,
+            "reason": s.reason,
+        })),
     })
 }

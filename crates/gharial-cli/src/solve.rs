@@ -250,7 +250,7 @@ pub fn solution_json(example: &Example, config: &SolverConfig, sol: &Solution) -
         "solver": config.kind.name(),
         "dt": example.dt,
         "settings": config.settings_json(),
-        "status": sol.status.to_string(),
+        "status": sol.status.name(),
         "converged": sol.status.converged(),
         "iterations": sol.iterations,
         "al_iterations": sol.al_iterations,

@@ -801,7 +801,7 @@ fn simulate_writes_a_closed_loop_that_the_plant_replays() {
     for (args, what) in [
         (vec!["simulate", "nope"], "unknown MPC scenario"),
         (vec!["simulate", "ur5-circle-mpc", "--duration", "1e9"], "at most 5000"),
-        (vec!["simulate", "solo-walk-mpc", "--duration", "0"], "--duration"),
+        (vec!["simulate", "solo-walk-mpc", "--duration", "0"], "duration"),
         (
             vec!["simulate", "solo-walk-mpc", "--duration", "1e-4"],
             "one plant step",
@@ -818,6 +818,17 @@ fn simulate_writes_a_closed_loop_that_the_plant_replays() {
         (vec!["simulate", "ur5-circle-mpc", "--payload", "1e3"], "at most 100 kg"),
         (vec!["simulate", "solo-walk-mpc", "--push", "1,0.3"], "T,VX,VY,VZ"),
         (vec!["simulate", "solo-walk-mpc", "--push", "1,nan,0,0"], "finite"),
+        (vec!["simulate", "solo-walk-mpc", "--push", "1,11,0,0"], "±10 m/s"),
+        (vec!["simulate", "solo-walk-mpc", "--slope", "0.4"], "±0.3 rad"),
+        (vec!["simulate", "solo-walk-mpc", "--speed", "-2"], "±1 m/s"),
+        (
+            vec!["simulate", "ur5-circle-mpc", "--cycle-budget", "1e300"],
+            "cycle_budget",
+        ),
+        (
+            vec!["simulate", "ur5-circle-mpc", "--cycle-budget", "0"],
+            "milliseconds",
+        ),
         (
             vec!["simulate", "ur5-circle-mpc", "--push", "0.1,0,0.3,0"],
             "no floating base",
@@ -897,4 +908,39 @@ fn simulate_walks_solo_on_a_slope_given_on_the_command_line() {
     let vy = plain[30].len() - 18 + 1;
     assert!((pushed[30][vy] - plain[30][vy] - 0.25).abs() < 1e-12);
     assert!((loaded[50][2] - plain[50][2]).abs() > 1e-4);
+}
+
+/// A push that makes the Solo-12 fall stops the loop at the fall: the summary, the stop
+/// and the record of the steps done are still given, with exit code 1.
+#[test]
+fn simulate_reports_a_fall_with_the_record_up_to_it() {
+    let path = std::env::temp_dir().join(format!("gharial-cli-{}-fall.json", std::process::id()));
+    let args = [
+        "simulate",
+        "solo-walk-mpc",
+        "--duration",
+        "0.5",
+        "--push",
+        "0.02,3,0,0",
+        "--output",
+    ];
+    let mut all = args.to_vec();
+    all.push(path.to_str().unwrap());
+    let o = gharial(&all);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("the robot fell"), "{}", stderr(&o));
+    assert!(stdout(&o).contains("min base height"), "{}", stdout(&o));
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    std::fs::remove_file(&path).ok();
+    let step = v["stopped"]["step"].as_u64().unwrap() as usize;
+    assert!(step > 20 && step < 500, "{step}");
+    assert_eq!(v["xs"].as_array().unwrap().len(), step + 1);
+    assert_eq!(v["us"].as_array().unwrap().len(), step);
+    // Standing still commanded: the velocity error is in m/s, not relative to 0.
+    let o = gharial(&["simulate", "solo-walk-mpc", "--duration", "0.1", "--speed", "0"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("velocity error (command 0)"), "{}", stdout(&o));
+    // The JSON statuses are the machine names of Python's `Results.status`.
+    let (_, doc) = run_with_output("status", &["solve", "pendulum", "--max-iters", "2"]);
+    assert_eq!(doc["status"], "max_iterations");
 }

@@ -24,6 +24,45 @@ use gharial_multibody::spatial::{Inertia, Mat3, Vec3};
 
 use crate::Example;
 
+/// Longest simulated time of a scenario (s): the record keeps every plant state.
+pub const MAX_DURATION: f64 = 5000.0;
+/// Largest ground tilt of the Solo-12 walking scenarios (rad, either sign).
+pub const MAX_SLOPE: f64 = 0.3;
+/// Largest forward velocity command of the Solo-12 walking scenarios (m/s, either sign).
+pub const MAX_SPEED: f64 = 1.0;
+/// Heaviest unmodelled payload (kg).
+pub const MAX_PAYLOAD: f64 = 100.0;
+/// Largest change of a base velocity component by a push (m/s, either sign).
+pub const MAX_PUSH: f64 = 10.0;
+
+/// The per-cycle wall-time budget of `ms` milliseconds (`inf`: none), for
+/// [`MpcOptions::max_time`].
+///
+/// # Errors
+/// As [`gharial::error::time_budget`], naming `cycle_budget`.
+pub fn cycle_budget_ms(ms: f64) -> Result<Option<std::time::Duration>> {
+    gharial::error::time_budget("cycle_budget", ms * 1e-3).map_err(|_| {
+        Error::option(
+            "cycle_budget",
+            format!(
+                "must be a positive number of milliseconds (inf: no budget), got {}",
+                gharial::error::Num(ms)
+            ),
+        )
+    })
+}
+
+/// Fails unless `v` is finite and at most `max` in magnitude.
+fn check_within(name: &str, v: f64, max: f64, unit: &str) -> Result<()> {
+    if v.is_finite() && v.abs() <= max {
+        return Ok(());
+    }
+    Err(Error::option(
+        name,
+        format!("must be a finite number within ±{max} {unit}, got {v}"),
+    ))
+}
+
 /// Differences between the plant and the controller's model (module documentation).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[non_exhaustive]
@@ -39,14 +78,17 @@ impl Mismatch {
         Self { payload: mass }
     }
 
-    /// Fails unless the payload is finite and non-negative.
+    /// Fails unless the payload is finite, non-negative and at most [`MAX_PAYLOAD`].
     pub(crate) fn check(&self) -> Result<()> {
-        if self.payload.is_finite() && self.payload >= 0.0 {
+        if self.payload.is_finite() && (0.0..=MAX_PAYLOAD).contains(&self.payload) {
             Ok(())
         } else {
             Err(Error::option(
                 "payload",
-                format!("must be finite and non-negative (kg), got {}", self.payload),
+                format!(
+                    "must be finite, non-negative and at most {MAX_PAYLOAD} kg, got {}",
+                    self.payload
+                ),
             ))
         }
     }
@@ -156,16 +198,16 @@ impl MpcScenario {
     /// Checks a duration for [`MpcScenario::run`].
     ///
     /// # Errors
-    /// If `duration` is not finite or shorter than half a plant step (no step to
-    /// simulate).
+    /// If `duration` is not finite, shorter than half a plant step (no step to
+    /// simulate) or longer than [`MAX_DURATION`].
     pub fn check_duration(&self, duration: f64) -> Result<()> {
-        if duration.is_finite() && duration >= 0.5 * self.plant_dt {
+        if duration.is_finite() && duration >= 0.5 * self.plant_dt && duration <= MAX_DURATION {
             return Ok(());
         }
         Err(Error::option(
             "duration",
             format!(
-                "must be finite and at least one plant step ({} s), got {duration}",
+                "must be finite, at least one plant step ({} s) and at most {MAX_DURATION} s, got {duration}",
                 self.plant_dt
             ),
         ))
@@ -175,8 +217,8 @@ impl MpcScenario {
     /// `dv` (m/s, in the base frame, as the state's velocity).
     ///
     /// # Errors
-    /// If the plant has no floating base, or `time` or `dv` is not finite (or `time`
-    /// negative).
+    /// If the plant has no floating base, `time` is not finite or negative, or a
+    /// component of `dv` is not finite or larger than [`MAX_PUSH`] in magnitude.
     pub fn push_base(&mut self, time: f64, dv: [f64; 3]) -> Result<()> {
         let i = self.base_velocity.ok_or_else(|| {
             Error::InvalidModel(format!(
@@ -190,7 +232,9 @@ impl MpcScenario {
                 format!("must be finite and non-negative, got {time}"),
             ));
         }
-        gharial::error::check_finite("push velocity", &dv)?;
+        for v in dv {
+            check_within("push velocity", v, MAX_PUSH, "m/s")?;
+        }
         let mut dx = vec![0.0; self.plant.space().ndx()];
         dx[i..i + 3].copy_from_slice(&dv);
         let step = (time / self.plant_dt).round() as usize;
@@ -265,8 +309,16 @@ pub struct ScenarioSettings {
 ///
 /// # Errors
 /// If the name is unknown (the message lists the known ones), a walking parameter is
-/// given for another scenario, or a setting is invalid.
+/// given for another scenario, or a setting is invalid or outside its limit
+/// ([`MAX_SLOPE`], [`MAX_SPEED`], [`MAX_PAYLOAD`]).
 pub fn scenario_with(name: &str, settings: &ScenarioSettings) -> Result<MpcScenario> {
+    if let Some(s) = settings.slope {
+        check_within("slope", s, MAX_SLOPE, "rad")?;
+    }
+    if let Some(v) = settings.speed {
+        check_within("speed", v, MAX_SPEED, "m/s")?;
+    }
+    settings.mismatch.check()?;
     use crate::solo_walk::{COMMAND, SLOPE, scenario_with as walk};
     use crate::ur5_circle::{CircleVariant, scenario_with as circle};
     let mismatch = settings.mismatch;

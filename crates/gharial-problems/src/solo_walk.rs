@@ -706,7 +706,9 @@ impl WalkTask {
     /// # Errors
     /// If the mismatch is invalid.
     pub fn plant_with(&self, ground: Ground, mismatch: Mismatch) -> Result<WalkPlant> {
-        WalkPlant::new(&self.solo, self.gait, ground, mismatch)
+        let mut plant = WalkPlant::new(&self.solo, self.gait, ground, mismatch)?;
+        plant.fallen_below = FALLEN * self.standing_height();
+        Ok(plant)
     }
 
     /// Standing base height (m).
@@ -863,7 +865,14 @@ pub struct WalkPlant {
     tau: Vec<f64>,
     dq: Vec<f64>,
     nu: usize,
+    /// The base height above the ground (m) below which the robot has fallen.
+    fallen_below: f64,
 }
+
+/// Fraction of the standing base height below which the plant reports a fall: the base
+/// then rests on folded legs or the ground, which the plant (contacts at the feet only)
+/// does not model, and the loop stops ([`gharial::mpc::Record::stopped`]).
+pub const FALLEN: f64 = 0.25;
 
 impl std::fmt::Debug for WalkPlant {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -911,6 +920,7 @@ impl WalkPlant {
             tau: vec![0.0; nv],
             dq: vec![0.0; nv],
             nu: solo.actuation.nu(),
+            fallen_below: 0.0,
         })
     }
 
@@ -956,7 +966,7 @@ impl WalkPlant {
             v,
             &self.tau,
         )
-        .map_err(|e| Error::InvalidModel(format!("solo_walk plant at step {step}: {e}")))?;
+        .map_err(|e| Error::Simulation(format!("solo_walk plant at step {step}: {e}")))?;
         Ok(phase)
     }
 
@@ -990,7 +1000,14 @@ impl Plant for WalkPlant {
             self.dq[k] = PLANT_DT * v_next[k];
         }
         gharial_multibody::integrate(&self.model, q, &self.dq, q_next)
-            .map_err(|e| Error::InvalidModel(format!("solo_walk plant at step {step}: {e}")))
+            .map_err(|e| Error::Simulation(format!("solo_walk plant at step {step}: {e}")))?;
+        let h = q_next[2] - self.ground.height(q_next[0], q_next[1]);
+        if h < self.fallen_below {
+            return Err(Error::Simulation(format!(
+                "solo_walk plant at step {step}: the robot fell (base {h:.3} m above the ground, below {FALLEN} of the standing height)"
+            )));
+        }
+        Ok(())
     }
 }
 
@@ -1100,7 +1117,13 @@ pub fn walk_metrics(task: &WalkTask, ground: Ground, mismatch: Mismatch, rec: &R
     let t = (n - n / 2) as f64 * PLANT_DT;
     let v = [(b[0] - a[0]) / t, (b[1] - a[1]) / t];
     let c = task.command;
-    let err = ((v[0] - c[0]).powi(2) + (v[1] - c[1]).powi(2)).sqrt() / (c[0].hypot(c[1])).max(1e-12);
+    let err = (v[0] - c[0]).hypot(v[1] - c[1]);
+    // Relative to the command, or in m/s when standing still is commanded.
+    let (err_name, err, err_unit) = if c[0].hypot(c[1]) > 0.0 {
+        ("velocity error / command", err / c[0].hypot(c[1]), "1")
+    } else {
+        ("velocity error (command 0)", err, "m/s")
+    };
     let cone = friction_violation(task, ground, mismatch, rec)?;
     let metric = |name, value, unit| Metric { name, value, unit };
     Ok(vec![
@@ -1108,7 +1131,7 @@ pub fn walk_metrics(task: &WalkTask, ground: Ground, mismatch: Mismatch, rec: &R
         metric("max base height / nominal", h_max, "1"),
         metric("mean forward velocity (2nd half)", v[0], "m/s"),
         metric("mean lateral velocity (2nd half)", v[1], "m/s"),
-        metric("velocity error / command", err, "1"),
+        metric(err_name, err, err_unit),
         metric("max friction-cone violation", cone, "N"),
     ])
 }

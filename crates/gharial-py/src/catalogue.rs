@@ -7,7 +7,7 @@ use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::convert::{arrays1, err, value_error};
+use crate::convert::{arrays1, err};
 use crate::options::solver_options;
 use crate::problem::PyProblem;
 use crate::solvers::{PySolver, status_name};
@@ -112,7 +112,11 @@ fn scenarios() -> Vec<(&'static str, &'static str)> {
 /// Returns a dict: `scenario`, `plant_dt`, `steps_per_cycle`, `xs` and `us` (the plant's
 /// states and controls at every step, 2-D arrays), `cycles` (one dict per MPC cycle:
 /// `step`, `time`, `solve_time_ms`, `iterations`, `status`, `cost`, `prim_err`,
-/// `dual_err`) and `metrics` (name: `(value, unit)`).
+/// `dual_err`), `metrics` (name: `(value, unit)`) and `stopped`: `None`, or for a loop
+/// that could not go on (a failed cycle, a plant step that failed or left a non-finite
+/// state: a diverging loop) a dict `step`, `time`, `reason`, the arrays then holding the
+/// steps done; `metrics_error`: `None`, or why the metrics could not be evaluated on
+/// the record (`metrics` is then empty).
 #[pyfunction]
 #[pyo3(signature = (
     name, duration = std::f64::consts::PI, solver = "proxddp", payload = 0.0, pushes = Vec::new(),
@@ -143,18 +147,18 @@ fn simulate<'py>(
         sc.options.max_iters = n;
     }
     if let Some(ms) = cycle_budget {
-        if !(ms.is_finite() && ms > 0.0) {
-            return Err(value_error(format!(
-                "cycle_budget: must be a positive number of milliseconds, got {ms}"
-            )));
-        }
-        sc.options.max_time = Some(std::time::Duration::from_secs_f64(ms * 1e-3));
+        sc.options.max_time = gharial_problems::mpc::cycle_budget_ms(ms).map_err(err)?;
     }
     let solver = PySolver::with_options(solver_options(sc.example.options(solver))?, options)?;
     let mut mpc = sc.controller(solver.build()).map_err(err)?;
     let rec = sc.run(&mut mpc, duration).map_err(err)?;
-    let metrics = sc.metrics(&rec).map_err(err)?;
-    record_dict(py, &sc, &rec, &metrics)
+    let (metrics, metrics_error) = match sc.metrics(&rec) {
+        Ok(m) => (m, None),
+        Err(e) => (Vec::new(), Some(e.to_string())),
+    };
+    let out = record_dict(py, &sc, &rec, &metrics)?;
+    out.set_item("metrics_error", metrics_error)?;
+    Ok(out)
 }
 
 /// The dict of [`simulate`].
@@ -189,6 +193,17 @@ fn record_dict<'py>(
         m.set_item(metric.name, (metric.value, metric.unit))?;
     }
     out.set_item("metrics", m)?;
+    let stopped = match &rec.stopped {
+        Some(s) => {
+            let d = PyDict::new(py);
+            d.set_item("step", s.step)?;
+            d.set_item("time", s.step as f64 * sc.plant_dt)?;
+            d.set_item("reason", &s.reason)?;
+            Some(d)
+        }
+        None => None,
+    };
+    out.set_item("stopped", stopped)?;
     Ok(out)
 }
 

@@ -2,7 +2,6 @@
 //! `TrajOptProblem` with any solver.
 
 use std::sync::Mutex;
-use std::time::Duration;
 
 use gharial::mpc::{Mpc, MpcOptions};
 use gharial::solvers::{InitialGuess, Solver};
@@ -47,13 +46,7 @@ impl PyMpc {
         let p = problem.borrow_mut().problem()?;
         let (xs, us) = (vectors(xs_init, "xs_init")?, vectors(us_init, "us_init")?);
         let max_time = match max_time {
-            Some(t) if t.is_finite() && t > 0.0 => Some(Duration::from_secs_f64(t)),
-            Some(t) if t == f64::INFINITY => None,
-            Some(t) => {
-                return Err(value_error(format!(
-                    "max_time: must be a positive number of seconds, got {t}"
-                )));
-            }
+            Some(t) => gharial::error::time_budget("max_time", t).map_err(|e| value_error(e.to_string()))?,
             None => None,
         };
         let options = MpcOptions::default().with(|o| {

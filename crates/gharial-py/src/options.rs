@@ -464,9 +464,7 @@ impl Field<'_> {
             Field::Time(v) => {
                 let s: Option<f64> = value.extract().map_err(bad)?;
                 **v = match s {
-                    Some(s) if s.is_finite() && s >= 0.0 => Some(Duration::from_secs_f64(s)),
-                    Some(s) if s == f64::INFINITY => None,
-                    Some(s) => return Err(value_error(format!("option `{name}`: {s} is not a time in seconds"))),
+                    Some(s) => gharial::error::time_budget(name, s).map_err(|e| value_error(e.to_string()))?,
                     None => None,
                 };
             }

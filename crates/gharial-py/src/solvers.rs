@@ -39,15 +39,7 @@ pub struct PySolver {
 
 /// The `snake_case` name of a status.
 pub fn status_name(s: gharial::solvers::Status) -> String {
-    let debug = format!("{s:?}");
-    let mut out = String::new();
-    for (i, c) in debug.chars().enumerate() {
-        if c.is_uppercase() && i > 0 {
-            out.push('_');
-        }
-        out.push(c.to_ascii_lowercase());
-    }
-    out
+    s.name().to_string()
 }
 
 impl PySolver {

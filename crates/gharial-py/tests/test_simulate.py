@@ -70,6 +70,26 @@ def test_bad_input_is_an_error():
         simulate("ur5-circle-mpc", duration=0.1, cycle_budget=-1.0)
     with pytest.raises(AttributeError, match="no option"):
         simulate("ur5-circle-mpc", duration=0.1, not_an_option=1)
+    # The command line's limits hold here too (a huge duration sized the record and
+    # aborted the interpreter; a huge budget panicked).
+    with pytest.raises(ValueError, match="at most 5000"):
+        simulate("ur5-circle-mpc", duration=1e9)
+    with pytest.raises(ValueError, match="cycle_budget"):
+        simulate("ur5-circle-mpc", duration=0.1, cycle_budget=1e300)
+    for kw, what in [(dict(payload=101.0), "payload"), (dict(speed=2.0), "speed"), (dict(slope=0.4), "slope"),
+                     (dict(pushes=[(0.1, (11.0, 0, 0))]), "push")]:
+        with pytest.raises(ValueError, match=what):
+            simulate("solo-walk-mpc", duration=0.1, **kw)
+
+
+def test_a_fall_stops_the_loop_with_its_record():
+    rec = simulate("solo-walk-mpc", duration=0.5, pushes=[(0.02, (3.0, 0.0, 0.0))])
+    stopped = rec["stopped"]
+    assert stopped is not None and "fell" in stopped["reason"]
+    assert rec["xs"].shape[0] == stopped["step"] + 1 and rec["us"].shape[0] == stopped["step"]
+    assert rec["metrics_error"] is None and rec["metrics"]["min base height / nominal"][0] < 0.5
+    calm = simulate("solo-walk-mpc", duration=0.05)
+    assert calm["stopped"] is None and calm["xs"].shape[0] == 51
 
 
 def test_the_mpc_class_follows_the_dense_kkt_optimum_from_every_measured_state():
@@ -107,6 +127,10 @@ def test_the_mpc_class_refuses_bad_input():
         gharial.MPC(problem, gharial.solver("fddp"), xs0, us0, max_time=-1.0)
     with pytest.raises(ValueError, match="max_time"):
         gharial.MPC(problem, gharial.solver("fddp"), xs0, us0, max_time=float("nan"))
+    with pytest.raises(ValueError, match="max_time"):
+        gharial.MPC(problem, gharial.solver("fddp"), xs0, us0, max_time=1e300)
+    with pytest.raises(ValueError, match="max_time"):
+        gharial.solver("fddp", max_time=1e20)
     # An infinite budget is no budget, for the controller and for a solver option.
     unlimited = gharial.MPC(problem, gharial.solver("fddp", max_time=float("inf")), xs0, us0, max_time=float("inf"))
     assert unlimited.solve(np.ones(4)).status == "converged"

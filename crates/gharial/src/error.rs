@@ -43,6 +43,10 @@ pub enum Error {
     /// A model or problem is ill-formed in a way not covered by the other variants.
     #[error("invalid model: {0}")]
     InvalidModel(String),
+    /// A simulated plant cannot go on (a robot that fell, a contact problem without a
+    /// solution at a diverged state): the closed loop stops there.
+    #[error("simulation: {0}")]
+    Simulation(String),
 }
 
 /// Checks that option `name` is positive and finite.
@@ -57,6 +61,28 @@ pub fn check_positive(name: &str, v: f64) -> Result<()> {
             name,
             format!("must be positive and finite, got {}", Num(v)),
         ))
+    }
+}
+
+/// A wall-time budget of `seconds` (`max_time` of the solvers and the MPC cycles):
+/// `None` for `+∞` (no budget).
+///
+/// # Errors
+/// [`Error::InvalidOption`] naming option `name` if `seconds` is NaN, not positive, or
+/// finite but too large for a [`std::time::Duration`] (about 1.8e19 s).
+pub fn time_budget(name: &str, seconds: f64) -> Result<Option<std::time::Duration>> {
+    if seconds == f64::INFINITY {
+        return Ok(None);
+    }
+    match std::time::Duration::try_from_secs_f64(seconds) {
+        Ok(d) if seconds > 0.0 => Ok(Some(d)),
+        _ => Err(Error::option(
+            name,
+            format!(
+                "must be a positive number of seconds (inf: no budget), got {}",
+                Num(seconds)
+            ),
+        )),
     }
 }
 
@@ -132,6 +158,26 @@ impl fmt::Display for Num {
             write!(f, "{x}")
         } else {
             write!(f, "{x:e}")
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `+∞` is no budget; NaN, non-positive and finite values too large for a
+    /// `Duration` (a panic of `Duration::from_secs_f64`) are named errors.
+    #[test]
+    fn time_budgets_are_checked() {
+        assert_eq!(time_budget("max_time", f64::INFINITY).unwrap(), None);
+        assert_eq!(
+            time_budget("max_time", 0.25).unwrap(),
+            Some(std::time::Duration::from_millis(250))
+        );
+        for bad in [f64::NAN, -1.0, 0.0, f64::NEG_INFINITY, 1e20, 1e300] {
+            let e = time_budget("max_time", bad).unwrap_err().to_string();
+            assert!(e.contains("max_time") && e.contains("seconds"), "{bad}: {e}");
         }
     }
 }

@@ -571,8 +571,31 @@ fn closed_loop_regulates_a_mismatched_plant_and_refuses_bad_input() {
         dx: vec![f64::NAN, 0.0],
     });
     assert!(simulate(&mut mpc, &mut lq_plant(0.0), &x, &bad, |_, _, _| Ok(())).is_err());
-    let e = simulate(&mut mpc, &mut lq_plant(0.0), &x, &ClosedLoop::new(4, 1), |_, _, _| {
+    // A failure during the loop stops it with the steps done and the reason.
+    let rec = simulate(&mut mpc, &mut lq_plant(0.0), &x, &ClosedLoop::new(4, 1), |_, _, _| {
         Err(gharial::Error::InvalidModel("stop".into()))
-    });
-    assert!(e.is_err());
+    })
+    .unwrap();
+    let stopped = rec.stopped.as_ref().unwrap();
+    assert_eq!(
+        (stopped.step, rec.xs.len(), rec.us.len(), rec.cycles.len()),
+        (1, 2, 1, 1)
+    );
+    assert!(stopped.reason.contains("stop"), "{}", stopped.reason);
+    // A plant that blows up: its state overflows at the fourth step (1e300 = 1e100³).
+    let a = faer::mat![[1e100, 0.0], [0.0, 1e100]];
+    let b = faer::mat![[0.0], [0.0]];
+    let mut blow_up = DiscretePlant::new(Arc::new(
+        LinearDiscreteDynamics::new(a.as_ref(), b.as_ref(), &[0.0, 0.0]).unwrap(),
+    ));
+    let rec = simulate(&mut mpc, &mut blow_up, &x, &ClosedLoop::new(10, 2), |_, _, _| Ok(())).unwrap();
+    let stopped = rec.stopped.as_ref().unwrap();
+    assert_eq!((stopped.step, rec.xs.len(), rec.us.len()), (3, 4, 3), "{stopped:?}");
+    assert!(
+        stopped.reason.contains("non-finite") && stopped.reason.contains("step 3"),
+        "{}",
+        stopped.reason
+    );
+    assert!(rec.xs.iter().all(|x| x.iter().all(|v| v.is_finite())));
+    assert!(nominal.stopped.is_none());
 }

@@ -29,7 +29,7 @@ pub mod simulate;
 use std::sync::Arc;
 use std::time::Duration;
 
-pub use simulate::{ClosedLoop, CycleRecord, DiscretePlant, Plant, Push, Record, simulate};
+pub use simulate::{ClosedLoop, CycleRecord, DiscretePlant, Plant, Push, Record, Stopped, simulate};
 
 use faer::Mat;
 

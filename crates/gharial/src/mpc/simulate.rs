@@ -117,8 +117,19 @@ pub struct CycleRecord {
     pub dual_err: f64,
 }
 
+/// Why and where a closed loop stopped before its last step.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stopped {
+    /// The plant step that could not be completed (`xs` holds the states up to it).
+    pub step: usize,
+    /// The error that stopped the loop (an MPC cycle, `on_shift`, or the plant: a step
+    /// it could not take, a non-finite state).
+    pub reason: String,
+}
+
 /// The recorded closed loop: plant states `xs[0..=steps]`, applied controls
-/// `us[0..steps]`, and one record per MPC cycle.
+/// `us[0..steps]`, and one record per MPC cycle; a loop that stopped early
+/// ([`Record::stopped`]) holds the steps done.
 #[derive(Debug, Clone, Default)]
 pub struct Record {
     /// Plant states, one per step and the last.
@@ -127,6 +138,8 @@ pub struct Record {
     pub us: Vec<Vec<f64>>,
     /// The MPC cycles.
     pub cycles: Vec<CycleRecord>,
+    /// `Some` if the loop stopped before its last step.
+    pub stopped: Option<Stopped>,
 }
 
 impl Record {
@@ -141,13 +154,17 @@ impl Record {
 /// Runs `mpc` in closed loop with `plant` from `x0` (module documentation). After every
 /// cycle's shift, `on_shift(cycle, stage_id, x)` may set the parameters of the stage
 /// object that entered the horizon (see [`Mpc::shift`]), or any time-varying reference,
-/// from the measured state `x` the cycle's solve starts from (a terrain estimate, say). The record is allocated before the first
-/// step; the loop allocates nothing more.
+/// from the measured state `x` the cycle's solve starts from (a terrain estimate, say).
+/// The record is allocated before the first step; the loop allocates nothing more.
+///
+/// When an MPC call, `on_shift` or a plant step fails at step `k`, or the plant's state
+/// becomes non-finite, the loop stops there: the record holds the states `xs[0..=k]`, the
+/// controls `us[0..k]` and the cycles run, and [`Record::stopped`] says why (a diverging
+/// closed loop ends this way, with its history).
 ///
 /// # Errors
 /// If the plant does not fit the controller's state and control sizes, `x0` or a push is
-/// malformed, `steps_per_cycle` is 0, an MPC call, `on_shift` or a plant step fails, or
-/// the plant's state becomes non-finite (the record up to that step is lost with the error).
+/// malformed, or `steps_per_cycle` is 0.
 pub fn simulate<S: Solver>(
     mpc: &mut Mpc<S>,
     plant: &mut dyn Plant,
@@ -155,7 +172,61 @@ pub fn simulate<S: Solver>(
     settings: &ClosedLoop,
     mut on_shift: impl FnMut(usize, usize, &[f64]) -> Result<()>,
 ) -> Result<Record> {
+    check_closed_loop(mpc, plant, x0, settings)?;
     let space = plant.space().clone();
+    let (nx, nu, steps) = (space.nx(), plant.nu(), settings.steps);
+    let mut rec = Record {
+        xs: vec![vec![0.0; nx]; steps + 1],
+        us: vec![vec![0.0; nu]; steps],
+        cycles: Vec::with_capacity(steps.div_ceil(settings.steps_per_cycle)),
+        stopped: None,
+    };
+    rec.xs[0].copy_from_slice(x0);
+    let mut kicked = vec![0.0; nx];
+    for k in 0..steps {
+        let mut step = || -> Result<()> {
+            if k % settings.steps_per_cycle == 0 {
+                if k > 0 {
+                    let id = mpc.shift()?;
+                    on_shift(rec.cycles.len(), id, &rec.xs[k])?;
+                }
+                let sol = mpc.solve(&rec.xs[k])?;
+                rec.cycles.push(CycleRecord {
+                    step: k,
+                    solve_time: sol.solve_time,
+                    iterations: sol.iterations,
+                    status: sol.status,
+                    cost: sol.cost,
+                    prim_err: sol.prim_err,
+                    dual_err: sol.dual_err,
+                });
+            }
+            let (done, next) = rec.xs.split_at_mut(k + 1);
+            let x = &mut done[k];
+            for p in settings.pushes.iter().filter(|p| p.step == k) {
+                space.integrate(x, &p.dx, &mut kicked);
+                x.copy_from_slice(&kicked);
+            }
+            mpc.control(x, &mut rec.us[k])?;
+            plant.step(k, x, &rec.us[k], &mut next[0])?;
+            check_finite(format_args!("simulate: plant state after step {k}"), &next[0])
+        };
+        if let Err(e) = step() {
+            rec.xs.truncate(k + 1);
+            rec.us.truncate(k);
+            rec.stopped = Some(Stopped {
+                step: k,
+                reason: e.to_string(),
+            });
+            break;
+        }
+    }
+    Ok(rec)
+}
+
+/// The checks of [`simulate`]'s inputs.
+fn check_closed_loop<S: Solver>(mpc: &Mpc<S>, plant: &dyn Plant, x0: &[f64], settings: &ClosedLoop) -> Result<()> {
+    let space = plant.space();
     let (nx, ndx, nu) = (space.nx(), space.ndx(), plant.nu());
     let s0 = mpc.problem().space(0);
     check_dim("simulate: plant state size nx", s0.nx(), nx)?;
@@ -170,40 +241,5 @@ pub fn simulate<S: Solver>(
         check_dim(format_args!("simulate: push at step {}", p.step), ndx, p.dx.len())?;
         check_finite(format_args!("simulate: push at step {}", p.step), &p.dx)?;
     }
-    let steps = settings.steps;
-    let mut rec = Record {
-        xs: vec![vec![0.0; nx]; steps + 1],
-        us: vec![vec![0.0; nu]; steps],
-        cycles: Vec::with_capacity(steps.div_ceil(settings.steps_per_cycle)),
-    };
-    rec.xs[0].copy_from_slice(x0);
-    let mut kicked = vec![0.0; nx];
-    for k in 0..steps {
-        if k % settings.steps_per_cycle == 0 {
-            if k > 0 {
-                let id = mpc.shift()?;
-                on_shift(rec.cycles.len(), id, &rec.xs[k])?;
-            }
-            let sol = mpc.solve(&rec.xs[k])?;
-            rec.cycles.push(CycleRecord {
-                step: k,
-                solve_time: sol.solve_time,
-                iterations: sol.iterations,
-                status: sol.status,
-                cost: sol.cost,
-                prim_err: sol.prim_err,
-                dual_err: sol.dual_err,
-            });
-        }
-        let (done, next) = rec.xs.split_at_mut(k + 1);
-        let x = &mut done[k];
-        for p in settings.pushes.iter().filter(|p| p.step == k) {
-            space.integrate(x, &p.dx, &mut kicked);
-            x.copy_from_slice(&kicked);
-        }
-        mpc.control(x, &mut rec.us[k])?;
-        plant.step(k, x, &rec.us[k], &mut next[0])?;
-        check_finite(format_args!("simulate: plant state after step {k}"), &next[0])?;
-    }
-    Ok(rec)
+    Ok(())
 }

@@ -79,6 +79,23 @@ impl Status {
     pub fn converged(&self) -> bool {
         *self == Status::Converged
     }
+
+    /// The machine-readable name (`max_iterations`, ...) of the JSON outputs and of
+    /// Python's `Results.status`; [`fmt::Display`] gives the words of the text outputs.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Status::NotStarted => "not_started",
+            Status::Converged => "converged",
+            Status::MaxIterations => "max_iterations",
+            Status::LinesearchFailure => "linesearch_failure",
+            Status::NonFinite => "non_finite",
+            Status::RegularizationFailure => "regularization_failure",
+            Status::TimeBudget => "time_budget",
+            Status::Stalled => "stalled",
+            Status::Interrupted => "interrupted",
+            Status::Infeasible => "infeasible",
+        }
+    }
 }
 
 impl fmt::Display for Status {
