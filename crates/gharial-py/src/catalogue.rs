@@ -77,7 +77,7 @@ impl PyExample {
 #[pyfunction]
 fn build(py: Python<'_>, name: &str) -> PyResult<PyExample> {
     let example = gharial_problems::build(name).map_err(err)?;
-    let problem = Py::new(py, PyProblem::from_rust(&example.problem))?;
+    let problem = Py::new(py, PyProblem::from_rust(py, &example.problem)?)?;
     Ok(PyExample { example, problem })
 }
 

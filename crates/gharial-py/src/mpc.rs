@@ -43,7 +43,7 @@ impl PyMpc {
         max_iters: usize,
         max_time: Option<f64>,
     ) -> PyResult<Self> {
-        let p = problem.borrow_mut().problem()?;
+        let p = problem.borrow_mut().problem(problem.py())?;
         let (xs, us) = (vectors(xs_init, "xs_init")?, vectors(us_init, "us_init")?);
         let max_time = match max_time {
             Some(t) => gharial::error::time_budget("max_time", t).map_err(|e| value_error(e.to_string()))?,

@@ -14,7 +14,9 @@ use crate::functions::function_of;
 use crate::pymodel::Slots;
 use crate::spaces::PyManifold;
 
-/// One stage: cost, dynamics and path constraints `h(x, u) ∈ C`.
+/// One stage: cost, dynamics and path constraints `h(x, u) ∈ C`. A problem holds its
+/// stage objects (ALIGATOR's shared pointers): a constraint added to one later reaches
+/// every problem holding it at its next solve.
 #[pyclass(name = "StageModel", module = "gharial")]
 #[derive(Clone)]
 pub struct PyStageModel {
@@ -22,6 +24,8 @@ pub struct PyStageModel {
     pub model: StageModel,
     /// Slots of the Python models inside.
     pub slots: Slots,
+    /// Counts the changes (added constraints), for the problems' caches.
+    version: u64,
 }
 
 fn constraint_of(
@@ -45,7 +49,11 @@ impl PyStageModel {
         let d = dynamics.get();
         slots.extend(d.slots.iter().cloned());
         let model = StageModel::new(cost, d.inner.clone()).map_err(err)?;
-        Ok(Self { model, slots })
+        Ok(Self {
+            model,
+            slots,
+            version: 0,
+        })
     }
 
     /// Adds the path constraint `func(x, u) ∈ set` (`scale` multiplies its penalty).
@@ -60,6 +68,7 @@ impl PyStageModel {
         let (c, slots) = constraint_of(name, func, set, scale)?;
         self.model.add_constraint(c).map_err(err)?;
         self.slots.extend(slots);
+        self.version += 1;
         Ok(())
     }
 
@@ -94,7 +103,10 @@ impl PyStageModel {
 #[pyclass(name = "TrajOptProblem", module = "gharial")]
 pub struct PyProblem {
     init: InitialCondition,
-    stages: Vec<PyStageModel>,
+    /// The stage objects (shared with Python).
+    stages: Vec<Py<PyStageModel>>,
+    /// The stages' versions when `cached` was built.
+    built_versions: Vec<u64>,
     terminal_cost: Arc<dyn Cost>,
     terminal_slots: Slots,
     terminal_constraints: Vec<StageConstraint>,
@@ -112,31 +124,43 @@ impl PyProblem {
     }
 
     /// Wraps a problem built in Rust (the catalogue's).
-    pub fn from_rust(p: &Problem) -> Self {
-        Self {
-            init: p.initial_condition().clone(),
-            stages: p
-                .stages()
-                .iter()
-                .map(|s| PyStageModel {
+    pub fn from_rust(py: Python<'_>, p: &Problem) -> PyResult<Self> {
+        let stages = p
+            .stages()
+            .iter()
+            .map(|s| {
+                let stage = PyStageModel {
                     model: s.clone(),
                     slots: Vec::new(),
-                })
-                .collect(),
+                    version: 0,
+                };
+                Py::new(py, stage)
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        Ok(Self {
+            init: p.initial_condition().clone(),
+            built_versions: vec![0; stages.len()],
+            stages,
             terminal_cost: p.terminal_cost().clone(),
             terminal_slots: Vec::new(),
             terminal_constraints: p.terminal_constraints().to_vec(),
             cached: Some(Arc::new(p.clone())),
             generation: GENERATION.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
-        }
+        })
     }
 
-    /// The Rust problem (built once after each change).
-    pub fn problem(&mut self) -> PyResult<Arc<Problem>> {
-        if let Some(p) = &self.cached {
+    /// The Rust problem (built once after each change, of the problem or of one of its
+    /// stage objects).
+    pub fn problem(&mut self, py: Python<'_>) -> PyResult<Arc<Problem>> {
+        let current = self.stages.iter().map(|s| s.borrow(py).version);
+        if let Some(p) = &self.cached
+            && current.eq(self.built_versions.iter().copied())
+        {
             return Ok(p.clone());
         }
-        let stages = self.stages.iter().map(|s| s.model.clone()).collect();
+        let stages: Vec<PyRef<'_, PyStageModel>> = self.stages.iter().map(|s| s.borrow(py)).collect();
+        self.built_versions = stages.iter().map(|s| s.version).collect();
+        let stages = stages.iter().map(|s| s.model.clone()).collect();
         let mut p = Problem::with_initial(self.init.clone(), stages, self.terminal_cost.clone()).map_err(err)?;
         for c in &self.terminal_constraints {
             p.add_terminal_constraint(c.clone()).map_err(err)?;
@@ -147,28 +171,18 @@ impl PyProblem {
         Ok(p)
     }
 
-    /// The Python-model slots of stage `t` (`t = N`: terminal).
-    pub fn slots(&self) -> impl Iterator<Item = (usize, &Slots)> {
-        let n = self.stages.len();
-        self.stages
-            .iter()
-            .enumerate()
-            .map(|(t, s)| (t, &s.slots))
-            .chain(std::iter::once((n, &self.terminal_slots)))
-    }
-
     /// Raises the first exception a Python model of this problem recorded, naming its
     /// stage (the first stage holding the model), and clears the others.
     pub fn raise_python_errors(&self, py: Python<'_>) -> PyResult<()> {
-        let n = self.stages.len();
-        let named = self.slots().map(|(t, slots)| {
-            let where_ = if t == n {
-                "the terminal stage".to_string()
-            } else {
-                format!("stage {t}")
-            };
-            (where_, slots)
-        });
+        let stages: Vec<PyRef<'_, PyStageModel>> = self.stages.iter().map(|s| s.borrow(py)).collect();
+        let named = stages
+            .iter()
+            .enumerate()
+            .map(|(t, s)| (format!("stage {t}"), &s.slots))
+            .chain(std::iter::once((
+                "the terminal stage".to_string(),
+                &self.terminal_slots,
+            )));
         raise_slot_errors(py, named)
     }
 }
@@ -220,13 +234,14 @@ impl PyProblem {
                 (Vec::new(), c)
             }
             None => {
-                let stages: Vec<PyRef<'_, PyStageModel>> = stages_or_nu.extract()?;
-                (stages.iter().map(|s| (**s).clone()).collect(), space_or_term_cost)
+                let stages: Vec<Py<PyStageModel>> = stages_or_nu.extract()?;
+                (stages, space_or_term_cost)
             }
         };
         let (terminal_cost, terminal_slots) = cost_of(cost)?;
         let mut p = Self {
             init: InitialCondition::Fixed(x0),
+            built_versions: Vec::new(),
             stages,
             terminal_cost,
             terminal_slots,
@@ -235,15 +250,15 @@ impl PyProblem {
             generation: 0,
         };
         if term_cost.is_none() {
-            p.problem()?;
+            p.problem(stages_or_nu.py())?;
         }
         Ok(p)
     }
 
     /// Appends a stage.
     #[pyo3(name = "addStage")]
-    fn add_stage(&mut self, stage: PyRef<'_, PyStageModel>) {
-        self.stages.push((*stage).clone());
+    fn add_stage(&mut self, stage: Py<PyStageModel>) {
+        self.stages.push(stage);
         self.cached = None;
     }
 
@@ -261,7 +276,7 @@ impl PyProblem {
         self.terminal_slots.extend(slots);
         self.cached = None;
         if !self.stages.is_empty()
-            && let Err(e) = self.problem()
+            && let Err(e) = self.problem(func.py())
         {
             self.terminal_constraints.pop();
             self.cached = None;
@@ -294,16 +309,17 @@ impl PyProblem {
         self.stages.len()
     }
 
-    /// The stages.
+    /// The stage objects (the same objects at every access: a constraint added to one
+    /// reaches the problem).
     #[getter]
-    fn stages(&self) -> Vec<PyStageModel> {
-        self.stages.clone()
+    fn stages(&self, py: Python<'_>) -> Vec<Py<PyStageModel>> {
+        self.stages.iter().map(|s| s.clone_ref(py)).collect()
     }
 
     /// The rollout `x_{t+1} = φ(x_t, u_t)` of `us` from the initial state (implicit
     /// dynamics by Newton's method).
     fn rollout<'py>(&mut self, py: Python<'py>, us: &Bound<'py, PyAny>) -> PyResult<Bound<'py, pyo3::types::PyList>> {
-        let p = self.problem()?;
+        let p = self.problem(py)?;
         let us = crate::convert::vectors(us, "us")?;
         let mut data = gharial::problem::ProblemData::new(&p, 1).map_err(err)?;
         let mut xs: Vec<Vec<f64>> = (0..=p.horizon()).map(|t| vec![0.0; p.space(t).nx()]).collect();

@@ -269,7 +269,7 @@ impl PySolver {
 
     /// Allocates the solver's workspace for `problem` (done by `run` when needed).
     fn setup(&mut self, problem: &Bound<'_, PyProblem>) -> PyResult<()> {
-        let p = problem.borrow_mut().problem()?;
+        let p = problem.borrow_mut().problem(problem.py())?;
         self.setup_rust(&p, problem.borrow().generation())
     }
 
@@ -286,7 +286,7 @@ impl PySolver {
         vs_init: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<bool> {
         let py = slf.py();
-        let p = problem.borrow_mut().problem()?;
+        let p = problem.borrow_mut().problem(problem.py())?;
         let generation = problem.borrow().generation();
         let mut guess = std::mem::take(&mut slf.borrow_mut().guess);
         let filled = guess.fill(problem, &p, [xs_init, us_init, lams_init, vs_init]);

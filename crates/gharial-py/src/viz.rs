@@ -41,7 +41,7 @@ pub fn plot_solution(
     // The control bounds when the problem's path constraints are bounds on the controls.
     let (u_lower, u_upper) = match problem {
         Some(p) => {
-            let p = p.borrow_mut().problem()?;
+            let p = p.borrow_mut().problem(p.py())?;
             control_bounds(&p, &s.xs, &s.us).unwrap_or_default()
         }
         None => Default::default(),

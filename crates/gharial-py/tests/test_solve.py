@@ -144,6 +144,32 @@ def test_bounds_hold_and_options_change_the_solve():
     assert s.results.status == "max_iterations" and not s.results.conv
 
 
+def test_constraints_added_to_the_stage_objects_after_building_reach_the_problem():
+    # ALIGATOR's problems hold their stages by reference: `problem.stages[i]` is the
+    # stage object, and a constraint added to it (or to the object the problem was built
+    # from) holds at the next solve, as a bound given before building does.
+    from gharial import constraints, manifolds
+    space = manifolds.VectorSpace(4)
+    bound = lambda: (gharial.ControlErrorResidual(space, np.zeros(2)), constraints.BoxConstraint([-0.3] * 2, [0.3] * 2))  # noqa: E731
+    reference = gharial.SolverProxDDP(tol=1e-8)
+    assert reference.run(lqr_problem(bounds=0.3))
+    umax = max(abs(u).max() for u in reference.results.us)
+    problem = lqr_problem()
+    stages = problem.stages
+    # The objects given to the constructor, the same at every access.
+    rebuilt = gharial.TrajOptProblem(problem.x0_init, stages, gharial.QuadraticStateCost(space, 0, np.zeros(4), [10.0] * 4))
+    assert all(a is b for a, b in zip(rebuilt.stages, stages)) and problem.stages[0] is stages[0]
+    s = gharial.SolverProxDDP(tol=1e-8)
+    assert s.run(problem) and max(abs(u).max() for u in s.results.us) > 0.35
+    for stage in stages:
+        stage.addConstraint(*bound())
+    for p in [problem, rebuilt]:
+        assert [st.nc for st in p.stages] == [2] * len(stages)
+        assert s.run(p)
+        np.testing.assert_allclose(max(abs(u).max() for u in s.results.us), umax, atol=1e-7)
+        np.testing.assert_allclose(s.results.traj_cost, reference.results.traj_cost, rtol=1e-9)
+
+
 def test_x0_can_change_between_solves(lqr):
     s = gharial.SolverFDDP(tol=1e-10)
     lqr.x0_init = np.array([0.5, 0.5, 0.0, 0.0])
