@@ -15,7 +15,9 @@ use crate::solvers::{PyResults, PySolver};
 
 /// A receding-horizon controller (ALIGATOR's MPC loop, ProxDDP paper §VII-E):
 /// `solve(x)` runs one cycle from the measured state `x` within the budget
-/// (`max_iters`, `max_time` in seconds, `None` or `inf` for none), warm-started from the shifted last solution;
+/// (`max_iters`, `max_time` in seconds, `None` or `inf` for none), warm-started from the shifted last solution
+/// (the first from `xs_init`, `us_init` and, if given, the multipliers `lams_init`,
+/// `vs_init` of a converged solve: `Results.lams`, `Results.vs`);
 /// `shift()` moves the horizon one stage along (the next stage of `queue` enters; with
 /// no queue the stage that leaves comes back at the end) and returns the number of the
 /// stage object that entered (horizon stages `0..N`, queued ones `N..`); `control(x)` is
@@ -33,7 +35,11 @@ pub struct PyMpc {
 #[pymethods]
 impl PyMpc {
     #[new]
-    #[pyo3(signature = (problem, solver, xs_init, us_init, queue = Vec::new(), max_iters = 1, max_time = None))]
+    #[pyo3(signature = (
+        problem, solver, xs_init, us_init, queue = Vec::new(), max_iters = 1, max_time = None,
+        lams_init = None, vs_init = None
+    ))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         problem: &Bound<'_, PyProblem>,
         solver: &Bound<'_, PySolver>,
@@ -42,9 +48,16 @@ impl PyMpc {
         queue: Vec<PyRef<'_, PyStageModel>>,
         max_iters: usize,
         max_time: Option<f64>,
+        lams_init: Option<&Bound<'_, PyAny>>,
+        vs_init: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let p = problem.borrow_mut().problem(problem.py())?;
         let (xs, us) = (vectors(xs_init, "xs_init")?, vectors(us_init, "us_init")?);
+        let (lams, vs) = match (lams_init, vs_init) {
+            (Some(l), Some(v)) => (Some(vectors(l, "lams_init")?), Some(vectors(v, "vs_init")?)),
+            (None, None) => (None, None),
+            _ => return Err(value_error("give both lams_init and vs_init, or neither")),
+        };
         let max_time = match max_time {
             Some(t) => gharial::error::time_budget("max_time", t).map_err(|e| value_error(e.to_string()))?,
             None => None,
@@ -59,7 +72,12 @@ impl PyMpc {
             (*p).clone(),
             solver.borrow().build(),
             stages,
-            InitialGuess::primal(&xs, &us),
+            InitialGuess {
+                xs: &xs,
+                us: &us,
+                lambdas: lams.as_deref(),
+                nus: vs.as_deref(),
+            },
             options,
         )
         .map_err(err)?;

@@ -158,3 +158,22 @@ def test_queued_stages_enter_the_horizon_in_turn():
     # The queue's stages (20, 21), then the stages that left in their turn (0, 1).
     assert entered == [20, 21, 0, 1]
     assert mpc.stage_ids[-1] == 1 and len(mpc.stage_ids) == 20
+
+
+def test_the_mpc_starts_from_the_multipliers_of_a_converged_solve():
+    # Without multipliers the first one-iteration cycle from the optimum's own x0 leaves
+    # it (torque 0.94 against the 0.6 bound); with them it is the solver's warm start.
+    ex = gharial.problems.build("double-pendulum-box")
+    p = ex.problem
+    s = ex.solver("proxddp")
+    assert s.run(p, ex.xs0, ex.us0)
+    r0 = s.results
+    mpc = gharial.MPC(p, ex.solver("proxddp"), r0.xs, r0.us, max_iters=1, lams_init=r0.lams, vs_init=r0.vs)
+    r = mpc.solve(p.x0_init)
+    one = ex.solver("proxddp")
+    one.max_iters = 1
+    one.run(p, r0.xs, r0.us, r0.lams, r0.vs)
+    assert np.abs(np.array(r.us)).max() <= 0.6 + 1e-6 and r.primal_infeas < 1e-6
+    np.testing.assert_allclose(np.array(r.us), np.array(one.results.us), atol=1e-12)
+    with pytest.raises(ValueError, match="lams_init and vs_init"):
+        gharial.MPC(p, ex.solver("proxddp"), r0.xs, r0.us, lams_init=r0.lams)
