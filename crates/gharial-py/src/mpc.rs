@@ -109,6 +109,18 @@ impl PyMpc {
         result.map_err(err)
     }
 
+    /// Changes the per-cycle budget from the next cycle on (`max_time` in seconds, `None`
+    /// or `inf`: none).
+    #[pyo3(name = "set_budget", signature = (max_iters, max_time = None))]
+    fn set_budget(&mut self, max_iters: usize, max_time: Option<f64>) -> PyResult<()> {
+        let max_time = match max_time {
+            Some(t) => gharial::error::time_budget("max_time", t).map_err(|e| value_error(e.to_string()))?,
+            None => None,
+        };
+        let mpc = self.mpc.get_mut().map_err(|_| poisoned())?;
+        mpc.set_budget(max_iters, max_time).map_err(err)
+    }
+
     /// The control of the last cycle's feedback policy at the state `x`.
     fn control<'py>(&mut self, py: Python<'py>, x: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let mpc = self.mpc.get_mut().map_err(|_| poisoned())?;

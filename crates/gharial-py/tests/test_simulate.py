@@ -177,3 +177,22 @@ def test_the_mpc_starts_from_the_multipliers_of_a_converged_solve():
     np.testing.assert_allclose(np.array(r.us), np.array(one.results.us), atol=1e-12)
     with pytest.raises(ValueError, match="lams_init and vs_init"):
         gharial.MPC(p, ex.solver("proxddp"), r0.xs, r0.us, lams_init=r0.lams)
+
+
+def test_a_cycle_without_iterations_keeps_the_shifted_gains():
+    from conftest import lqr_problem
+    problem = lqr_problem()
+    xs0 = [np.zeros(4)] * 21
+    us0 = [np.zeros(2)] * 20
+    mpc = gharial.MPC(problem, gharial.solver("proxddp", tol=1e-10), xs0, us0, max_iters=50)
+    first = mpc.solve(problem.x0_init)
+    k1 = np.array(first.gains[1])
+    mpc.shift()
+    mpc.set_budget(1, 1e-12)
+    x = np.array(first.xs[1]) + 0.01
+    second = mpc.solve(x)
+    assert second.num_iters == 0 and second.status == "time_budget"
+    dx = np.array([0.1, 0.0, 0.0, 0.0])
+    np.testing.assert_allclose(mpc.control(x + dx) - mpc.control(x), k1 @ dx, atol=1e-12)
+    with pytest.raises(ValueError, match="max_iters"):
+        mpc.set_budget(0)

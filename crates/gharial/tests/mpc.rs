@@ -343,6 +343,48 @@ fn the_policy_of_an_lq_is_the_optimal_control_of_a_perturbed_state() {
     }
 }
 
+/// A cycle whose time budget is spent before its first iteration keeps the policy's
+/// feedback: `K_0` is the last solution's gain of the same knot (`K_1` before the shift;
+/// the DDP family returned the last pass's `K_0` unshifted, ProxDDP and CSQP zero).
+#[test]
+fn a_cycle_without_iterations_keeps_the_shifted_gains() {
+    let x = [0.4, -0.3];
+    let p = lq_problem(&x);
+    let (xs, us) = zero_guess(&p);
+    for solver in ["proxddp", "fddp", "csqp"] {
+        let boxed: Box<dyn Solver> = match solver {
+            "proxddp" => Box::new(tight_proxddp()),
+            "fddp" => Box::new(Ddp::new(DdpOptions::new(DdpVariant::Fddp))),
+            _ => Box::new(tight_csqp()),
+        };
+        let mut mpc = Mpc::new(
+            p.clone(),
+            boxed,
+            vec![],
+            InitialGuess::primal(&xs, &us),
+            MpcOptions::default(),
+        )
+        .unwrap();
+        let first = mpc.solve(&x).unwrap().clone();
+        assert!(first.status.converged(), "{solver}");
+        let (k0, k1) = (&first.feedback[0], &first.feedback[1]);
+        assert!(
+            (k0 - k1).norm_max() > 1e-6 && k1.norm_max() > 0.1,
+            "{solver}: {k0:?} {k1:?}"
+        );
+        mpc.shift().unwrap();
+        mpc.set_budget(1, Some(std::time::Duration::ZERO)).unwrap();
+        let second = mpc.solve(&[0.41, -0.29]).unwrap();
+        assert_eq!(
+            (second.iterations, second.status),
+            (0, gharial::solvers::Status::TimeBudget),
+            "{solver}"
+        );
+        assert_eq!(mpc.policy().k0, *k1, "{solver}");
+        assert!(mpc.set_budget(0, None).is_err());
+    }
+}
+
 /// One-iteration cycles along the plan; returns the first controls and states.
 /// Per cycle: the first control, the next state, the cost and the first feedback gain.
 fn run_cycles(threads: usize, cycles: usize, final_residuals: bool) -> Vec<Vec<f64>> {

@@ -75,13 +75,15 @@ impl MpcOptions {
     }
 }
 
-/// The warm start of the next cycle: the last solution, shifted by one stage.
+/// The warm start of the next cycle: the last solution, shifted by one stage, with its
+/// feedback gains (the policy of a cycle that takes no iteration).
 #[derive(Debug)]
 struct Guess {
     xs: Vec<Vec<f64>>,
     us: Vec<Vec<f64>>,
     lambdas: Vec<Vec<f64>>,
     nus: Vec<Vec<f64>>,
+    feedback: Vec<Mat<f64>>,
 }
 
 impl Guess {
@@ -100,6 +102,9 @@ impl Guess {
         skeleton::copy_trajectory(&mut self.us, &sol.us);
         skeleton::copy_trajectory(&mut self.lambdas, &sol.lambdas);
         skeleton::copy_trajectory(&mut self.nus, &sol.nus);
+        for (k, s) in self.feedback.iter_mut().zip(&sol.feedback) {
+            k.copy_from(s);
+        }
     }
 
     /// Moves everything one stage earlier; the last state, control and co-state repeat,
@@ -115,6 +120,11 @@ impl Guess {
         }
         let n = self.us.len();
         skeleton::shift_rows(&mut self.nus, n, nc_tail);
+        if n >= 2 {
+            self.feedback.rotate_left(1);
+            let (head, tail) = self.feedback.split_at_mut(n - 1);
+            tail[0].copy_from(&head[n - 2]);
+        }
     }
 }
 
@@ -158,10 +168,11 @@ impl Policy {
         }
     }
 
-    fn load(&mut self, sol: &Solution) {
+    /// The policy of `sol` with the gain `k0`.
+    fn load(&mut self, sol: &Solution, k0: &Mat<f64>) {
         self.x0.copy_from_slice(&sol.xs[0]);
         self.u0.copy_from_slice(&sol.us[0]);
-        self.k0.copy_from(&sol.feedback[0]);
+        self.k0.copy_from(k0);
     }
 
     /// Writes `u(x) = u_0 + K_0 (x ⊖ x_0)` into `u`.
@@ -240,6 +251,7 @@ impl<S: Solver> Mpc<S> {
             us: guess.us.to_vec(),
             lambdas: shaped.lambdas,
             nus: shaped.nus,
+            feedback: shaped.feedback,
         };
         if let Some(l) = guess.lambdas {
             skeleton::copy_trajectory(&mut g.lambdas, l);
@@ -266,7 +278,10 @@ impl<S: Solver> Mpc<S> {
     /// One cycle: solves the horizon from the measured state `x` within the budget,
     /// warm-started from the shifted last solution (or the initial guess), and updates
     /// the policy. The solution's [`Solution::status`] says how the solve stopped; the
-    /// policy follows its last accepted iterate whatever the status.
+    /// policy follows its last accepted iterate whatever the status. A cycle that takes
+    /// no iteration (a time budget spent before the first) has no gains of its own: the
+    /// policy's `K_0` is then the last solution's gain of the same knot (`K_1` before the
+    /// shift; zero before any solution).
     ///
     /// # Errors
     /// If `x` has the wrong size, is not finite or not on the state space, or the
@@ -275,7 +290,12 @@ impl<S: Solver> Mpc<S> {
         self.problem.set_x0(x)?;
         self.guess.xs[0].copy_from_slice(x);
         let sol = self.solver.solve(&self.problem, self.guess.view())?;
-        self.policy.load(sol);
+        let k0 = if sol.iterations == 0 {
+            &self.guess.feedback[0]
+        } else {
+            &sol.feedback[0]
+        };
+        self.policy.load(sol, k0);
         self.solved = true;
         Ok(self.solver.solution())
     }
@@ -327,6 +347,17 @@ impl<S: Solver> Mpc<S> {
             }
             None => stages.rotate_right(1),
         }
+    }
+
+    /// Changes the per-cycle budget ([`MpcOptions::max_iters`], [`MpcOptions::max_time`])
+    /// from the next cycle on (a real-time loop adapting to the time left).
+    ///
+    /// # Errors
+    /// If `max_iters` is 0.
+    pub fn set_budget(&mut self, max_iters: usize, max_time: Option<std::time::Duration>) -> Result<()> {
+        crate::error::check_positive("max_iters", max_iters as f64)?;
+        self.solver.set_limits(max_iters, max_time);
+        Ok(())
     }
 
     /// The feedback control `u(x) = u_0 + K_0 (x ⊖ x_0)` of the last cycle (57), at any
