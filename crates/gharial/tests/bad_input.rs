@@ -272,3 +272,38 @@ fn non_square_linear_dynamics_need_the_explicit_constructor() {
     assert!(e.to_string().contains("A columns"), "{e}");
     assert!(LinearDiscreteDynamics::between(a.as_ref(), b.as_ref(), &[0.0; 2]).is_ok());
 }
+
+/// A path constraint whose value overflows to `inf` (a linear row `f64::MAX x_0` at
+/// `x_0 = 2`) is a non-finite point: every solver says `NonFinite` (CSQP ended in a
+/// regularisation failure; with a NaN value, where `f64::max` dropped the NaN from the
+/// violation, CSQP and ALTRO reported `Converged`).
+#[test]
+fn an_overflowing_constraint_is_reported_non_finite() {
+    use gharial::constraints::NegativeOrthant;
+    use gharial::functions::LinearFunction;
+    use gharial::solvers::SolverOptions;
+    let (p, _, us) = small_problem(4);
+    let big = Mat::from_fn(1, 2, |_, j| if j == 0 { f64::MAX } else { 0.0 });
+    let row = LinearFunction::new(big.as_ref(), Mat::zeros(1, 1).as_ref(), &[0.0]).unwrap();
+    let stages: Vec<StageModel> = p
+        .stages()
+        .iter()
+        .map(|s| {
+            s.clone()
+                .with_constraint(StageConstraint::new(
+                    "big",
+                    Arc::new(row.clone()),
+                    Arc::new(NegativeOrthant),
+                ))
+                .unwrap()
+        })
+        .collect();
+    let q = Problem::new(&[2.0, 0.0], stages, p.terminal_cost().clone()).unwrap();
+    let xs = vec![vec![2.0, 0.0]; 5];
+    for name in ["csqp", "altro", "proxddp"] {
+        let mut s = SolverOptions::from_name(name).unwrap().build();
+        s.setup(&q).unwrap();
+        let sol = s.solve(&q, InitialGuess::primal(&xs, &us)).unwrap();
+        assert_eq!(sol.status, Status::NonFinite, "{name}: {:?}", sol.status);
+    }
+}

@@ -25,6 +25,17 @@ pub use l1::L1Penalty;
 pub use product::ConstraintSetProduct;
 pub use sets::{BoxConstraint, EqualityConstraintSet, NegativeOrthant};
 
+/// [`ConstraintSet::violation`] of `z`, or NaN if an entry of `z` is not finite (a set's
+/// own `violation` may drop a NaN through `max`): solvers report such points as
+/// non-finite instead of feasible.
+pub(crate) fn violation_or_nan(set: &dyn ConstraintSet, z: &[f64]) -> f64 {
+    if z.iter().all(|v| v.is_finite()) {
+        set.violation(z)
+    } else {
+        f64::NAN
+    }
+}
+
 /// A closed convex set (or a convex nonsmooth penalty) constraining a residual.
 pub trait ConstraintSet: Send + Sync + Debug {
     /// The dimension the set requires, or `None` if it applies to any dimension.

@@ -52,17 +52,23 @@ pub(crate) fn norm_l1(v: &[f64]) -> f64 {
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + rest.iter().map(|x| x.abs()).sum::<f64>()
 }
 
-/// Largest absolute entry of a slice (0 for an empty slice).
-pub(crate) fn norm_inf(v: &[f64]) -> f64 {
-    v.iter().fold(0.0_f64, |a, x| a.max(x.abs()))
+/// `max(a, b)` that keeps a NaN of either (`f64::max` drops it): residual norms and
+/// violations must not hide a non-finite entry.
+pub(crate) fn max_nan(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() { f64::NAN } else { a.max(b) }
 }
 
-/// Largest absolute entry of a matrix (0 for an empty matrix).
+/// Largest absolute entry of a slice (0 for an empty slice; NaN if an entry is).
+pub(crate) fn norm_inf(v: &[f64]) -> f64 {
+    v.iter().fold(0.0_f64, |a, x| max_nan(a, x.abs()))
+}
+
+/// Largest absolute entry of a matrix (0 for an empty matrix; NaN if an entry is).
 pub(crate) fn norm_max(m: MatRef<'_, f64>) -> f64 {
     let mut r: f64 = 0.0;
     for j in 0..m.ncols() {
         for i in 0..m.nrows() {
-            r = r.max(m[(i, j)].abs());
+            r = max_nan(r, m[(i, j)].abs());
         }
     }
     r

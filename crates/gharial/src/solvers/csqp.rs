@@ -34,7 +34,7 @@ use super::skeleton::{
 };
 use super::{Callback, InitialGuess, IterationRecord, Solution, Solver, Status};
 use crate::error::{Error, Result};
-use crate::linalg::{norm_inf, slice, slice_mut};
+use crate::linalg::{max_nan, norm_inf, slice, slice_mut};
 use crate::lq::LqProblem;
 use crate::problem::{Problem, ProblemData, StageData, StageModel};
 
@@ -333,7 +333,7 @@ impl Workspace {
     fn infeasibility(&mut self, problem: &Problem) -> Infeasibility {
         let mut m = Infeasibility::default();
         let mut add = |v: f64| {
-            m.max = m.max.max(v.abs());
+            m.max = max_nan(m.max, v.abs());
             m.l1 += v.abs();
         };
         self.data.init.value().iter().for_each(|v| add(*v));
@@ -342,7 +342,10 @@ impl Workspace {
         }
         for e in &self.cons {
             let c = &problem.constraints(e.t)[e.k];
-            add(c.set.violation(self.data.constraint_data(e.t)[e.k].value()));
+            add(crate::constraints::violation_or_nan(
+                c.set.as_ref(),
+                self.data.constraint_data(e.t)[e.k].value(),
+            ));
         }
         m
     }
@@ -436,8 +439,8 @@ impl Workspace {
     fn kkt(&mut self, problem: &Problem, infeasibility: f64) -> f64 {
         self.data
             .lagrangian_gradient(problem, &self.lams, &self.nus, &mut self.gx, &mut self.gu);
-        let dual = self.gx.iter().chain(&self.gu).map(|g| norm_inf(g)).fold(0.0, f64::max);
-        dual.max(infeasibility)
+        let dual = self.gx.iter().chain(&self.gu).map(|g| norm_inf(g)).fold(0.0, max_nan);
+        max_nan(dual, infeasibility)
     }
 
     /// Takes the QP's multipliers as the current ones.
@@ -576,6 +579,9 @@ fn iterate(
         ws.build_qp(problem);
         let kkt = ws.kkt(problem, inf.max);
         let stop = |s| (s, iter, kkt, inf);
+        if kkt.is_nan() {
+            return stop(Status::NonFinite);
+        }
         if kkt <= opts.tol {
             return stop(Status::Converged);
         }

@@ -134,7 +134,7 @@ impl AlCost {
         for (i, c) in self.cons.iter().enumerate() {
             c.func.evaluate(x, u, &mut fdata[i]);
             let v = slice(&fdata[i].value);
-            viol = viol.max(c.set.violation(v));
+            viol = crate::linalg::max_nan(viol, crate::constraints::violation_or_nan(c.set.as_ref(), v));
             if update {
                 let m = v.len();
                 let mu = self.mu.get(i);

@@ -283,7 +283,7 @@ impl Workspace {
         for (t, c) in self.costs.iter().enumerate() {
             let u = if t < n { &self.us[t][..] } else { &self.no_u[..] };
             let v = c.update_multipliers(&self.xs[t], u, &mut self.fdata[t], &mut self.y, &mut self.e, update);
-            viol = viol.max(v);
+            viol = crate::linalg::max_nan(viol, v);
             if update {
                 for i in 0..c.lambda.len() {
                     c.lambda.set(i, c.lambda.get(i).clamp(-dual_max, dual_max));
@@ -446,6 +446,9 @@ fn outer_loop(
             return Ok((Status::NonFinite, inner_iters, viol));
         }
         viol = ws.constraints(false, opts.dual_max);
+        if viol.is_nan() {
+            return Ok((Status::NonFinite, inner_iters, viol));
+        }
         ws.sync_controls();
         ws.cost = ws.data.evaluate(problem, &ws.xs, &ws.us_orig);
         let record = IterationRecord {

@@ -276,11 +276,14 @@ fn on_boundary(set: &dyn ConstraintSet, c: &[f64], i: usize, scratch: &mut [f64]
 pub(super) fn violation(problem: &Problem, data: &ProblemData) -> f64 {
     let mut v = linalg::norm_inf(slice(&data.init.value));
     for sd in &data.stages {
-        v = v.max(linalg::norm_inf(sd.dyn_value()));
+        v = linalg::max_nan(v, linalg::norm_inf(sd.dyn_value()));
     }
     for t in 0..=problem.horizon() {
         for (c, cd) in problem.constraints(t).iter().zip(data.constraint_data(t)) {
-            v = v.max(c.set.violation(slice(&cd.value)));
+            v = linalg::max_nan(
+                v,
+                crate::constraints::violation_or_nan(c.set.as_ref(), slice(&cd.value)),
+            );
         }
     }
     v
