@@ -160,12 +160,25 @@ fn box_variants_reach_the_optimum_of_an_independent_qp_solver() {
         let p = ocp(&case.lq, Some(case.umax), None);
         let (zeros, us) = zero_guess(&p);
         let xs = rollout(&p, &us);
+        // The unconstrained optimum, whose controls break the bounds: not a solution
+        // (box-DDP and box-FDDP reported it converged after 0 iterations).
+        let free = ocp(&case.lq, None, None);
+        let unbounded = solve(&free, DdpOptions::new(DdpVariant::Ddp), &xs, &us);
+        assert!(
+            unbounded.us.iter().flatten().any(|u| u.abs() > case.umax),
+            "seed {}",
+            case.seed
+        );
         for variant in [DdpVariant::BoxDdp, DdpVariant::BoxFddp] {
-            for (guess, xs) in [("rollout", &xs), ("infeasible", &zeros)] {
+            for (guess, xs, us) in [
+                ("rollout", &xs, &us),
+                ("infeasible", &zeros, &us),
+                ("unbounded optimum", &unbounded.xs, &unbounded.us),
+            ] {
                 let what = format!("seed {} {} from the {guess} guess", case.seed, variant.name());
                 let mut opts = DdpOptions::new(variant);
                 opts.tol = 1e-8;
-                let sol = solve(&p, opts, xs, &us);
+                let sol = solve(&p, opts, xs, us);
                 assert_eq!(sol.status, Status::Converged, "{what}");
                 let rel = (sol.cost - case.clarabel_cost).abs() / case.clarabel_cost.abs().max(1.0);
                 assert!(

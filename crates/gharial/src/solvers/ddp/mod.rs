@@ -311,12 +311,15 @@ impl Loop {
                 stop: (e.dg + 0.5 * e.dq).abs(),
             }
         };
-        if let Some(s) = self.converged(opts, ws.feasible || sqp) {
+        // A point whose controls break their bounds (a guess) is not a solution, however
+        // small the unconstrained step's decrease: the step's rollout clamps them.
+        let within = ws.controls_within_bounds();
+        if let Some(s) = self.converged(opts, (ws.feasible || sqp) && within) {
             return Err(s);
         }
         // The full step cannot change the cost by more than its rounding: a tolerance
         // below that floor is out of reach.
-        if !sqp && ws.feasible && self.m.stop <= ROUNDOFF_STOP * f64::EPSILON * (1.0 + ws.cost.abs()) {
+        if !sqp && ws.feasible && within && self.m.stop <= ROUNDOFF_STOP * f64::EPSILON * (1.0 + ws.cost.abs()) {
             return Err(Status::Stalled);
         }
         if opts.max_time.is_some_and(|b| start.elapsed() >= b) {

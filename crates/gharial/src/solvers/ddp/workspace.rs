@@ -337,6 +337,20 @@ impl Workspace {
         }
     }
 
+    /// Whether the current controls lie within their bounds (always without bounds).
+    pub fn controls_within_bounds(&self) -> bool {
+        let Some(b) = &self.bounds else {
+            return true;
+        };
+        self.us.iter().enumerate().all(|(t, u)| {
+            !b.bounded(t)
+                || u.iter()
+                    .zip(&b.lb[t])
+                    .zip(&b.ub[t])
+                    .all(|((v, lo), hi)| lo <= v && v <= hi)
+        })
+    }
+
     /// Largest gap (infinity norm) of the current point.
     pub fn max_gap(&self) -> f64 {
         self.fs.iter().map(|f| norm_inf(f)).fold(0.0, f64::max)
