@@ -306,3 +306,47 @@ def test_csqp_stops_after_repeated_line_search_failures():
     s.max_linesearch_failures = 1000
     s.run(ex.problem, ex.xs0, ex.us0)
     assert s.results.status == "max_iterations" and s.results.num_iters == 20
+
+
+def test_csqp_gains_at_a_binding_second_order_cone():
+    # A point mass pushed by a force kept in a friction-like cone |u_xy| <= 0.4 u_z that
+    # binds at the first knot. Reference: the sensitivity du0/dx0 by central differences
+    # of ProxDDP re-solves. ALTRO's gains match it; CSQP's come from the ADMM's penalty on
+    # the active cone (no curvature term): about 60 % off, never zero (they were: the
+    # cone's three rows were pinned as equalities).
+    from gharial import constraints, dynamics, manifolds
+    dt, n, mu, g = 0.05, 30, 0.4, 9.81
+    a = np.eye(6)
+    a[:3, 3:] = dt * np.eye(3)
+    b = np.zeros((6, 3))
+    b[3:, :] = dt * np.eye(3)
+    c = np.zeros(6)
+    c[5] = -g * dt
+    space = manifolds.VectorSpace(6)
+    target = np.array([1.0, 0.5, 0.0, 0, 0, 0])
+
+    def build(x0):
+        cost = gharial.CostStack(space, 3)
+        cost.addCost("x", gharial.QuadraticStateCost(space, 3, target, [10, 10, 10, 1, 1, 1]), dt)
+        cost.addCost("u", gharial.QuadraticControlCost(space, np.array([0, 0, g]), [0.01] * 3), dt)
+        stage = gharial.StageModel(cost, dynamics.LinearDiscreteDynamics(a, b, c))
+        cone = np.array([[0, 0, mu], [1, 0, 0], [0, 1, 0.0]])
+        stage.addConstraint(gharial.LinearFunction(np.zeros((3, 6)), cone, np.zeros(3)), constraints.SecondOrderCone(3))
+        return gharial.TrajOptProblem(x0, [stage] * n, gharial.QuadraticStateCost(space, 0, target, [100.0] * 6))
+
+    def solve(x0, name, **options):
+        s = gharial.solver(name, **options)
+        assert s.run(build(x0)), (name, s.results.status)
+        return s.results
+
+    precise = dict(tol=1e-8, mu_lower_bound=1e-10, max_iters=2000)
+    u0 = solve(np.zeros(6), "proxddp", **precise).us[0]
+    np.testing.assert_allclose(np.linalg.norm(u0[:2]), mu * u0[2], rtol=1e-6)  # the cone binds
+    k_fd = np.zeros((3, 6))
+    for i in range(6):
+        e = np.zeros(6)
+        e[i] = 1e-5
+        k_fd[:, i] = (solve(e, "proxddp", **precise).us[0] - solve(-e, "proxddp", **precise).us[0]) / 2e-5
+    error = lambda k: np.linalg.norm(np.array(k) - k_fd) / np.linalg.norm(k_fd)  # noqa: E731
+    assert error(solve(np.zeros(6), "altro").gains[0]) < 0.01
+    assert 0.3 < error(solve(np.zeros(6), "csqp").gains[0]) < 0.7

@@ -477,7 +477,9 @@ impl AdmmQp {
     }
 
     /// Factors the LQ of the last solve with its active rows as equalities (to
-    /// [`ACTIVE_MU`]) and without its inactive ones, for the feedback gains `K_t` of the QP's solution (the
+    /// [`ACTIVE_MU`]; the active rows of sets that are not boxes, `row_in_box(t, i)`
+    /// false, keep the ADMM's penalty: pinning a binding cone's rows would freeze it,
+    /// and its exact sensitivity needs the cone's curvature) and without its inactive ones, for the feedback gains `K_t` of the QP's solution (the
     /// sensitivity of its controls to the initial state, as box-DDP's gains): a row is
     /// active when its multiplier `y` is nonzero: above [`ACTIVE_Y`] times the largest
     /// (the z-update leaves `y` at rounding level on a row strictly inside its set). The ADMM's own factorization treats every row as a
@@ -486,16 +488,18 @@ impl AdmmQp {
     ///
     /// # Errors
     /// If the factorization fails (active rows nearly dependent at a knot).
-    pub fn active_set_factor(&mut self, lq: &mut LqProblem) -> Result<()> {
+    pub fn active_set_factor(&mut self, lq: &mut LqProblem, row_in_box: &dyn Fn(usize, usize) -> bool) -> Result<()> {
         let y_max = self.y.iter().map(|y| norm_inf(y)).fold(0.0, f64::max);
-        for (knot, y) in lq.knots.iter_mut().zip(&self.y) {
+        for (t, (knot, y)) in lq.knots.iter_mut().zip(&self.y).enumerate() {
             for (i, &yi) in y.iter().enumerate().take(knot.nc) {
                 if yi.abs() <= ACTIVE_Y * y_max {
                     knot.C.as_mut().row_mut(i).fill(0.0);
                     knot.D.as_mut().row_mut(i).fill(0.0);
                     knot.mu_c[i] = 1.0;
-                } else {
+                } else if row_in_box(t, i) {
                     knot.mu_c[i] = ACTIVE_MU;
+                } else {
+                    knot.mu_c[i] = 1.0 / self.rho_rows[t][i];
                 }
                 knot.d[i] = 0.0;
             }

@@ -540,7 +540,14 @@ impl Csqp {
         };
         // The gains of the last QP's active set (zero when no QP was solved or its active
         // rows are dependent).
-        if ws.qp_solved && ws.admm.active_set_factor(&mut ws.lq).is_ok() {
+        let (cons, entries, boxed) = (&ws.cons, &ws.knot_entries, &ws.boxed);
+        let row_in_box = |t: usize, i: usize| {
+            cons[entries[t]..entries[t + 1]]
+                .iter()
+                .find(|e| e.rows.contains(&i))
+                .is_some_and(|e| boxed[t][e.rows.start])
+        };
+        if ws.qp_solved && ws.admm.active_set_factor(&mut ws.lq, &row_in_box).is_ok() {
             super::skeleton::write_gains(sol, ws.admm.stages());
         } else {
             sol.feedforward.iter_mut().for_each(|k| k.fill(0.0));
