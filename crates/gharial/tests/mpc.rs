@@ -385,6 +385,46 @@ fn a_cycle_without_iterations_keeps_the_shifted_gains() {
     }
 }
 
+/// An MPC started at a converged solution with its multipliers converges at its first
+/// cycle without an iteration; its policy still has the solution's feedback (a pass at
+/// the guess; it had none: `K_0 = 0`), equal to the converged solve's gains (taken one
+/// iterate earlier) to 1e-5.
+#[test]
+fn a_first_cycle_at_a_solution_has_feedback() {
+    let x = [0.3, 0.0];
+    let p = Problem::new(&x, vec![stage(1, 1.2); 16], terminal()).unwrap();
+    let (xs, us) = zero_guess(&p);
+    for solver in ["proxddp", "csqp"] {
+        let make = || -> Box<dyn Solver> {
+            match solver {
+                "proxddp" => Box::new(tight_proxddp()),
+                _ => Box::new(tight_csqp()),
+            }
+        };
+        let mut s = make();
+        s.setup(&p).unwrap();
+        let sol = s.solve(&p, InitialGuess::primal(&xs, &us)).unwrap().clone();
+        assert!(sol.status.converged(), "{solver}");
+        let guess = InitialGuess {
+            xs: &sol.xs,
+            us: &sol.us,
+            lambdas: Some(&sol.lambdas),
+            nus: Some(&sol.nus),
+        };
+        let mut mpc = Mpc::new(p.clone(), make(), vec![], guess, MpcOptions::default()).unwrap();
+        let first = mpc.solve(&x).unwrap();
+        assert_eq!((first.iterations, first.status.converged()), (0, true), "{solver}");
+        let (k, reference) = (&mpc.policy().k0, &sol.feedback[0]);
+        let diff = (k - reference).norm_max() / reference.norm_max();
+        // (The first control is at its bound: small gains, CSQP's about 4e-10; the zero
+        // gains of no pass fail the relative test.)
+        assert!(
+            reference.norm_max() > 0.0 && diff < 1e-5,
+            "{solver}: {k:?} vs {reference:?}"
+        );
+    }
+}
+
 /// One-iteration cycles along the plan; returns the first controls and states.
 /// Per cycle: the first control, the next state, the cost and the first feedback gain.
 fn run_cycles(threads: usize, cycles: usize, final_residuals: bool) -> Vec<Vec<f64>> {

@@ -290,7 +290,9 @@ impl<S: Solver> Mpc<S> {
         self.problem.set_x0(x)?;
         self.guess.xs[0].copy_from_slice(x);
         let sol = self.solver.solve(&self.problem, self.guess.view())?;
-        let k0 = if sol.iterations == 0 {
+        // A converged solve reports gains at its point (a pass at the guess when it took
+        // no iteration); a budget spent before the first iteration leaves none.
+        let k0 = if sol.iterations == 0 && !sol.status.converged() {
             &self.guess.feedback[0]
         } else {
             &sol.feedback[0]

@@ -507,6 +507,23 @@ impl AdmmQp {
         self.riccati.backward(lq, self.reg).map_err(lq_error)
     }
 
+    /// [`AdmmQp::active_set_factor`] with the rows' multipliers `y` given (per knot, a
+    /// prefix of its rows; a solve that converged before any QP: the point's own) and the
+    /// initial penalty on the rows of other sets.
+    pub fn active_set_factor_at(
+        &mut self,
+        lq: &mut LqProblem,
+        y: &[Vec<f64>],
+        row_in_box: &dyn Fn(usize, usize) -> bool,
+    ) -> Result<()> {
+        for ((yk, rk), src) in self.y.iter_mut().zip(&mut self.rho_rows).zip(y) {
+            yk.fill(0.0);
+            yk[..src.len()].copy_from_slice(src);
+            rk.fill(self.options.rho_init);
+        }
+        self.active_set_factor(lq, row_in_box)
+    }
+
     /// The last solution `δ` (states, controls, co-states).
     pub fn solution(&self) -> &LqSolution {
         &self.sol

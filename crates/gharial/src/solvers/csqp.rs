@@ -538,8 +538,8 @@ impl Csqp {
         } else {
             (Status::NonFinite, 0, f64::NAN, Infeasibility::default())
         };
-        // The gains of the last QP's active set (zero when no QP was solved or its active
-        // rows are dependent).
+        // The gains of the last QP's active set, or at a guess that is a solution with its
+        // multipliers (zero when neither, or the active rows are dependent).
         let (cons, entries, boxed) = (&ws.cons, &ws.knot_entries, &ws.boxed);
         let row_in_box = |t: usize, i: usize| {
             cons[entries[t]..entries[t + 1]]
@@ -547,7 +547,13 @@ impl Csqp {
                 .find(|e| e.rows.contains(&i))
                 .is_some_and(|e| boxed[t][e.rows.start])
         };
-        if ws.qp_solved && ws.admm.active_set_factor(&mut ws.lq, &row_in_box).is_ok() {
+        let factored = if ws.qp_solved {
+            ws.admm.active_set_factor(&mut ws.lq, &row_in_box).is_ok()
+        } else {
+            // Converged at the guess (a warm start at a solution): its own multipliers.
+            status == Status::Converged && ws.admm.active_set_factor_at(&mut ws.lq, &ws.nus, &row_in_box).is_ok()
+        };
+        if factored {
             super::skeleton::write_gains(sol, ws.admm.stages());
         } else {
             sol.feedforward.iter_mut().for_each(|k| k.fill(0.0));

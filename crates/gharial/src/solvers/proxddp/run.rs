@@ -122,6 +122,9 @@ pub(super) fn solve(
             break;
         }
     }
+    if st.iter == 0 && st.status == Status::Converged {
+        st.gains_at_start(cx);
+    }
     st.write(cx, sol);
     sol.solve_time = start.elapsed();
 }
@@ -451,6 +454,16 @@ impl State {
             }
             None => Some(Status::NonFinite),
         }
+    }
+
+    /// A solve that converges at its guess (a warm start at a solution) has taken no
+    /// backward pass: one at the guess gives the gains the solution reports (the MPC
+    /// policy's feedback).
+    fn gains_at_start(&mut self, cx: &mut Context<'_>) {
+        let (ws, problem, opts) = (&mut *cx.ws, cx.problem, cx.opts);
+        ws.build_lq(problem, opts, self.mu, self.mu_d);
+        // A failed factorization leaves the gains at zero, as before any pass.
+        let _ = ws.riccati.backward(&ws.lq, self.preg);
     }
 
     /// Writes the solution: the best point instead of the current one when the time
