@@ -869,6 +869,11 @@ pub struct WalkPlant {
     fallen_below: f64,
 }
 
+/// Largest velocity component (m/s, rad/s) of the plant's state: beyond it the closed
+/// loop has diverged (a push the controller cannot absorb drives the joints through
+/// thousands of rad/s before the contact problem fails) and the plant stops.
+pub const DIVERGED: f64 = 100.0;
+
 /// Fraction of the standing base height below which the plant reports a fall: the base
 /// then rests on folded legs or the ground, which the plant (contacts at the feet only)
 /// does not model, and the loop stops ([`gharial::mpc::Record::stopped`]).
@@ -1001,6 +1006,12 @@ impl Plant for WalkPlant {
         }
         gharial_multibody::integrate(&self.model, q, &self.dq, q_next)
             .map_err(|e| Error::Simulation(format!("solo_walk plant at step {step}: {e}")))?;
+        if let Some(i) = v_next.iter().position(|v| v.abs() > DIVERGED) {
+            return Err(Error::Simulation(format!(
+                "solo_walk plant at step {step}: the closed loop diverged (velocity {i} = {:.3e}, above {DIVERGED})",
+                v_next[i]
+            )));
+        }
         let h = q_next[2] - self.ground.height(q_next[0], q_next[1]);
         if h < self.fallen_below {
             return Err(Error::Simulation(format!(

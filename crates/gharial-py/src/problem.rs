@@ -309,11 +309,12 @@ impl PyProblem {
         self.stages.len()
     }
 
-    /// The stage objects (the same objects at every access: a constraint added to one
-    /// reaches the problem).
+    /// The stage objects, as a tuple (the same objects at every access: a constraint
+    /// added to one reaches the problem; replacing an entry is not possible, which a list
+    /// would have allowed without effect).
     #[getter]
-    fn stages(&self, py: Python<'_>) -> Vec<Py<PyStageModel>> {
-        self.stages.iter().map(|s| s.clone_ref(py)).collect()
+    fn stages<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyTuple>> {
+        pyo3::types::PyTuple::new(py, self.stages.iter().map(|s| s.clone_ref(py)))
     }
 
     /// The rollout `x_{t+1} = φ(x_t, u_t)` of `us` from the initial state (implicit

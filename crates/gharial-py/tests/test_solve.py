@@ -159,6 +159,8 @@ def test_constraints_added_to_the_stage_objects_after_building_reach_the_problem
     # The objects given to the constructor, the same at every access.
     rebuilt = gharial.TrajOptProblem(problem.x0_init, stages, gharial.QuadraticStateCost(space, 0, np.zeros(4), [10.0] * 4))
     assert all(a is b for a, b in zip(rebuilt.stages, stages)) and problem.stages[0] is stages[0]
+    with pytest.raises(TypeError):
+        problem.stages[0] = stages[1]  # a tuple: no replacement that would do nothing
     s = gharial.SolverProxDDP(tol=1e-8)
     assert s.run(problem) and max(abs(u).max() for u in s.results.us) > 0.35
     for stage in stages:
