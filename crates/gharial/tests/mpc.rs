@@ -300,6 +300,24 @@ fn lq_problem(x0: &[f64]) -> Problem {
     Problem::new(x0, vec![stage; 12], term).unwrap()
 }
 
+/// A controller of `p` with the solver named `solver` (ProxDDP and CSQP tight, FDDP at its
+/// defaults) from the primal guess.
+fn lq_mpc(p: &Problem, solver: &str, xs: &[Vec<f64>], us: &[Vec<f64>]) -> Mpc<Box<dyn Solver>> {
+    let boxed: Box<dyn Solver> = match solver {
+        "proxddp" => Box::new(tight_proxddp()),
+        "fddp" => Box::new(Ddp::new(DdpOptions::new(DdpVariant::Fddp))),
+        _ => Box::new(tight_csqp()),
+    };
+    Mpc::new(
+        p.clone(),
+        boxed,
+        vec![],
+        InitialGuess::primal(xs, us),
+        MpcOptions::default(),
+    )
+    .unwrap()
+}
+
 #[test]
 fn the_policy_of_an_lq_is_the_optimal_control_of_a_perturbed_state() {
     let x = [0.4, -0.3];
@@ -307,18 +325,7 @@ fn the_policy_of_an_lq_is_the_optimal_control_of_a_perturbed_state() {
     let (xs, mut us) = zero_guess(&p);
     us[0][0] = 0.7;
     for solver in ["proxddp", "fddp"] {
-        let boxed: Box<dyn Solver> = match solver {
-            "proxddp" => Box::new(tight_proxddp()),
-            _ => Box::new(Ddp::new(DdpOptions::new(DdpVariant::Fddp))),
-        };
-        let mut mpc = Mpc::new(
-            p.clone(),
-            boxed,
-            vec![],
-            InitialGuess::primal(&xs, &us),
-            MpcOptions::default(),
-        )
-        .unwrap();
+        let mut mpc = lq_mpc(&p, solver, &xs, &us);
         // Before the first cycle: the guess's first control, without feedback.
         let mut u0 = [0.0];
         mpc.control(&x, &mut u0).unwrap();
@@ -352,19 +359,7 @@ fn a_cycle_without_iterations_keeps_the_shifted_gains() {
     let p = lq_problem(&x);
     let (xs, us) = zero_guess(&p);
     for solver in ["proxddp", "fddp", "csqp"] {
-        let boxed: Box<dyn Solver> = match solver {
-            "proxddp" => Box::new(tight_proxddp()),
-            "fddp" => Box::new(Ddp::new(DdpOptions::new(DdpVariant::Fddp))),
-            _ => Box::new(tight_csqp()),
-        };
-        let mut mpc = Mpc::new(
-            p.clone(),
-            boxed,
-            vec![],
-            InitialGuess::primal(&xs, &us),
-            MpcOptions::default(),
-        )
-        .unwrap();
+        let mut mpc = lq_mpc(&p, solver, &xs, &us);
         let first = mpc.solve(&x).unwrap().clone();
         assert!(first.status.converged(), "{solver}");
         let (k0, k1) = (&first.feedback[0], &first.feedback[1]);
