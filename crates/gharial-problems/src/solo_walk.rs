@@ -706,9 +706,7 @@ impl WalkTask {
     /// # Errors
     /// If the mismatch is invalid.
     pub fn plant_with(&self, ground: Ground, mismatch: Mismatch) -> Result<WalkPlant> {
-        let mut plant = WalkPlant::new(&self.solo, self.gait, ground, mismatch)?;
-        plant.fallen_below = FALLEN * self.standing_height();
-        Ok(plant)
+        WalkPlant::new(&self.solo, self.gait, ground, mismatch, FALLEN * self.standing_height())
     }
 
     /// Standing base height (m).
@@ -894,7 +892,7 @@ fn steps_per_node() -> usize {
 }
 
 impl WalkPlant {
-    fn new(solo: &Solo, gait: Gait, ground: Ground, mismatch: Mismatch) -> Result<Self> {
+    fn new(solo: &Solo, gait: Gait, ground: Ground, mismatch: Mismatch, fallen_below: f64) -> Result<Self> {
         mismatch.check()?;
         let model = if mismatch.payload > 0.0 {
             let base = solo.model.joint_id("root_joint").map_err(model_error)?;
@@ -925,7 +923,7 @@ impl WalkPlant {
             tau: vec![0.0; nv],
             dq: vec![0.0; nv],
             nu: solo.actuation.nu(),
-            fallen_below: 0.0,
+            fallen_below,
         })
     }
 

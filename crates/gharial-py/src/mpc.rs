@@ -13,6 +13,13 @@ use crate::problem::{PyProblem, PyStageModel, raise_slot_errors};
 use crate::pymodel::Slots;
 use crate::solvers::{PyResults, PySolver};
 
+/// The wall-time budget `max_time` (seconds; `None` or `inf`: none).
+fn budget(max_time: Option<f64>) -> PyResult<Option<std::time::Duration>> {
+    max_time.map_or(Ok(None), |t| {
+        gharial::error::time_budget("max_time", t).map_err(|e| value_error(e.to_string()))
+    })
+}
+
 /// A receding-horizon controller (ALIGATOR's MPC loop, ProxDDP paper §VII-E):
 /// `solve(x)` runs one cycle from the measured state `x` within the budget
 /// (`max_iters`, `max_time` in seconds, `None` or `inf` for none), warm-started from the shifted last solution
@@ -58,10 +65,7 @@ impl PyMpc {
             (None, None) => (None, None),
             _ => return Err(value_error("give both lams_init and vs_init, or neither")),
         };
-        let max_time = match max_time {
-            Some(t) => gharial::error::time_budget("max_time", t).map_err(|e| value_error(e.to_string()))?,
-            None => None,
-        };
+        let max_time = budget(max_time)?;
         let options = MpcOptions::default().with(|o| {
             o.max_iters = max_iters;
             o.max_time = max_time;
@@ -113,10 +117,7 @@ impl PyMpc {
     /// or `inf`: none).
     #[pyo3(name = "set_budget", signature = (max_iters, max_time = None))]
     fn set_budget(&mut self, max_iters: usize, max_time: Option<f64>) -> PyResult<()> {
-        let max_time = match max_time {
-            Some(t) => gharial::error::time_budget("max_time", t).map_err(|e| value_error(e.to_string()))?,
-            None => None,
-        };
+        let max_time = budget(max_time)?;
         let mpc = self.mpc.get_mut().map_err(|_| poisoned())?;
         mpc.set_budget(max_iters, max_time).map_err(err)
     }

@@ -111,33 +111,34 @@ impl Guess {
     /// the new last stage's path multipliers (`nc_tail` rows) are zero. The initial
     /// co-state `λ_0` takes `λ_1` when both live in the state tangent space.
     fn shift(&mut self, nc_tail: usize) {
-        repeat_last_after_shift(&mut self.xs);
-        repeat_last_after_shift(&mut self.us);
+        shift_vectors(&mut self.xs);
+        shift_vectors(&mut self.us);
         if self.lambdas[0].len() == self.lambdas[1].len() {
-            repeat_last_after_shift(&mut self.lambdas);
+            shift_vectors(&mut self.lambdas);
         } else {
-            repeat_last_after_shift(&mut self.lambdas[1..]);
+            shift_vectors(&mut self.lambdas[1..]);
         }
         let n = self.us.len();
         skeleton::shift_rows(&mut self.nus, n, nc_tail);
-        if n >= 2 {
-            self.feedback.rotate_left(1);
-            let (head, tail) = self.feedback.split_at_mut(n - 1);
-            tail[0].copy_from(&head[n - 2]);
-        }
+        repeat_last_after_shift(&mut self.feedback, |a, b| a.copy_from(b));
     }
 }
 
 /// `v[t] = v[t + 1]` for all but the last entry, which keeps its value (entries of equal
-/// sizes; no allocation).
-fn repeat_last_after_shift(v: &mut [Vec<f64>]) {
+/// sizes, copied by `copy`; no allocation).
+fn repeat_last_after_shift<T>(v: &mut [T], copy: impl Fn(&mut T, &T)) {
     let n = v.len();
     if n < 2 {
         return;
     }
     v.rotate_left(1);
     let (head, tail) = v.split_at_mut(n - 1);
-    tail[0].copy_from_slice(&head[n - 2]);
+    copy(&mut tail[0], &head[n - 2]);
+}
+
+/// [`repeat_last_after_shift`] of vectors.
+fn shift_vectors(v: &mut [Vec<f64>]) {
+    repeat_last_after_shift(v, |a, b| a.copy_from_slice(b));
 }
 
 /// The feedback policy of ProxDDP (57), `u(x) = u_0 + K_0 (x ⊖ x_0)`, of the last cycle

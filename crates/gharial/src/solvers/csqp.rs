@@ -435,6 +435,29 @@ impl Workspace {
         }
     }
 
+    /// The gains of the last QP's active set, or at a guess that is a solution with its
+    /// multipliers (zero when neither, or the active rows are dependent).
+    fn write_gains(&mut self, sol: &mut Solution, status: Status) {
+        let (cons, entries, boxed) = (&self.cons, &self.knot_entries, &self.boxed);
+        let row_in_box = |t: usize, i: usize| entry_of_row(cons, entries, t, i).is_some_and(|e| boxed[t][e.rows.start]);
+        let factored = if self.qp_solved {
+            self.admm.active_set_factor(&mut self.lq, &row_in_box).is_ok()
+        } else {
+            // Converged at the guess (a warm start at a solution): its own multipliers.
+            status == Status::Converged
+                && self
+                    .admm
+                    .active_set_factor_at(&mut self.lq, &self.nus, &row_in_box)
+                    .is_ok()
+        };
+        if factored {
+            super::skeleton::write_gains(sol, self.admm.stages());
+        } else {
+            sol.feedforward.iter_mut().for_each(|k| k.fill(0.0));
+            sol.feedback.iter_mut().for_each(|kk| kk.fill(0.0));
+        }
+    }
+
     /// The KKT residual with the multipliers of the last QP.
     fn kkt(&mut self, problem: &Problem, infeasibility: f64) -> f64 {
         self.data
@@ -538,27 +561,7 @@ impl Csqp {
         } else {
             (Status::NonFinite, 0, f64::NAN, Infeasibility::default())
         };
-        // The gains of the last QP's active set, or at a guess that is a solution with its
-        // multipliers (zero when neither, or the active rows are dependent).
-        let (cons, entries, boxed) = (&ws.cons, &ws.knot_entries, &ws.boxed);
-        let row_in_box = |t: usize, i: usize| {
-            cons[entries[t]..entries[t + 1]]
-                .iter()
-                .find(|e| e.rows.contains(&i))
-                .is_some_and(|e| boxed[t][e.rows.start])
-        };
-        let factored = if ws.qp_solved {
-            ws.admm.active_set_factor(&mut ws.lq, &row_in_box).is_ok()
-        } else {
-            // Converged at the guess (a warm start at a solution): its own multipliers.
-            status == Status::Converged && ws.admm.active_set_factor_at(&mut ws.lq, &ws.nus, &row_in_box).is_ok()
-        };
-        if factored {
-            super::skeleton::write_gains(sol, ws.admm.stages());
-        } else {
-            sol.feedforward.iter_mut().for_each(|k| k.fill(0.0));
-            sol.feedback.iter_mut().for_each(|kk| kk.fill(0.0));
-        }
+        ws.write_gains(sol, status);
         super::skeleton::copy_trajectory(&mut sol.xs, &ws.xs);
         super::skeleton::copy_trajectory(&mut sol.us, &ws.us);
         super::skeleton::copy_trajectory(&mut sol.lambdas, &ws.lams);
@@ -650,6 +653,19 @@ fn iterate(
     unreachable!("the loop returns")
 }
 
+/// The constraint whose rows hold row `i` of knot `t` (`knot_entries` indexes `cons` by
+/// knot).
+fn entry_of_row<'a>(
+    cons: &'a [ConstraintEntry],
+    knot_entries: &[usize],
+    t: usize,
+    i: usize,
+) -> Option<&'a ConstraintEntry> {
+    cons[knot_entries[t]..knot_entries[t + 1]]
+        .iter()
+        .find(|e| e.rows.contains(&i))
+}
+
 /// The sets of the QP's rows at the current point: row block `δh` of constraint `h ∈ C`
 /// lies in `C - h(x, u)` (for a box `[lo, hi]`, the box `[lo - h, hi - h]`).
 struct ShiftedSets<'a> {
@@ -667,10 +683,7 @@ struct ShiftedSets<'a> {
 
 impl RowSets for ShiftedSets<'_> {
     fn is_equality(&self, t: usize, i: usize) -> bool {
-        let entries = &self.cons[self.knot_entries[t]..self.knot_entries[t + 1]];
-        entries
-            .iter()
-            .find(|e| e.rows.contains(&i))
+        entry_of_row(self.cons, self.knot_entries, t, i)
             .is_some_and(|e| self.problem.constraints(t)[e.k].set.is_equality())
     }
 
