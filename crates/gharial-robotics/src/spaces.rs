@@ -188,6 +188,9 @@ macro_rules! forward_manifold {
         fn is_vector_space(&self) -> bool {
             self.$inner.is_vector_space()
         }
+        fn nonlinear_dim(&self) -> usize {
+            self.$inner.nonlinear_dim()
+        }
     };
 }
 

@@ -111,6 +111,19 @@ impl CheckReport {
         self.errors.push((name.to_string(), rel_error(analytic, reference)));
     }
 
+    /// Records how far a square Jacobian `reference` is from `diag(J_b, s I)`: it against
+    /// itself with every entry outside the leading `k × k` block replaced by `s I`'s.
+    fn push_structure(&mut self, name: &str, k: usize, s: f64, reference: &Mat<f64>) {
+        let claimed = Mat::from_fn(reference.nrows(), reference.ncols(), |i, j| {
+            match (i < k && j < k, i == j) {
+                (true, _) => reference[(i, j)],
+                (false, true) => s,
+                (false, false) => 0.0,
+            }
+        });
+        self.push(&format!("nonlinear_dim: {name}"), &claimed, reference);
+    }
+
     /// Largest relative error over all blocks.
     pub fn max_error(&self) -> f64 {
         self.errors.iter().fold(0.0_f64, |a, (_, e)| a.max(*e))
@@ -196,7 +209,9 @@ fn fd_vec(u: &[f64], nout_space: &dyn Manifold, eps: f64, mut g: impl FnMut(&[f6
 }
 
 /// Checks `jintegrate`, `jdifference`, `jintegrate_transport`, `tangent_map` and
-/// `tangent_map_inverse` of a manifold at `x`, `v` and `x1`.
+/// `tangent_map_inverse` of a manifold at `x`, `v` and `x1`, and that the
+/// finite-difference Jacobians of `integrate` and `difference` are `±I` outside the
+/// block of [`Manifold::nonlinear_dim`] (entries `nonlinear_dim: ...`).
 pub fn check_manifold(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], opts: CheckOptions) -> CheckReport {
     let mut rep = CheckReport::new(opts.tol);
     let (nx, ndx) = (m.nx(), m.ndx());
@@ -207,9 +222,11 @@ pub fn check_manifold(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], opts: 
     m.jintegrate(x, v, Arg::First, j.as_mut());
     let fd = fd_state(m, x, m, opts.eps, |xp, out| m.integrate(xp, v, out));
     rep.push("jintegrate(x)", &j, &fd);
+    rep.push_structure("jintegrate(x)", m.nonlinear_dim(), 1.0, &fd);
     m.jintegrate(x, v, Arg::Second, j.as_mut());
     let fd = fd_state(&tangent, v, m, opts.eps, |vp, out| m.integrate(x, vp, out));
     rep.push("jintegrate(v)", &j, &fd);
+    rep.push_structure("jintegrate(v)", m.nonlinear_dim(), 1.0, &fd);
 
     for arg in [Arg::First, Arg::Second] {
         let mut t = Mat::from_fn(ndx, 3, |i, k| ((i + 2 * k) % 5) as f64 - 2.0);
@@ -224,9 +241,11 @@ pub fn check_manifold(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], opts: 
     m.jdifference(x, x1, Arg::First, j.as_mut());
     let fd = fd_state(m, x, &tangent, opts.eps, |xp, out| m.difference(xp, x1, out));
     rep.push("jdifference(x0)", &j, &fd);
+    rep.push_structure("jdifference(x0)", m.nonlinear_dim(), -1.0, &fd);
     m.jdifference(x, x1, Arg::Second, j.as_mut());
     let fd = fd_state(m, x1, &tangent, opts.eps, |xp, out| m.difference(x, xp, out));
     rep.push("jdifference(x1)", &j, &fd);
+    rep.push_structure("jdifference(x1)", m.nonlinear_dim(), 1.0, &fd);
 
     // tangent_map: representation derivative of x ⊕ v at v = 0.
     let mut tm = Mat::zeros(nx, ndx);
@@ -1068,6 +1087,29 @@ pub fn check_manifold_dual(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], o
 mod tests {
     use super::*;
     use crate::spaces::VectorSpace;
+
+    /// The structure check of `Manifold::nonlinear_dim` on finite-difference Jacobians of
+    /// SE(3) x R^2: its true block (6) passes, a smaller claim fails, and the product
+    /// claims 6.
+    #[test]
+    fn a_false_nonlinear_block_claim_fails() {
+        use crate::spaces::{CartesianProduct, SE3};
+        use std::sync::Arc;
+        let m = CartesianProduct::pair(Arc::new(SE3), Arc::new(VectorSpace::new(2)));
+        assert_eq!(m.nonlinear_dim(), 6);
+        let mut rng = <rand::rngs::SmallRng as rand::SeedableRng>::seed_from_u64(3);
+        let (mut x, mut x1) = (vec![0.0; m.nx()], vec![0.0; m.nx()]);
+        m.random(&mut rng, &mut x);
+        m.random(&mut rng, &mut x1);
+        let tangent = VectorSpace::new(m.ndx());
+        let fd = fd_state(&m, x1.as_slice(), &tangent, 1e-6, |xp, out| m.difference(&x, xp, out));
+        for (k, ok) in [(6, true), (8, true), (3, false), (0, false)] {
+            let mut rep = CheckReport::new(1e-6);
+            rep.push_structure("jdifference(x1)", k, 1.0, &fd);
+            assert_eq!(rep.passed(), ok, "claim {k}: {:?}", rep.errors);
+        }
+        check_manifold(&m, &x, &[0.1; 8], &x1, CheckOptions::default()).assert_ok();
+    }
 
     #[test]
     fn vector_space_passes_and_a_wrong_jacobian_fails() {

@@ -22,8 +22,10 @@ use faer::{Accum, Mat, MatRef};
 use super::{Cost, CostData, CostParts, DerivativesMut};
 use crate::error::{check_dim, check_finite};
 use crate::functions::util::{add_scaled, checked_sym, downcast};
-use crate::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary, Workspace};
-use crate::linalg::{GramScratch, GramWeight, add_scaled_lower, fill_lower, matmul, scale_rows, symmetrize_from_lower};
+use crate::functions::{ControlError, StageFunction, StageFunctionData, StateError, Unary, UnaryFunction, Workspace};
+use crate::linalg::{
+    GramScratch, GramWeight, add_scaled_lower, fill_lower, identity_block, matmul, scale_rows, symmetrize_from_lower,
+};
 use crate::param::ParamVec;
 use crate::spaces::Manifold;
 use crate::{Error, Result};
@@ -367,6 +369,80 @@ impl QuadraticStateCost {
     pub fn error(&self) -> &Arc<StateError> {
         &self.error
     }
+
+    /// [`Cost::add_derivatives`] with the workspace apart. On a Lie group times vector
+    /// spaces `J = jdifference(x_ref, x) = diag(J_b, I)` with `J_b` of size `k × k`
+    /// ([`Manifold::nonlinear_dim`]): with diagonal weights the chain rule is then the
+    /// product `J_bᵀ W_b J_b` and the weights themselves on the rest of the diagonal,
+    /// where the general path scans and multiplies all of `J` (and of the zero control
+    /// Jacobian).
+    fn add(&self, x: &[f64], u: &[f64], ws: &mut ResidualWs, reuse: bool, s: f64, out: DerivativesMut<'_>) {
+        let Metric::Diagonal(w) = &self.inner.w else {
+            return self.inner.add(x, u, ws, reuse, s, out);
+        };
+        // A constant Hessian (vector spaces) is the general path's: its reuse reads the
+        // Jacobian that path loaded.
+        let k = self.error.space().nonlinear_dim();
+        if self.inner.hessian_is_constant() || 2 * k > w.len() {
+            return self.inner.add(x, u, ws, reuse, s, out);
+        }
+        self.error.jacobian(x, &mut ws.fd);
+        self.inner.w.apply(ws.fd.value(), &mut ws.g);
+        let jx = ws.fd.jx.as_ref();
+        debug_assert!(identity_block(jx, 1.0) <= k, "{:?}: nonlinear_dim", self.error.space());
+        let g = &ws.g;
+        for (i, l) in out.lx.iter_mut().enumerate() {
+            *l += s * if i < k {
+                (0..k).map(|r| jx[(r, i)] * g[r]).sum::<f64>()
+            } else {
+                g[i]
+            };
+        }
+        let Some(mut h) = out.hessian else {
+            return;
+        };
+        for j in 0..k {
+            for i in j..k {
+                h.lxx[(i, j)] += s * (0..k).map(|r| jx[(r, i)] * w[r] * jx[(r, j)]).sum::<f64>();
+            }
+        }
+        for i in k..jx.ncols() {
+            h.lxx[(i, i)] += s * w[i];
+        }
+    }
+}
+
+impl Cost for QuadraticStateCost {
+    fn nx(&self) -> usize {
+        self.inner.nx()
+    }
+    fn ndx(&self) -> usize {
+        self.inner.ndx()
+    }
+    fn nu(&self) -> usize {
+        self.inner.nu()
+    }
+    fn create_workspace(&self) -> Workspace {
+        self.inner.create_workspace()
+    }
+    fn evaluate(&self, x: &[f64], u: &[f64], data: &mut CostData) {
+        self.inner.evaluate(x, u, data)
+    }
+    fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
+        write_own(data, true, |ws, out| self.add(x, u, ws, false, 1.0, out));
+    }
+    fn hessian_is_constant(&self) -> bool {
+        self.inner.hessian_is_constant()
+    }
+    fn gradient(&self, x: &[f64], u: &[f64], data: &mut CostData) {
+        if !self.hessian_is_constant() {
+            return self.derivatives(x, u, data);
+        }
+        write_own(data, false, |ws, out| self.add(x, u, ws, true, 1.0, out));
+    }
+    fn add_derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData, reuse: bool, s: f64, out: DerivativesMut<'_>) {
+        self.add(x, u, downcast(&mut data.ws), reuse, s, out);
+    }
 }
 
 /// `ℓ(x, u) = ½ (u - u_ref)ᵀ W (u - u_ref)`, with a movable target; exact Hessian `W`.
@@ -461,7 +537,6 @@ macro_rules! delegate_cost {
         }
     };
 }
-delegate_cost!(QuadraticStateCost);
 delegate_cost!(QuadraticControlCost);
 
 /// A relaxed logarithmic barrier for `r(x, u) < 0`:
@@ -1008,6 +1083,71 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+    /// Diagonal weights on a Lie group times vector spaces take the block path
+    /// (`Manifold::nonlinear_dim`): gradient `Jᵀ W r` and Hessian `Jᵀ W J` against
+    /// dual-number Jacobians of `x ⊖ x_ref`, the control blocks zero, and a scaled
+    /// accumulation into existing blocks.
+    #[test]
+    fn diagonal_state_cost_works_on_the_nonlinear_block() {
+        use crate::check::dual_stage_jacobians;
+        use crate::spaces::{CartesianProduct, SE3, SO3, TangentBundle};
+        use num_dual::Dual64;
+        let mut g = rng(46);
+        let floating: Arc<dyn Manifold> = Arc::new(CartesianProduct::new(vec![
+            Arc::new(SE3),
+            Arc::new(VectorSpace::new(4)),
+        ]));
+        let spaces: Vec<Arc<dyn Manifold>> = vec![
+            Arc::new(TangentBundle::new(floating.clone())),
+            floating,
+            Arc::new(TangentBundle::new(Arc::new(SO3))),
+            Arc::new(SE3),
+        ];
+        for space in spaces {
+            let (nx, ndx) = (space.nx(), space.ndx());
+            let (mut x_ref, mut x) = (vec![0.0; nx], vec![0.0; nx]);
+            space.random(&mut g, &mut x_ref);
+            space.random(&mut g, &mut x);
+            let w: Vec<f64> = (0..ndx).map(|_| g.random_range(0.1..2.0)).collect();
+            let cost = QuadraticStateCost::diagonal(space.clone(), &x_ref, &w, 2).unwrap();
+            let mut d = cost.create_data();
+            cost.evaluate(&x, &[0.3, 0.1], &mut d);
+            cost.derivatives(&x, &[0.3, 0.1], &mut d);
+            let xr: Vec<Dual64> = x_ref.iter().map(|&v| Dual64::from(v)).collect();
+            let j = dual_stage_jacobians(space.as_ref(), &x, &[0.3, 0.1], ndx, |x, _u, out| {
+                space.difference_dual(&xr, x, out)
+            })
+            .jx;
+            let mut r = vec![0.0; ndx];
+            space.difference(&x_ref, &x, &mut r);
+            let wm = Mat::from_fn(ndx, ndx, |i, k| if i == k { w[i] } else { 0.0 });
+            let lx = j.transpose() * (&wm * Mat::from_fn(ndx, 1, |i, _| r[i]));
+            let gn = j.transpose() * (&wm * &j);
+            assert_close("lx", &d.lx.as_mat().to_owned(), &lx, 1e-12);
+            assert_close("lxx", &d.lxx, &gn, 1e-12);
+            assert!(d.lu().iter().all(|&v| v == 0.0) && d.lxu.norm_max() == 0.0);
+            // s ∇ℓ added to what is there (lower triangle only).
+            let (mut ax, mut au) = (vec![1.0; ndx], vec![2.0; 2]);
+            let (mut axx, mut axu, mut auu) = (Mat::<f64>::zeros(ndx, ndx), Mat::zeros(ndx, 2), Mat::zeros(2, 2));
+            let out = DerivativesMut {
+                lx: &mut ax,
+                lu: &mut au,
+                hessian: Some(HessianMut {
+                    lxx: axx.as_mut(),
+                    lxu: axu.as_mut(),
+                    luu: auu.as_mut(),
+                }),
+            };
+            cost.add_derivatives(&x, &[0.3, 0.1], &mut d, false, 0.5, out);
+            for i in 0..ndx {
+                assert!((ax[i] - 1.0 - 0.5 * lx[(i, 0)]).abs() <= 1e-12 * (1.0 + lx[(i, 0)].abs()));
+                for k in 0..=i {
+                    assert!((axx[(i, k)] - 0.5 * gn[(i, k)]).abs() <= 1e-12 * (1.0 + gn[(i, k)].abs()));
+                }
+            }
+            assert_eq!(au, [2.0, 2.0]);
         }
     }
 }

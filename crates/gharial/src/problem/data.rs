@@ -371,9 +371,10 @@ impl StageData {
                     }
                 } else {
                     // f = φ ⊖ y: df/dx = J_φ φ_x, df/du = J_φ φ_u, df/dy = d(φ ⊖ y)/dy;
-                    // J_φ is the identity outside its group block.
+                    // J_φ is the identity outside the space's nonlinear block.
                     sn.jdifference(y, d.xnext(), Arg::Second, self.jdiff_phi.as_mut());
-                    let (jp, k) = (self.jdiff_phi.as_ref(), identity_block(self.jdiff_phi.as_ref(), 1.0));
+                    let (jp, k) = (self.jdiff_phi.as_ref(), sn.nonlinear_dim());
+                    debug_assert!(identity_block(jp, 1.0) <= k, "{sn:?}: nonlinear_dim");
                     matmul_identity_block(self.dyn_jx.as_mut(), jp, d.jx.as_ref(), k);
                     matmul_identity_block(self.dyn_ju.as_mut(), jp, d.ju.as_ref(), k);
                     sn.jdifference(y, d.xnext(), Arg::First, self.dyn_jy.as_mut());

@@ -270,6 +270,16 @@ pub trait Manifold: Send + Sync + Debug {
     fn is_vector_space(&self) -> bool {
         false
     }
+
+    /// The tangent coordinates `0..k` that hold every non-Euclidean part: at every point
+    /// `jintegrate` and `jdifference` are `diag(J_b, ±I)` with `J_b` of size `k × k`
+    /// (`-I` for `jdifference` in `x0`), as on a Lie group times vector spaces (a
+    /// floating base and its joints: `k = 6`). Costs and dynamics use it to work on the
+    /// block alone. Default `ndx` (no structure claimed); `0` on vector spaces.
+    /// [`crate::check::check_manifold`] checks the claim.
+    fn nonlinear_dim(&self) -> usize {
+        self.ndx()
+    }
 }
 
 /// Writes `±I` into a square matrix.
@@ -385,6 +395,10 @@ impl Manifold for VectorSpace {
 
     fn is_vector_space(&self) -> bool {
         true
+    }
+
+    fn nonlinear_dim(&self) -> usize {
+        0
     }
 }
 

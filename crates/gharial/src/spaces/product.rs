@@ -31,6 +31,8 @@ pub struct CartesianProduct {
     /// Offsets of the parts in the tangent space (`parts.len() + 1` entries).
     odx: Vec<usize>,
     vector_space: bool,
+    /// [`Manifold::nonlinear_dim`]: the end of the last part with a nonlinear block.
+    nonlinear_dim: usize,
 }
 
 impl CartesianProduct {
@@ -43,11 +45,17 @@ impl CartesianProduct {
             odx.push(odx.last().copied().unwrap_or(0) + p.ndx());
         }
         let vector_space = parts.iter().all(|p| p.is_vector_space());
+        let nonlinear_dim = (parts.iter().enumerate())
+            .filter(|(_, p)| p.nonlinear_dim() > 0)
+            .map(|(i, p)| odx[i] + p.nonlinear_dim())
+            .max()
+            .unwrap_or(0);
         Self {
             parts,
             ox,
             odx,
             vector_space,
+            nonlinear_dim,
         }
     }
 
@@ -202,5 +210,9 @@ impl Manifold for CartesianProduct {
 
     fn is_vector_space(&self) -> bool {
         self.vector_space
+    }
+
+    fn nonlinear_dim(&self) -> usize {
+        self.nonlinear_dim
     }
 }

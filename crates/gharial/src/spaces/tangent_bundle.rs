@@ -147,4 +147,9 @@ impl Manifold for TangentBundle {
     fn is_vector_space(&self) -> bool {
         self.vector_space
     }
+
+    /// The base's: the velocity part is Euclidean.
+    fn nonlinear_dim(&self) -> usize {
+        self.base.nonlinear_dim()
+    }
 }
