@@ -12,15 +12,16 @@ use std::fmt::Debug;
 use std::ops::Range;
 use std::sync::Arc;
 
+use faer::reborrow::{Reborrow, ReborrowMut};
 use faer::{Accum, Mat, MatMut};
 use gharial::functions::{StageFunction, StageFunctionData, Workspace, lock};
-use gharial::linalg::{matmul, slice_mut};
+use gharial::linalg::{copy, matmul, slice_mut};
 use gharial::{Error, Result};
 use gharial_multibody::spatial::{Mat3, Vec3};
 use gharial_multibody::{ContactModel, ContactType, ReferenceFrame};
 
 use super::{VectorTarget, ws};
-use crate::dynamics::{MultibodyConstraintFwdDynamics, SharedContactData};
+use crate::dynamics::{ContactDynamicsData, MultibodyConstraintFwdDynamics, SharedContactData};
 
 /// A differentiable map `r = m(f)` of a contact force or wrench `f`.
 pub trait ForceMap: Send + Sync + Debug {
@@ -32,6 +33,32 @@ pub trait ForceMap: Send + Sync + Debug {
     fn value(&self, f: &[f64], out: &mut [f64]);
     /// Writes `∂m/∂f` (`nr × nf`) into `d`.
     fn jacobian(&self, f: &[f64], d: MatMut<'_, f64>);
+    /// Whether `∂m/∂f` is the identity everywhere (default: false): the residual's
+    /// Jacobians are then `λ_k`'s, copied instead of multiplied.
+    fn jacobian_is_identity(&self) -> bool {
+        false
+    }
+}
+
+/// The Jacobians of `m(λ_k)` into `jx`, `ju`: `∂m/∂f` (written into `dm` unless the
+/// identity) times the rows `rows` of `λ`'s Jacobians in `d`.
+fn chain_map<M: ForceMap>(
+    map: &M,
+    rows: &Range<usize>,
+    d: &ContactDynamicsData,
+    mut dm: MatMut<'_, f64>,
+    (jx, ju): (MatMut<'_, f64>, MatMut<'_, f64>),
+) {
+    let (r0, nf) = (rows.start, rows.len());
+    let (lx, lu) = (d.dlambda_dx().subrows(r0, nf), d.dlambda_du().subrows(r0, nf));
+    if map.jacobian_is_identity() {
+        copy(jx, lx);
+        copy(ju, lu);
+        return;
+    }
+    map.jacobian(&d.lambda()[rows.clone()], dm.rb_mut());
+    matmul(jx, Accum::Replace, dm.rb(), lx, 1.0);
+    matmul(ju, Accum::Replace, dm.rb(), lu, 1.0);
 }
 
 /// A residual `r = m(λ_k(x, u))` of contact `k` of a constrained dynamics (see the
@@ -141,23 +168,8 @@ impl<M: ForceMap> StageFunction for ContactResidual<M> {
             data.ju.fill(f64::NAN);
             return;
         }
-        let (r0, nf) = (self.rows.start, self.rows.len());
-        self.map.jacobian(&d.lambda()[self.rows.clone()], w.dm_df.as_mut());
-        let dm = w.dm_df.as_ref();
-        matmul(
-            data.jx.as_mut(),
-            Accum::Replace,
-            dm,
-            d.dlambda_dx().subrows(r0, nf),
-            1.0,
-        );
-        matmul(
-            data.ju.as_mut(),
-            Accum::Replace,
-            dm,
-            d.dlambda_du().subrows(r0, nf),
-            1.0,
-        );
+        let out = (data.jx.as_mut(), data.ju.as_mut());
+        chain_map(&self.map, &self.rows, &d, w.dm_df.as_mut(), out);
     }
 }
 
@@ -215,6 +227,9 @@ impl ForceMap for ForceError {
     fn jacobian(&self, _f: &[f64], mut d: MatMut<'_, f64>) {
         d.fill(0.0);
         d.diagonal_mut().column_vector_mut().fill(1.0);
+    }
+    fn jacobian_is_identity(&self) -> bool {
+        true
     }
 }
 
@@ -585,12 +600,12 @@ impl<M: ForceMap> StageFunction for StackedContactResidual<M> {
         }
         let mut off = 0;
         for (p, dm) in self.parts.iter().zip(w.dm_df.iter_mut()) {
-            let (r0, nf, nr) = (p.rows.start, p.rows.len(), p.map.nr());
-            p.map.jacobian(&d.lambda()[p.rows.clone()], dm.as_mut());
-            let jx = data.jx.as_mut().subrows_mut(off, nr);
-            matmul(jx, Accum::Replace, dm.as_ref(), d.dlambda_dx().subrows(r0, nf), 1.0);
-            let ju = data.ju.as_mut().subrows_mut(off, nr);
-            matmul(ju, Accum::Replace, dm.as_ref(), d.dlambda_du().subrows(r0, nf), 1.0);
+            let nr = p.map.nr();
+            let out = (
+                data.jx.as_mut().subrows_mut(off, nr),
+                data.ju.as_mut().subrows_mut(off, nr),
+            );
+            chain_map(&p.map, &p.rows, &d, dm.as_mut(), out);
             off += nr;
         }
     }
