@@ -23,7 +23,7 @@ use crate::error::{Error, Result, check_result, check_result_mat, check_results,
 use crate::kinematics::{
     check_kinematics, express_motion, frame_placement_of, jacobian_step, joint_motion, placement_step,
 };
-use crate::linalg::minv_times_tree_sparse;
+use crate::linalg::{minv_times_tree_sparse, zero_6xn};
 use crate::model::{Model, NONE, ReferenceFrame};
 use crate::spatial::{Force, Inertia, Mat3, Motion, Se3, Vec3, skew};
 use faer::MatMut;
@@ -151,8 +151,8 @@ pub fn frame_velocity_derivatives(
     check_data(model, data)?;
     check_6xnv("dv_dq", &dv_dq, model.nv)?;
     check_6xnv("dv_dv", &dv_dv, model.nv)?;
-    dv_dq.fill(0.0);
-    dv_dv.fill(0.0);
+    zero_6xn(dv_dq.as_mut());
+    zero_6xn(dv_dv.as_mut());
     let o_mf = frame_placement_of(model, data, frame);
     let i = model.frames[frame].parent_joint;
     let ov = data.ov[i];
@@ -196,10 +196,10 @@ pub fn frame_acceleration_derivatives(
     ] {
         check_6xnv(w, m, model.nv)?;
     }
-    dv_dq.fill(0.0);
-    da_dq.fill(0.0);
-    da_dv.fill(0.0);
-    da_da.fill(0.0);
+    zero_6xn(dv_dq.as_mut());
+    zero_6xn(da_dq.as_mut());
+    zero_6xn(da_dv.as_mut());
+    zero_6xn(da_da.as_mut());
     let o_mf = frame_placement_of(model, data, frame);
     let i = model.frames[frame].parent_joint;
     let (ov, oa) = (data.ov[i], data.oa[i]);

@@ -337,6 +337,18 @@ pub(crate) fn check_pivot(what: &str, index: usize, value: f64) -> Result<()> {
     }
 }
 
+/// Zeroes a `6 × n` block column by column with inline stores (faer's `fill` calls
+/// `memset` per column, dearer than six stores).
+pub(crate) fn zero_6xn(mut m: faer::MatMut<'_, f64>) {
+    for j in 0..m.ncols() {
+        let mut c = m.as_mut().col_mut(j);
+        match c.as_mut().try_as_col_major_mut() {
+            Some(c) => *<&mut [f64; 6]>::try_from(c.as_slice_mut()).expect("6 rows") = [0.0; 6],
+            None => c.fill(0.0),
+        }
+    }
+}
+
 /// `y += a x`.
 #[inline]
 pub(crate) fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
@@ -489,6 +501,23 @@ mod tests {
             minv_times_tree_sparse(&tree, &s, &b, &mut out, &mut Vec::new());
             for (x, y) in out.iter().zip(naive(n, &s, &b)) {
                 assert!((x - y).abs() <= 1e-14, "{x} vs {y}");
+            }
+        }
+    }
+
+    /// `zero_6xn` zeroes its `6 × n` view and nothing else, with unit and non-unit row
+    /// strides.
+    #[test]
+    fn zero_6xn_zeroes_its_view_only() {
+        let mut m = faer::Mat::from_fn(8, 5, |i, j| (1 + i + 8 * j) as f64);
+        super::zero_6xn(m.as_mut().subrows_mut(1, 6));
+        let mut t = faer::Mat::from_fn(5, 8, |i, j| (1 + i + 5 * j) as f64);
+        super::zero_6xn(t.as_mut().transpose_mut().subrows_mut(1, 6));
+        for i in 0..8 {
+            for j in 0..5 {
+                let inside = (1..7).contains(&i);
+                assert_eq!(m[(i, j)] == 0.0, inside, "({i}, {j})");
+                assert_eq!(t[(j, i)] == 0.0, inside, "transposed ({i}, {j})");
             }
         }
     }

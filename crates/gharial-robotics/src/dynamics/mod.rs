@@ -140,7 +140,7 @@ impl PhaseOde {
     ) {
         let nv = self.nv();
         let (mut top, mut bottom) = jx.split_at_row_mut(nv);
-        top.fill(0.0);
+        gharial::linalg::fill(top.as_mut(), 0.0);
         for i in 0..nv {
             top[(i, nv + i)] = 1.0;
         }
@@ -148,7 +148,7 @@ impl PhaseOde {
         copy(dq, da_dq);
         copy(dv, da_dv);
         let (mut utop, ubottom) = ju.split_at_row_mut(nv);
-        utop.fill(0.0);
+        gharial::linalg::fill(utop.as_mut(), 0.0);
         self.actuation.right_multiply(da_dtau, ubottom);
     }
 }

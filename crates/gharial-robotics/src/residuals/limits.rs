@@ -71,7 +71,7 @@ impl UnaryFunction for StateSelection {
         }
     }
     fn jacobian(&self, _x: &[f64], data: &mut StageFunctionData) {
-        data.jx.fill(0.0);
+        gharial::linalg::fill(data.jx.as_mut(), 0.0);
         for (k, &(_, j)) in self.rows.iter().enumerate() {
             data.jx[(k, j)] = 1.0;
         }
@@ -134,8 +134,8 @@ impl StageFunction for ControlSelection {
         }
     }
     fn jacobians(&self, _x: &[f64], _u: &[f64], data: &mut StageFunctionData) {
-        data.jx.fill(0.0);
-        data.ju.fill(0.0);
+        gharial::linalg::fill(data.jx.as_mut(), 0.0);
+        gharial::linalg::fill(data.ju.as_mut(), 0.0);
         for (k, &i) in self.rows.iter().enumerate() {
             data.ju[(k, i)] = 1.0;
         }

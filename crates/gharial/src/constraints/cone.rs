@@ -109,13 +109,13 @@ impl ConstraintSet for SecondOrderCone {
     fn apply_projection_jacobian(&self, z: &[f64], _mu: f64, mut m: MatMut<'_, f64>) {
         match Self::region(z) {
             Region::Inside => {}
-            Region::Polar => m.fill(0.0),
+            Region::Polar => crate::linalg::fill(m.as_mut(), 0.0),
             Region::Boundary(t, rho) => Self::apply_boundary(z, t, rho, m, false),
         }
     }
     fn apply_normal_cone_jacobian(&self, z: &[f64], _mu: f64, mut m: MatMut<'_, f64>) {
         match Self::region(z) {
-            Region::Inside => m.fill(0.0),
+            Region::Inside => crate::linalg::fill(m.as_mut(), 0.0),
             Region::Polar => {}
             Region::Boundary(t, rho) => Self::apply_boundary(z, t, rho, m, true),
         }

@@ -243,9 +243,9 @@ impl CostStack {
     /// go to scratch), with the weights of now.
     fn form_constant_hessian(&self, x: &[f64], u: &[f64], ws: &mut StackWorkspace, reuse: bool) {
         let [cxx, cxu, cuu] = &mut ws.constant;
-        cxx.fill(0.0);
-        cxu.fill(0.0);
-        cuu.fill(0.0);
+        crate::linalg::fill(cxx.as_mut(), 0.0);
+        crate::linalg::fill(cxu.as_mut(), 0.0);
+        crate::linalg::fill(cuu.as_mut(), 0.0);
         for (k, (c, d)) in self.costs.iter().zip(ws.datas.iter_mut()).enumerate() {
             if !c.hessian_is_constant() {
                 continue;
@@ -274,7 +274,7 @@ fn start_from(mut dst: MatMut<'_, f64>, constant: &Mat<f64>, nonzero: bool) {
     if nonzero {
         copy(dst, constant.as_ref());
     } else {
-        dst.fill(0.0);
+        crate::linalg::fill(dst.as_mut(), 0.0);
     }
 }
 

@@ -133,9 +133,9 @@ pub trait StageFunction: Send + Sync {
     /// has been called at the same point before. Default: zero.
     fn vhp(&self, x: &[f64], u: &[f64], lambda: &[f64], data: &mut StageFunctionData) {
         let _ = (x, u, lambda);
-        data.vhp_xx.fill(0.0);
-        data.vhp_xu.fill(0.0);
-        data.vhp_uu.fill(0.0);
+        crate::linalg::fill(data.vhp_xx.as_mut(), 0.0);
+        crate::linalg::fill(data.vhp_xu.as_mut(), 0.0);
+        crate::linalg::fill(data.vhp_uu.as_mut(), 0.0);
     }
 }
 
@@ -176,7 +176,7 @@ pub trait UnaryFunction: Send + Sync {
     /// Writes `d²(λᵀ r)/dx²` into `data.vhp_xx`. Default: zero.
     fn vhp(&self, x: &[f64], lambda: &[f64], data: &mut StageFunctionData) {
         let _ = (x, lambda);
-        data.vhp_xx.fill(0.0);
+        crate::linalg::fill(data.vhp_xx.as_mut(), 0.0);
     }
 }
 
@@ -221,7 +221,7 @@ impl StageFunction for Unary {
     }
     fn jacobians(&self, x: &[f64], _u: &[f64], data: &mut StageFunctionData) {
         self.f.jacobian(x, data);
-        data.ju.fill(0.0);
+        crate::linalg::fill(data.ju.as_mut(), 0.0);
     }
     fn jacobians_are_constant(&self) -> bool {
         self.f.jacobian_is_constant()
@@ -231,7 +231,7 @@ impl StageFunction for Unary {
     }
     fn vhp(&self, x: &[f64], _u: &[f64], lambda: &[f64], data: &mut StageFunctionData) {
         self.f.vhp(x, lambda, data);
-        data.vhp_xu.fill(0.0);
-        data.vhp_uu.fill(0.0);
+        crate::linalg::fill(data.vhp_xu.as_mut(), 0.0);
+        crate::linalg::fill(data.vhp_uu.as_mut(), 0.0);
     }
 }

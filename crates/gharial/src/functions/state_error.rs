@@ -173,7 +173,7 @@ impl StageFunction for ControlError {
         }
     }
     fn jacobians(&self, _x: &[f64], _u: &[f64], data: &mut StageFunctionData) {
-        data.jx.fill(0.0);
+        crate::linalg::fill(data.jx.as_mut(), 0.0);
         set_identity(data.ju.as_mut());
     }
     fn jacobians_are_constant(&self) -> bool {

@@ -1,5 +1,5 @@
 //! Copies: [`copy`], [`copy_transposed`], the lower-triangle copy of the
-//! factorizations, and [`negate`].
+//! factorizations, [`negate`], and the fill [`fill`].
 
 use faer::prelude::ReborrowMut;
 use faer::{MatMut, MatRef};
@@ -59,6 +59,31 @@ fn copy_fixed_slice<const N: usize>(d: &mut [f64], s: &[f64]) {
 fn copy_fixed<const M: usize>(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
     for j in 0..src.ncols() {
         *col_fixed_mut::<M>(dst.rb_mut(), j) = *col_fixed::<M>(src, j);
+    }
+}
+
+/// Every entry of `m` set to `v`. Columns of at most 16 entries are written as
+/// fixed-size arrays (inline stores), longer ones by `slice::fill`: faer's
+/// `MatMut::fill` calls `memset` once per column, which for the 3-row blocks of a cone
+/// or the 12-row Jacobians of a control costs more than the stores.
+#[inline]
+pub fn fill(mut m: MatMut<'_, f64>, v: f64) {
+    if m.row_stride() == 1 && with_fixed_len!(m.nrows(), fill_fixed, (m.rb_mut(), v)) {
+        return;
+    }
+    for j in 0..m.ncols() {
+        match m.rb_mut().col_mut(j).try_as_col_major_mut() {
+            Some(c) => c.as_slice_mut().fill(v),
+            None => m.rb_mut().col_mut(j).fill(v),
+        }
+    }
+}
+
+/// [`fill`] of a column-major matrix with `M` rows.
+#[inline]
+fn fill_fixed<const M: usize>(mut m: MatMut<'_, f64>, v: f64) {
+    for j in 0..m.ncols() {
+        *col_fixed_mut::<M>(m.rb_mut(), j) = [v; M];
     }
 }
 

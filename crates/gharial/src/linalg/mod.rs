@@ -86,7 +86,7 @@ mod symmetric;
 mod tests;
 mod views;
 
-pub use copy::{copy, negate};
+pub use copy::{copy, fill, negate};
 pub use lu::Lu;
 pub use matmul::matmul;
 pub use matvec::matvec;

@@ -458,3 +458,29 @@ fn bunch_kaufman_refactors_without_stale_pivots() {
         assert!(residual(k.as_ref(), x.as_ref(), b.as_ref()) < 1e-12, "P22 = {p22}");
     }
 }
+
+/// `fill` writes exactly the entries of its view, for the fixed-size column kernels
+/// (1 to 16 rows), longer columns and a view with a row stride.
+#[test]
+fn fill_writes_its_view_only() {
+    use faer::reborrow::ReborrowMut;
+    for nrows in [1, 3, 6, 12, 16, 17, 36] {
+        let mut m = Mat::from_fn(nrows + 4, 9, |i, j| (i * 9 + j) as f64);
+        let orig = m.clone();
+        super::fill(m.as_mut().submatrix_mut(2, 1, nrows, 7), -2.5);
+        for i in 0..nrows + 4 {
+            for j in 0..9 {
+                let inside = (2..2 + nrows).contains(&i) && (1..8).contains(&j);
+                assert_eq!(m[(i, j)], if inside { -2.5 } else { orig[(i, j)] }, "{nrows} rows: ({i}, {j})");
+            }
+        }
+        let mut t = orig.clone();
+        super::fill(t.as_mut().rb_mut().transpose_mut().submatrix_mut(1, 2, 7, nrows), 0.0);
+        for i in 0..nrows + 4 {
+            for j in 0..9 {
+                let inside = (2..2 + nrows).contains(&i) && (1..8).contains(&j);
+                assert_eq!(t[(i, j)], if inside { 0.0 } else { orig[(i, j)] }, "transposed {nrows}: ({i}, {j})");
+            }
+        }
+    }
+}

@@ -285,17 +285,8 @@ pub trait Manifold: Send + Sync + Debug {
 /// Writes `±I` into a square matrix.
 #[inline]
 pub(crate) fn set_identity(mut j: MatMut<'_, f64>, s: f64) {
-    let n = j.nrows();
-    for c in 0..j.ncols() {
-        let mut col = j.rb_mut().col_mut(c);
-        match col.rb_mut().try_as_col_major_mut() {
-            Some(col) => col.as_slice_mut().fill(0.0),
-            None => col.fill(0.0),
-        }
-        if c < n {
-            col[c] = s;
-        }
-    }
+    crate::linalg::fill(j.rb_mut(), 0.0);
+    j.diagonal_mut().column_vector_mut().fill(s);
 }
 
 /// Whether a vector of squared norm `n2` has unit norm within [`VALID_TOL`].

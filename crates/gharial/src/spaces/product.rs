@@ -147,7 +147,7 @@ impl Manifold for CartesianProduct {
     }
 
     fn jintegrate(&self, x: &[f64], v: &[f64], arg: Arg, mut j: MatMut<'_, f64>) {
-        j.fill(0.0);
+        crate::linalg::fill(j.as_mut(), 0.0);
         for (i, p) in self.parts.iter().enumerate() {
             let (o, n) = (self.odx[i], p.ndx());
             p.jintegrate(
@@ -160,7 +160,7 @@ impl Manifold for CartesianProduct {
     }
 
     fn jdifference(&self, x0: &[f64], x1: &[f64], arg: Arg, mut j: MatMut<'_, f64>) {
-        j.fill(0.0);
+        crate::linalg::fill(j.as_mut(), 0.0);
         for (i, p) in self.parts.iter().enumerate() {
             let (o, n) = (self.odx[i], p.ndx());
             p.jdifference(
@@ -183,7 +183,7 @@ impl Manifold for CartesianProduct {
     }
 
     fn tangent_map(&self, x: &[f64], mut j: MatMut<'_, f64>) {
-        j.fill(0.0);
+        crate::linalg::fill(j.as_mut(), 0.0);
         for (i, p) in self.parts.iter().enumerate() {
             let sub = j.rb_mut().submatrix_mut(self.ox[i], self.odx[i], p.nx(), p.ndx());
             p.tangent_map(&x[self.rx(i)], sub);
@@ -191,7 +191,7 @@ impl Manifold for CartesianProduct {
     }
 
     fn tangent_map_inverse(&self, x: &[f64], mut j: MatMut<'_, f64>) {
-        j.fill(0.0);
+        crate::linalg::fill(j.as_mut(), 0.0);
         for (i, p) in self.parts.iter().enumerate() {
             let sub = j.rb_mut().submatrix_mut(self.odx[i], self.ox[i], p.ndx(), p.nx());
             p.tangent_map_inverse(&x[self.rx(i)], sub);

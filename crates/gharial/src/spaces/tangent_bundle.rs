@@ -117,7 +117,7 @@ impl Manifold for TangentBundle {
 
     fn tangent_map(&self, x: &[f64], mut j: MatMut<'_, f64>) {
         let (nq, nv) = (self.base.nx(), self.base.ndx());
-        j.fill(0.0);
+        crate::linalg::fill(j.as_mut(), 0.0);
         self.base.tangent_map(&x[..nq], j.rb_mut().submatrix_mut(0, 0, nq, nv));
         for i in 0..nv {
             j[(nq + i, nv + i)] = 1.0;
@@ -126,7 +126,7 @@ impl Manifold for TangentBundle {
 
     fn tangent_map_inverse(&self, x: &[f64], mut j: MatMut<'_, f64>) {
         let (nq, nv) = (self.base.nx(), self.base.ndx());
-        j.fill(0.0);
+        crate::linalg::fill(j.as_mut(), 0.0);
         self.base
             .tangent_map_inverse(&x[..nq], j.rb_mut().submatrix_mut(0, 0, nv, nq));
         for i in 0..nv {

@@ -573,7 +573,7 @@ impl Workspace {
             let z = &self.zbuf[t][off..off + nr];
             let mut crows = knot.C.as_mut().subrows_mut(off, nr);
             if t < n && self.data.stages[t].constraint_jx_is_zero(k) {
-                crows.fill(0.0);
+                crate::linalg::fill(crows.rb_mut(), 0.0);
             } else {
                 crate::linalg::copy(crows.rb_mut(), d.jx.as_ref());
                 c.set.apply_normal_cone_jacobian(z, mu_i, crows);
