@@ -562,19 +562,22 @@ fn control_only_constraints_match_the_dense_solution() {
 /// Constraint rows that do not depend on the control (`D` row zero: obstacles, state
 /// bounds), mixed with rows that do, leave the stage factorization (their multipliers are
 /// their right-hand side over `-mu_c`): serial and parallel solves and re-solves with new
-/// vectors equal the dense KKT solution; with `mu_c = 0` on one row (Bunch-Kaufman) too.
+/// vectors equal the dense KKT solution; with `mu_c = 0` on one row (Bunch-Kaufman) too,
+/// and with every row of `D` zero (the controls' rows alone in the factorization).
 #[test]
 fn state_only_constraint_rows_match_the_dense_solution() {
-    for (seed, e, hard) in [
-        (21, None, false),
-        (22, Some(0), false),
-        (23, Some(3), false),
-        (24, None, true),
+    for (seed, e, hard, every) in [
+        (21, None, false, 2),
+        (22, Some(0), false, 2),
+        (23, Some(3), false, 2),
+        (24, None, true, 2),
+        (25, None, false, 1),
+        (26, Some(2), false, 1),
     ] {
         let mut p = feature_problem(seed, e, 1e-3);
         for k in &mut p.knots {
             // (A row with `D = 0` and `mu_c = 0` would make the stage system singular.)
-            for i in (0..k.nc).step_by(2).filter(|&i| k.mu_c[i] > 0.0) {
+            for i in (0..k.nc).step_by(every).filter(|&i| k.mu_c[i] > 0.0) {
                 for j in 0..k.nu {
                     k.D[(i, j)] = 0.0;
                 }

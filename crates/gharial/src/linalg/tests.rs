@@ -471,7 +471,11 @@ fn fill_writes_its_view_only() {
         for i in 0..nrows + 4 {
             for j in 0..9 {
                 let inside = (2..2 + nrows).contains(&i) && (1..8).contains(&j);
-                assert_eq!(m[(i, j)], if inside { -2.5 } else { orig[(i, j)] }, "{nrows} rows: ({i}, {j})");
+                assert_eq!(
+                    m[(i, j)],
+                    if inside { -2.5 } else { orig[(i, j)] },
+                    "{nrows} rows: ({i}, {j})"
+                );
             }
         }
         let mut t = orig.clone();
@@ -479,7 +483,11 @@ fn fill_writes_its_view_only() {
         for i in 0..nrows + 4 {
             for j in 0..9 {
                 let inside = (2..2 + nrows).contains(&i) && (1..8).contains(&j);
-                assert_eq!(t[(i, j)], if inside { 0.0 } else { orig[(i, j)] }, "transposed {nrows}: ({i}, {j})");
+                assert_eq!(
+                    t[(i, j)],
+                    if inside { 0.0 } else { orig[(i, j)] },
+                    "transposed {nrows}: ({i}, {j})"
+                );
             }
         }
     }

@@ -1208,8 +1208,9 @@ struct KktFactor {
     /// Rows of the system in the LDLᵀ factorization when some are decoupled: the `nu`
     /// control rows and the constraint rows with a nonzero `D` row.
     coupled: Vec<usize>,
-    /// The decoupled rows (constraint rows with `D` row zero and `mu_c > 0`) with their
-    /// pivot `-mu_c`: `[K; Z]` on them is the right-hand side divided by the pivot.
+    /// The decoupled rows (constraint rows with `D` row zero and `mu_c > 0`) with the
+    /// inverse `-1/mu_c` of their pivot: `[K; Z]` on them is the right-hand side times it
+    /// (a product per entry where a division cost several).
     free: Vec<(usize, f64)>,
     /// The coupled rows of a right-hand side, gathered (by rows for the small
     /// factorizations, by columns for faer's).
@@ -1244,7 +1245,7 @@ impl KktFactor {
         for i in 0..nc {
             let decoupled = !self.use_bk && (0..nu).all(|j| knot.D[(i, j)] == 0.0);
             if decoupled {
-                self.free.push((nu + i, -knot.mu_c[i]));
+                self.free.push((nu + i, -1.0 / knot.mu_c[i]));
             } else {
                 self.coupled.push(nu + i);
             }
@@ -1254,17 +1255,31 @@ impl KktFactor {
     }
 
     /// Solves the factored system in place for the columns of `rhs` (at most
-    /// `max_rhs`): the coupled rows through the LDLᵀ factorization, the decoupled ones
-    /// divided by their pivots.
+    /// `max_rhs`): the coupled rows through the LDLᵀ factorization (in place when they
+    /// are the first rows: all of them, or the controls' when no constraint row couples),
+    /// the decoupled ones times their pivots' inverses.
     fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
         if self.use_bk {
             self.bk.solve_in_place(rhs);
             return;
         }
-        if self.free.is_empty() {
-            self.ldlt.solve_in_place(rhs);
-            return;
+        let (m, c) = (self.coupled.len(), rhs.ncols());
+        if self.coupled.last().is_none_or(|&r| r + 1 == m) {
+            self.ldlt.solve_in_place(rhs.rb_mut().subrows_mut(0, m));
+        } else {
+            self.solve_gathered(rhs.rb_mut());
         }
+        for j in 0..c {
+            let dst = linalg::col_slice_mut(rhs.rb_mut(), j);
+            for &(r, inv_pivot) in &self.free {
+                dst[r] *= inv_pivot;
+            }
+        }
+    }
+
+    /// The coupled rows of [`KktFactor::solve_in_place`] when they are not the first:
+    /// gathered, solved and scattered back.
+    fn solve_gathered(&mut self, mut rhs: MatMut<'_, f64>) {
         let (m, c) = (self.coupled.len(), rhs.ncols());
         let g = &mut self.gather[..m * c];
         if m <= linalg::SMALL_DIM {
@@ -1296,12 +1311,6 @@ impl KktFactor {
                 for (s, &r) in g[j * m..(j + 1) * m].iter().zip(&self.coupled) {
                     dst[r] = *s;
                 }
-            }
-        }
-        for j in 0..c {
-            let dst = linalg::col_slice_mut(rhs.rb_mut(), j);
-            for &(r, pivot) in &self.free {
-                dst[r] /= pivot;
             }
         }
     }
