@@ -164,6 +164,10 @@ impl Actuation {
     pub(crate) fn right_multiply(&self, x: MatRef<'_, f64>, mut out: MatMut<'_, f64>) {
         match &self.map {
             Map::Identity => copy(out, x),
+            // Consecutive dofs (a floating base's joints): one block copy.
+            Map::Select(d) if d.windows(2).all(|w| w[1] == w[0] + 1) => {
+                copy(out, x.subcols(d.first().copied().unwrap_or(0), d.len()))
+            }
             Map::Select(d) => {
                 for (j, &k) in d.iter().enumerate() {
                     copy(out.rb_mut().col_mut(j).as_mat_mut(), x.col(k).as_mat());

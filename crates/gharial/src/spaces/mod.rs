@@ -289,6 +289,20 @@ pub(crate) fn set_identity(mut j: MatMut<'_, f64>, s: f64) {
     j.diagonal_mut().column_vector_mut().fill(s);
 }
 
+/// Zeroes a square matrix outside its diagonal blocks, which run between consecutive
+/// entries of `bounds` (from 0 to its size): the Jacobians of products, whose parts then
+/// write their own blocks (each entry written once).
+#[inline]
+pub(crate) fn zero_off_diagonal_blocks(mut j: MatMut<'_, f64>, bounds: &[usize]) {
+    let n = j.nrows();
+    for w in bounds.windows(2) {
+        let (lo, hi) = (w[0], w[1]);
+        let mut cols = j.rb_mut().subcols_mut(lo, hi - lo);
+        crate::linalg::fill(cols.rb_mut().subrows_mut(0, lo), 0.0);
+        crate::linalg::fill(cols.subrows_mut(hi, n - hi), 0.0);
+    }
+}
+
 /// Whether a vector of squared norm `n2` has unit norm within [`VALID_TOL`].
 #[inline]
 pub(crate) fn is_unit(n2: f64) -> bool {

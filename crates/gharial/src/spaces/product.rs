@@ -147,7 +147,7 @@ impl Manifold for CartesianProduct {
     }
 
     fn jintegrate(&self, x: &[f64], v: &[f64], arg: Arg, mut j: MatMut<'_, f64>) {
-        crate::linalg::fill(j.as_mut(), 0.0);
+        super::zero_off_diagonal_blocks(j.rb_mut(), &self.odx);
         for (i, p) in self.parts.iter().enumerate() {
             let (o, n) = (self.odx[i], p.ndx());
             p.jintegrate(
@@ -160,7 +160,7 @@ impl Manifold for CartesianProduct {
     }
 
     fn jdifference(&self, x0: &[f64], x1: &[f64], arg: Arg, mut j: MatMut<'_, f64>) {
-        crate::linalg::fill(j.as_mut(), 0.0);
+        super::zero_off_diagonal_blocks(j.rb_mut(), &self.odx);
         for (i, p) in self.parts.iter().enumerate() {
             let (o, n) = (self.odx[i], p.ndx());
             p.jdifference(

@@ -61,6 +61,16 @@ impl TangentBundle {
     }
 }
 
+impl TangentBundle {
+    /// The parts of a Jacobian outside the base's block: zero off the diagonal blocks,
+    /// `s I` on the velocity block (the base writes its own block).
+    fn velocity_block(&self, mut j: MatMut<'_, f64>, s: f64) {
+        let nv = self.base.ndx();
+        super::zero_off_diagonal_blocks(j.rb_mut(), &[0, nv, 2 * nv]);
+        set_identity(j.submatrix_mut(nv, nv, nv, nv), s);
+    }
+}
+
 impl Manifold for TangentBundle {
     fn nx(&self) -> usize {
         self.base.nx() + self.base.ndx()
@@ -97,14 +107,14 @@ impl Manifold for TangentBundle {
 
     fn jintegrate(&self, x: &[f64], v: &[f64], arg: Arg, mut j: MatMut<'_, f64>) {
         let (nq, nv) = (self.base.nx(), self.base.ndx());
-        set_identity(j.rb_mut(), 1.0);
+        self.velocity_block(j.rb_mut(), 1.0);
         self.base
             .jintegrate(&x[..nq], &v[..nv], arg, j.submatrix_mut(0, 0, nv, nv));
     }
 
     fn jdifference(&self, x0: &[f64], x1: &[f64], arg: Arg, mut j: MatMut<'_, f64>) {
         let (nq, nv) = (self.base.nx(), self.base.ndx());
-        set_identity(j.rb_mut(), if arg == Arg::First { -1.0 } else { 1.0 });
+        self.velocity_block(j.rb_mut(), if arg == Arg::First { -1.0 } else { 1.0 });
         self.base
             .jdifference(&x0[..nq], &x1[..nq], arg, j.submatrix_mut(0, 0, nv, nv));
     }
