@@ -80,23 +80,18 @@ impl Rows {
     fn load(&mut self, a: MatRef<'_, f64>, copy: impl FnOnce(usize) -> bool) {
         let (nr, n) = (a.nrows(), a.ncols());
         (self.nr, self.n) = (nr, n);
-        // Per row, the first and one past the last nonzero column, from columns in
-        // increasing order (branch-free, so that the loop over a column's rows is
-        // vectorised); a row without one keeps `first = usize::MAX`.
-        let (first, last) = (&mut self.first[..nr], &mut self.last[..nr]);
-        first.fill(usize::MAX);
-        last.fill(0);
-        for c in 0..n {
-            for ((f, l), &v) in first.iter_mut().zip(last.iter_mut()).zip(contiguous(a, c)) {
-                let nonzero = v != 0.0;
-                *f = if nonzero && *f == usize::MAX { c } else { *f };
-                *l = if nonzero { c + 1 } else { *l };
-            }
+        // Every row nonzero in the first and last columns (a dense Jacobian) spans all
+        // of them: nothing to search.
+        let dense = n > 1 && {
+            let (head, tail) = (contiguous(a, 0), contiguous(a, n - 1));
+            head.iter().zip(tail).all(|(&h, &t)| h != 0.0 && t != 0.0)
+        };
+        if dense {
+            self.span[..nr].fill(0..n);
+        } else {
+            self.find_spans(a);
         }
-        let span = &mut self.span[..nr];
-        for ((s, &f), &l) in span.iter_mut().zip(&*first).zip(&*last) {
-            *s = if f == usize::MAX { 0..0 } else { f..l };
-        }
+        let span = &self.span[..nr];
         self.zero = span.iter().all(|s| s.is_empty());
         self.unit = span.first().map(|s| s.start).filter(|&c| {
             span.iter()
@@ -110,6 +105,26 @@ impl Rows {
                     self.at[r * n + c] = a[(r, c)];
                 }
             }
+        }
+    }
+
+    /// Per row of `a`, the first and one past the last nonzero column, from columns in
+    /// increasing order (branch-free, so that the loop over a column's rows is
+    /// vectorised); a row without one gets the empty span.
+    fn find_spans(&mut self, a: MatRef<'_, f64>) {
+        let (nr, n) = (a.nrows(), a.ncols());
+        let (first, last) = (&mut self.first[..nr], &mut self.last[..nr]);
+        first.fill(usize::MAX);
+        last.fill(0);
+        for c in 0..n {
+            for ((f, l), &v) in first.iter_mut().zip(last.iter_mut()).zip(contiguous(a, c)) {
+                let nonzero = v != 0.0;
+                *f = if nonzero && *f == usize::MAX { c } else { *f };
+                *l = if nonzero { c + 1 } else { *l };
+            }
+        }
+        for ((s, &f), &l) in self.span[..nr].iter_mut().zip(&*first).zip(&*last) {
+            *s = if f == usize::MAX { 0..0 } else { f..l };
         }
     }
 
