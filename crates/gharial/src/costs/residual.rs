@@ -390,24 +390,49 @@ impl QuadraticStateCost {
         self.inner.w.apply(ws.fd.value(), &mut ws.g);
         let jx = ws.fd.jx.as_ref();
         debug_assert!(identity_block(jx, 1.0) <= k, "{:?}: nonlinear_dim", self.error.space());
+        // The operations of the general path's sparse kernels in their order (rows in
+        // turn, each over the span of its nonzero entries), so that both give the same
+        // bits: the identity rows add `s w_i r_i` and `s w_i`, the block's rows their
+        // products.
         let g = &ws.g;
-        for (i, l) in out.lx.iter_mut().enumerate() {
-            *l += s * if i < k {
-                (0..k).map(|r| jx[(r, i)] * g[r]).sum::<f64>()
-            } else {
-                g[i]
-            };
+        let span = |r: usize| {
+            let row = |c: usize| jx[(r, c)];
+            let lo = (0..k).find(|&c| row(c) != 0.0);
+            lo.map_or(0..0, |lo| lo..(lo..k).rfind(|&c| row(c) != 0.0).map_or(lo, |c| c) + 1)
+        };
+        for r in 0..k {
+            let h = s * g[r];
+            for c in span(r) {
+                out.lx[c] += h * jx[(r, c)];
+            }
+        }
+        for i in k..jx.ncols() {
+            out.lx[i] += s * g[i];
         }
         let Some(mut h) = out.hessian else {
             return;
         };
-        for j in 0..k {
-            for i in j..k {
-                h.lxx[(i, j)] += s * (0..k).map(|r| jx[(r, i)] * w[r] * jx[(r, j)]).sum::<f64>();
+        for r in 0..k {
+            let alpha = s * w[r];
+            let cols = span(r);
+            if alpha == 0.0 {
+                continue;
+            }
+            for c in cols.clone() {
+                let hc = alpha * jx[(r, c)];
+                if hc == 0.0 {
+                    continue;
+                }
+                for i in c..cols.end {
+                    h.lxx[(i, c)] += hc * jx[(r, i)];
+                }
             }
         }
         for i in k..jx.ncols() {
-            h.lxx[(i, i)] += s * w[i];
+            let alpha = s * w[i];
+            if alpha != 0.0 {
+                h.lxx[(i, i)] += alpha;
+            }
         }
     }
 }
@@ -1087,8 +1112,8 @@ mod tests {
     }
     /// Diagonal weights on a Lie group times vector spaces take the block path
     /// (`Manifold::nonlinear_dim`): gradient `Jᵀ W r` and Hessian `Jᵀ W J` against
-    /// dual-number Jacobians of `x ⊖ x_ref`, the control blocks zero, and a scaled
-    /// accumulation into existing blocks.
+    /// dual-number Jacobians of `x ⊖ x_ref`, bit for bit those of the general residual
+    /// path, the control blocks zero, and a scaled accumulation into existing blocks.
     #[test]
     fn diagonal_state_cost_works_on_the_nonlinear_block() {
         use crate::check::dual_stage_jacobians;
@@ -1128,6 +1153,15 @@ mod tests {
             assert_close("lx", &d.lx.as_mat().to_owned(), &lx, 1e-12);
             assert_close("lxx", &d.lxx, &gn, 1e-12);
             assert!(d.lu().iter().all(|&v| v == 0.0) && d.lxu.norm_max() == 0.0);
+            // The same bits as the general residual path.
+            let general = QuadraticResidualCost::diagonal(Arc::new(Unary::new(cost.error().clone(), 2)), &w).unwrap();
+            let mut dg = general.create_data();
+            general.evaluate(&x, &[0.3, 0.1], &mut dg);
+            general.derivatives(&x, &[0.3, 0.1], &mut dg);
+            assert!(
+                d.lx() == dg.lx() && d.lxx == dg.lxx,
+                "{space:?}: not the general path's bits"
+            );
             // s ∇ℓ added to what is there (lower triangle only).
             let (mut ax, mut au) = (vec![1.0; ndx], vec![2.0; 2]);
             let (mut axx, mut axu, mut auu) = (Mat::<f64>::zeros(ndx, ndx), Mat::zeros(ndx, 2), Mat::zeros(2, 2));

@@ -1208,9 +1208,8 @@ struct KktFactor {
     /// Rows of the system in the LDLᵀ factorization when some are decoupled: the `nu`
     /// control rows and the constraint rows with a nonzero `D` row.
     coupled: Vec<usize>,
-    /// The decoupled rows (constraint rows with `D` row zero and `mu_c > 0`) with the
-    /// inverse `-1/mu_c` of their pivot: `[K; Z]` on them is the right-hand side times it
-    /// (a product per entry where a division cost several).
+    /// The decoupled rows (constraint rows with `D` row zero and `mu_c > 0`) with their
+    /// pivot `-mu_c`: `[K; Z]` on them is the right-hand side divided by the pivot.
     free: Vec<(usize, f64)>,
     /// The coupled rows of a right-hand side, gathered (by rows for the small
     /// factorizations, by columns for faer's).
@@ -1245,7 +1244,7 @@ impl KktFactor {
         for i in 0..nc {
             let decoupled = !self.use_bk && (0..nu).all(|j| knot.D[(i, j)] == 0.0);
             if decoupled {
-                self.free.push((nu + i, -1.0 / knot.mu_c[i]));
+                self.free.push((nu + i, -knot.mu_c[i]));
             } else {
                 self.coupled.push(nu + i);
             }
@@ -1257,7 +1256,7 @@ impl KktFactor {
     /// Solves the factored system in place for the columns of `rhs` (at most
     /// `max_rhs`): the coupled rows through the LDLᵀ factorization (in place when they
     /// are the first rows: all of them, or the controls' when no constraint row couples),
-    /// the decoupled ones times their pivots' inverses.
+    /// the decoupled ones divided by their pivots.
     fn solve_in_place(&mut self, mut rhs: MatMut<'_, f64>) {
         if self.use_bk {
             self.bk.solve_in_place(rhs);
@@ -1271,8 +1270,8 @@ impl KktFactor {
         }
         for j in 0..c {
             let dst = linalg::col_slice_mut(rhs.rb_mut(), j);
-            for &(r, inv_pivot) in &self.free {
-                dst[r] *= inv_pivot;
+            for &(r, pivot) in &self.free {
+                dst[r] /= pivot;
             }
         }
     }
