@@ -191,6 +191,9 @@ macro_rules! forward_manifold {
         fn nonlinear_dim(&self) -> usize {
             self.$inner.nonlinear_dim()
         }
+        fn jdifference_block(&self, x0: &[f64], x1: &[f64], arg: Arg, j: MatMut<'_, f64>) {
+            self.$inner.jdifference_block(x0, x1, arg, j)
+        }
     };
 }
 

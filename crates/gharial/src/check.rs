@@ -209,9 +209,10 @@ fn fd_vec(u: &[f64], nout_space: &dyn Manifold, eps: f64, mut g: impl FnMut(&[f6
 }
 
 /// Checks `jintegrate`, `jdifference`, `jintegrate_transport`, `tangent_map` and
-/// `tangent_map_inverse` of a manifold at `x`, `v` and `x1`, and that the
+/// `tangent_map_inverse` of a manifold at `x`, `v` and `x1`, that the
 /// finite-difference Jacobians of `integrate` and `difference` are `±I` outside the
-/// block of [`Manifold::nonlinear_dim`] (entries `nonlinear_dim: ...`).
+/// block of [`Manifold::nonlinear_dim`] (entries `nonlinear_dim: ...`), and that
+/// `jdifference_block` is that block of `jdifference`.
 pub fn check_manifold(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], opts: CheckOptions) -> CheckReport {
     let mut rep = CheckReport::new(opts.tol);
     let (nx, ndx) = (m.nx(), m.ndx());
@@ -246,6 +247,15 @@ pub fn check_manifold(m: &dyn Manifold, x: &[f64], v: &[f64], x1: &[f64], opts: 
     let fd = fd_state(m, x1, &tangent, opts.eps, |xp, out| m.difference(x, xp, out));
     rep.push("jdifference(x1)", &j, &fd);
     rep.push_structure("jdifference(x1)", m.nonlinear_dim(), 1.0, &fd);
+    let k = m.nonlinear_dim();
+    for arg in [Arg::First, Arg::Second] {
+        // From NaN: an entry the method does not write fails the check.
+        let mut block = Mat::from_fn(k, k, |_, _| f64::NAN);
+        m.jdifference_block(x, x1, arg, block.as_mut());
+        m.jdifference(x, x1, arg, j.as_mut());
+        let lead = j.as_ref().submatrix(0, 0, k, k).to_owned();
+        rep.push(&format!("jdifference_block({arg:?})"), &block, &lead);
+    }
 
     // tangent_map: representation derivative of x ⊕ v at v = 0.
     let mut tm = Mat::zeros(nx, ndx);

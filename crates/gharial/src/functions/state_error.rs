@@ -84,6 +84,19 @@ impl StateError {
     }
 }
 
+impl StateError {
+    /// The leading `k × k` block of the Jacobian (`k` = the space's
+    /// [`Manifold::nonlinear_dim`]) into the corner of `data.jx`, the rest of which it
+    /// leaves as it is (`diag(J_b, I)` is the whole Jacobian).
+    pub(crate) fn jacobian_block(&self, x: &[f64], data: &mut StageFunctionData) {
+        let ws: &mut StateErrorWs = downcast(&mut data.ws);
+        self.target.read(&mut ws.x_ref);
+        let k = self.space.nonlinear_dim();
+        let block = data.jx.as_mut().submatrix_mut(0, 0, k, k);
+        self.space.jdifference_block(&ws.x_ref, x, Arg::Second, block);
+    }
+}
+
 impl UnaryFunction for StateError {
     fn nx(&self) -> usize {
         self.space.nx()

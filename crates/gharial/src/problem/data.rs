@@ -205,7 +205,7 @@ impl StageData {
             dyn_jy_is_minus_identity,
             constraints: stage.constraints().iter().map(|c| c.func.create_data()).collect(),
             constraint_jx_zero: vec![false; stage.constraints().len()],
-            jdiff_phi: Mat::zeros(ndx2, ndx2),
+            jdiff_phi: Mat::identity(ndx2, ndx2),
             gap_closed: false,
             lambda_phi: vec![0.0; ndx2],
             next: NextStateScratch {
@@ -372,8 +372,11 @@ impl StageData {
                 } else {
                     // f = φ ⊖ y: df/dx = J_φ φ_x, df/du = J_φ φ_u, df/dy = d(φ ⊖ y)/dy;
                     // J_φ is the identity outside the space's nonlinear block.
-                    sn.jdifference(y, d.xnext(), Arg::Second, self.jdiff_phi.as_mut());
-                    let (jp, k) = (self.jdiff_phi.as_ref(), sn.nonlinear_dim());
+                    // Only its block: the rest stays the identity written at creation.
+                    let k = sn.nonlinear_dim();
+                    let block = self.jdiff_phi.as_mut().submatrix_mut(0, 0, k, k);
+                    sn.jdifference_block(y, d.xnext(), Arg::Second, block);
+                    let jp = self.jdiff_phi.as_ref();
                     debug_assert!(identity_block(jp, 1.0) <= k, "{sn:?}: nonlinear_dim");
                     matmul_identity_block(self.dyn_jx.as_mut(), jp, d.jx.as_ref(), k);
                     matmul_identity_block(self.dyn_ju.as_mut(), jp, d.ju.as_ref(), k);

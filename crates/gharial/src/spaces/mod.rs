@@ -280,6 +280,14 @@ pub trait Manifold: Send + Sync + Debug {
     fn nonlinear_dim(&self) -> usize {
         self.ndx()
     }
+
+    /// The leading `k × k` block of [`Manifold::jdifference`] (`k` =
+    /// [`Manifold::nonlinear_dim`], `j` of that size): all of the Jacobian that is not
+    /// `±I`, without writing the rest. The default is `jdifference` itself, right for the
+    /// default `nonlinear_dim`; a space that claims a smaller block writes it here.
+    fn jdifference_block(&self, x0: &[f64], x1: &[f64], arg: Arg, j: MatMut<'_, f64>) {
+        self.jdifference(x0, x1, arg, j);
+    }
 }
 
 /// Writes `±I` into a square matrix.
@@ -405,6 +413,8 @@ impl Manifold for VectorSpace {
     fn nonlinear_dim(&self) -> usize {
         0
     }
+
+    fn jdifference_block(&self, _x0: &[f64], _x1: &[f64], _arg: Arg, _j: MatMut<'_, f64>) {}
 }
 
 /// Writes a 3x3 block into `j` at `(r0, c0)`.

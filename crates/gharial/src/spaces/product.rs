@@ -215,4 +215,26 @@ impl Manifold for CartesianProduct {
     fn nonlinear_dim(&self) -> usize {
         self.nonlinear_dim
     }
+
+    /// The parts up to the last with a nonlinear block, the last one through its own
+    /// `jdifference_block`.
+    fn jdifference_block(&self, x0: &[f64], x1: &[f64], arg: Arg, mut j: MatMut<'_, f64>) {
+        let k = self.nonlinear_dim;
+        let Some(last) = (0..self.parts.len()).rev().find(|&i| self.parts[i].nonlinear_dim() > 0) else {
+            return;
+        };
+        let mut bounds = self.odx[..=last].to_vec();
+        bounds.push(k);
+        super::zero_off_diagonal_blocks(j.rb_mut(), &bounds);
+        for (i, p) in self.parts[..=last].iter().enumerate() {
+            let o = self.odx[i];
+            let (x0, x1) = (&x0[self.rx(i)], &x1[self.rx(i)]);
+            if i == last {
+                let n = p.nonlinear_dim();
+                p.jdifference_block(x0, x1, arg, j.rb_mut().submatrix_mut(o, o, n, n));
+            } else {
+                p.jdifference(x0, x1, arg, j.rb_mut().submatrix_mut(o, o, p.ndx(), p.ndx()));
+            }
+        }
+    }
 }

@@ -162,4 +162,9 @@ impl Manifold for TangentBundle {
     fn nonlinear_dim(&self) -> usize {
         self.base.nonlinear_dim()
     }
+
+    fn jdifference_block(&self, x0: &[f64], x1: &[f64], arg: Arg, j: MatMut<'_, f64>) {
+        let nq = self.base.nx();
+        self.base.jdifference_block(&x0[..nq], &x1[..nq], arg, j);
+    }
 }
