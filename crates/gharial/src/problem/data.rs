@@ -380,7 +380,10 @@ impl StageData {
                     debug_assert!(identity_block(jp, 1.0) <= k, "{sn:?}: nonlinear_dim");
                     matmul_identity_block(self.dyn_jx.as_mut(), jp, d.jx.as_ref(), k);
                     matmul_identity_block(self.dyn_ju.as_mut(), jp, d.ju.as_ref(), k);
-                    sn.jdifference(y, d.xnext(), Arg::First, self.dyn_jy.as_mut());
+                    // Its block too: outside it `dyn_jy` is the `-I` written at creation
+                    // (or by a closed gap).
+                    let block = self.dyn_jy.as_mut().submatrix_mut(0, 0, k, k);
+                    sn.jdifference_block(y, d.xnext(), Arg::First, block);
                 }
             }
             (Dynamics::Implicit(m), DynamicsData::Implicit(d)) => {
