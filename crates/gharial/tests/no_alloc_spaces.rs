@@ -56,6 +56,8 @@ fn space_operations_do_not_allocate() {
                 for arg in [Arg::First, Arg::Second] {
                     m.jintegrate(&x, &v, arg, j.as_mut());
                     m.jdifference(&x, &y, arg, j.as_mut());
+                    let k = m.nonlinear_dim();
+                    m.jdifference_block(&x, &y, arg, j.as_mut().submatrix_mut(0, 0, k, k));
                     m.jintegrate_transport(&x, &v, arg, t.as_mut());
                 }
                 m.tangent_map(&x, tm.as_mut());

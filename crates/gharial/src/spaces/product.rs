@@ -33,6 +33,11 @@ pub struct CartesianProduct {
     vector_space: bool,
     /// [`Manifold::nonlinear_dim`]: the end of the last part with a nonlinear block.
     nonlinear_dim: usize,
+    /// The parts up to that one (`nonlinear_parts - 1` is its index; 0 if none), and the
+    /// bounds of their blocks in the nonlinear block (the last ending at
+    /// `nonlinear_dim`).
+    nonlinear_parts: usize,
+    nonlinear_bounds: Vec<usize>,
 }
 
 impl CartesianProduct {
@@ -45,17 +50,20 @@ impl CartesianProduct {
             odx.push(odx.last().copied().unwrap_or(0) + p.ndx());
         }
         let vector_space = parts.iter().all(|p| p.is_vector_space());
-        let nonlinear_dim = (parts.iter().enumerate())
-            .filter(|(_, p)| p.nonlinear_dim() > 0)
-            .map(|(i, p)| odx[i] + p.nonlinear_dim())
-            .max()
-            .unwrap_or(0);
+        let nonlinear_parts = parts.iter().rposition(|p| p.nonlinear_dim() > 0).map_or(0, |i| i + 1);
+        let nonlinear_dim = nonlinear_parts
+            .checked_sub(1)
+            .map_or(0, |i| odx[i] + parts[i].nonlinear_dim());
+        let mut nonlinear_bounds = odx[..nonlinear_parts].to_vec();
+        nonlinear_bounds.push(nonlinear_dim);
         Self {
             parts,
             ox,
             odx,
             vector_space,
             nonlinear_dim,
+            nonlinear_parts,
+            nonlinear_bounds,
         }
     }
 
@@ -219,13 +227,10 @@ impl Manifold for CartesianProduct {
     /// The parts up to the last with a nonlinear block, the last one through its own
     /// `jdifference_block`.
     fn jdifference_block(&self, x0: &[f64], x1: &[f64], arg: Arg, mut j: MatMut<'_, f64>) {
-        let k = self.nonlinear_dim;
-        let Some(last) = (0..self.parts.len()).rev().find(|&i| self.parts[i].nonlinear_dim() > 0) else {
+        let Some(last) = self.nonlinear_parts.checked_sub(1) else {
             return;
         };
-        let mut bounds = self.odx[..=last].to_vec();
-        bounds.push(k);
-        super::zero_off_diagonal_blocks(j.rb_mut(), &bounds);
+        super::zero_off_diagonal_blocks(j.rb_mut(), &self.nonlinear_bounds);
         for (i, p) in self.parts[..=last].iter().enumerate() {
             let o = self.odx[i];
             let (x0, x1) = (&x0[self.rx(i)], &x1[self.rx(i)]);
