@@ -434,39 +434,6 @@ impl QuadraticStateCost {
     }
 }
 
-impl Cost for QuadraticStateCost {
-    fn nx(&self) -> usize {
-        self.inner.nx()
-    }
-    fn ndx(&self) -> usize {
-        self.inner.ndx()
-    }
-    fn nu(&self) -> usize {
-        self.inner.nu()
-    }
-    fn create_workspace(&self) -> Workspace {
-        self.inner.create_workspace()
-    }
-    fn evaluate(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-        self.inner.evaluate(x, u, data)
-    }
-    fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-        write_own(data, true, |ws, out| self.add(x, u, ws, false, 1.0, out));
-    }
-    fn hessian_is_constant(&self) -> bool {
-        self.inner.hessian_is_constant()
-    }
-    fn gradient(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-        if !self.hessian_is_constant() {
-            return self.derivatives(x, u, data);
-        }
-        write_own(data, false, |ws, out| self.add(x, u, ws, true, 1.0, out));
-    }
-    fn add_derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData, reuse: bool, s: f64, out: DerivativesMut<'_>) {
-        self.add(x, u, downcast(&mut data.ws), reuse, s, out);
-    }
-}
-
 /// `ℓ(x, u) = ½ (u - u_ref)ᵀ W (u - u_ref)`, with a movable target; exact Hessian `W`.
 #[derive(Debug, Clone)]
 pub struct QuadraticControlCost {
@@ -518,7 +485,16 @@ impl QuadraticControlCost {
     }
 }
 
-macro_rules! delegate_cost {
+impl QuadraticControlCost {
+    /// [`Cost::add_derivatives`] with the workspace apart: the residual cost's.
+    fn add(&self, x: &[f64], u: &[f64], ws: &mut ResidualWs, reuse: bool, s: f64, out: DerivativesMut<'_>) {
+        self.inner.add(x, u, ws, reuse, s, out);
+    }
+}
+
+/// [`Cost`] for a wrapper of a [`QuadraticResidualCost`] (`inner`, its sizes, workspace,
+/// value and Hessian constancy) whose derivatives come from its own `add`.
+macro_rules! residual_wrapper_cost {
     ($t:ty) => {
         impl Cost for $t {
             fn nx(&self) -> usize {
@@ -537,13 +513,16 @@ macro_rules! delegate_cost {
                 self.inner.evaluate(x, u, data)
             }
             fn derivatives(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-                self.inner.derivatives(x, u, data)
+                write_own(data, true, |ws, out| self.add(x, u, ws, false, 1.0, out));
             }
             fn hessian_is_constant(&self) -> bool {
                 self.inner.hessian_is_constant()
             }
             fn gradient(&self, x: &[f64], u: &[f64], data: &mut CostData) {
-                self.inner.gradient(x, u, data)
+                if !self.hessian_is_constant() {
+                    return self.derivatives(x, u, data);
+                }
+                write_own(data, false, |ws, out| self.add(x, u, ws, true, 1.0, out));
             }
             fn add_derivatives(
                 &self,
@@ -554,12 +533,13 @@ macro_rules! delegate_cost {
                 s: f64,
                 out: DerivativesMut<'_>,
             ) {
-                self.inner.add_derivatives(x, u, data, reuse, s, out)
+                self.add(x, u, downcast(&mut data.ws), reuse, s, out);
             }
         }
     };
 }
-delegate_cost!(QuadraticControlCost);
+residual_wrapper_cost!(QuadraticStateCost);
+residual_wrapper_cost!(QuadraticControlCost);
 
 /// A relaxed logarithmic barrier for `r(x, u) < 0`:
 /// ```text
