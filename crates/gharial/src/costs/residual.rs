@@ -371,9 +371,9 @@ impl QuadraticStateCost {
     /// [`Cost::add_derivatives`] with the workspace apart. On a Lie group times vector
     /// spaces `J = jdifference(x_ref, x) = diag(J_b, I)` with `J_b` of size `k × k`
     /// ([`Manifold::nonlinear_dim`]): with diagonal weights the chain rule is then the
-    /// product `J_bᵀ W_b J_b` and the weights themselves on the rest of the diagonal,
-    /// where the general path scans and multiplies all of `J` (and of the zero control
-    /// Jacobian).
+    /// product `J_bᵀ W_b J_b` (the Gram kernels on the block) and the weights themselves
+    /// on the rest of the diagonal, where the general path scans and multiplies all of
+    /// `J` (and of the zero control Jacobian).
     fn add(&self, x: &[f64], u: &[f64], ws: &mut ResidualWs, reuse: bool, s: f64, out: DerivativesMut<'_>) {
         let Metric::Diagonal(w) = &self.inner.w else {
             return self.inner.add(x, u, ws, reuse, s, out);
@@ -386,49 +386,28 @@ impl QuadraticStateCost {
         }
         self.error.jacobian_block(x, &mut ws.fd);
         self.inner.w.apply(ws.fd.value(), &mut ws.g);
-        let jx = ws.fd.jx.as_ref();
-        // The operations of the general path's sparse kernels in their order (rows in
-        // turn, each over the span of its nonzero entries), so that both give the same
-        // bits: the identity rows add `s w_i r_i` and `s w_i`, the block's rows their
-        // products.
-        let g = &ws.g;
-        let span = |r: usize| {
-            let row = |c: usize| jx[(r, c)];
-            let lo = (0..k).find(|&c| row(c) != 0.0);
-            lo.map_or(0..0, |lo| lo..(lo..k).rfind(|&c| row(c) != 0.0).map_or(lo, |c| c) + 1)
-        };
-        for r in 0..k {
-            let h = s * g[r];
-            for c in span(r) {
-                out.lx[c] += h * jx[(r, c)];
-            }
-        }
-        for i in k..jx.ncols() {
+        // The Gram kernels on the block (the general path's operations on its rows, so
+        // the same bits); the identity rows add `s w_i r_i` and `s w_i`.
+        let ResidualWs {
+            fd, g, h: hd, gram_x, ..
+        } = ws;
+        let (n, jb) = (w.len(), fd.jx.as_ref().submatrix(0, 0, k, k));
+        gram_x.load(jb);
+        gram_x.matvec_t_add(&mut out.lx[..k], jb, &g[..k], s);
+        for i in k..n {
             out.lx[i] += s * g[i];
         }
         let Some(mut h) = out.hessian else {
             return;
         };
-        for r in 0..k {
-            let alpha = s * w[r];
-            let cols = span(r);
-            if alpha == 0.0 {
-                continue;
-            }
-            for c in cols.clone() {
-                let hc = alpha * jx[(r, c)];
-                if hc == 0.0 {
-                    continue;
-                }
-                for i in c..cols.end {
-                    h.lxx[(i, c)] += hc * jx[(r, i)];
-                }
-            }
+        for (hi, wi) in hd.iter_mut().zip(w) {
+            *hi = s * wi;
         }
-        for i in k..jx.ncols() {
-            let alpha = s * w[i];
-            if alpha != 0.0 {
-                h.lxx[(i, i)] += alpha;
+        let block = h.lxx.rb_mut().submatrix_mut(0, 0, k, k);
+        gram_x.gram_lower_add(block, jb, GramWeight::Diagonal(&hd[..k]));
+        for i in k..n {
+            if hd[i] != 0.0 {
+                h.lxx[(i, i)] += hd[i];
             }
         }
     }

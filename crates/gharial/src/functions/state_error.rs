@@ -82,9 +82,7 @@ impl StateError {
     pub fn target(&self) -> Vec<f64> {
         self.target.to_vec()
     }
-}
 
-impl StateError {
     /// The leading `k × k` block of the Jacobian (`k` = the space's
     /// [`Manifold::nonlinear_dim`]) into the corner of `data.jx`, the rest of which it
     /// leaves as it is (`diag(J_b, I)` is the whole Jacobian).

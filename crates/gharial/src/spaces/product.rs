@@ -31,12 +31,9 @@ pub struct CartesianProduct {
     /// Offsets of the parts in the tangent space (`parts.len() + 1` entries).
     odx: Vec<usize>,
     vector_space: bool,
-    /// [`Manifold::nonlinear_dim`]: the end of the last part with a nonlinear block.
-    nonlinear_dim: usize,
-    /// The parts up to that one (`nonlinear_parts - 1` is its index; 0 if none), and the
-    /// bounds of their blocks in the nonlinear block (the last ending at
-    /// `nonlinear_dim`).
-    nonlinear_parts: usize,
+    /// The blocks of the parts up to the last with a nonlinear block, in the tangent
+    /// space: their starts, then the end of that part's nonlinear block
+    /// ([`Manifold::nonlinear_dim`]); `[0]` when no part has one.
     nonlinear_bounds: Vec<usize>,
 }
 
@@ -50,19 +47,15 @@ impl CartesianProduct {
             odx.push(odx.last().copied().unwrap_or(0) + p.ndx());
         }
         let vector_space = parts.iter().all(|p| p.is_vector_space());
-        let nonlinear_parts = parts.iter().rposition(|p| p.nonlinear_dim() > 0).map_or(0, |i| i + 1);
-        let nonlinear_dim = nonlinear_parts
-            .checked_sub(1)
-            .map_or(0, |i| odx[i] + parts[i].nonlinear_dim());
-        let mut nonlinear_bounds = odx[..nonlinear_parts].to_vec();
-        nonlinear_bounds.push(nonlinear_dim);
+        let nonlinear_bounds = match parts.iter().rposition(|p| p.nonlinear_dim() > 0) {
+            Some(last) => [&odx[..=last], &[odx[last] + parts[last].nonlinear_dim()]].concat(),
+            None => vec![0],
+        };
         Self {
             parts,
             ox,
             odx,
             vector_space,
-            nonlinear_dim,
-            nonlinear_parts,
             nonlinear_bounds,
         }
     }
@@ -221,13 +214,13 @@ impl Manifold for CartesianProduct {
     }
 
     fn nonlinear_dim(&self) -> usize {
-        self.nonlinear_dim
+        self.nonlinear_bounds[self.nonlinear_bounds.len() - 1]
     }
 
     /// The parts up to the last with a nonlinear block, the last one through its own
     /// `jdifference_block`.
     fn jdifference_block(&self, x0: &[f64], x1: &[f64], arg: Arg, mut j: MatMut<'_, f64>) {
-        let Some(last) = self.nonlinear_parts.checked_sub(1) else {
+        let Some(last) = self.nonlinear_bounds.len().checked_sub(2) else {
             return;
         };
         super::zero_off_diagonal_blocks(j.rb_mut(), &self.nonlinear_bounds);

@@ -59,9 +59,7 @@ impl TangentBundle {
             out[nv + i] = x1[nq + i] - x0[nq + i];
         }
     }
-}
 
-impl TangentBundle {
     /// The parts of a Jacobian outside the base's block: zero off the diagonal blocks,
     /// `s I` on the velocity block (the base writes its own block).
     fn velocity_block(&self, mut j: MatMut<'_, f64>, s: f64) {
