@@ -101,6 +101,12 @@ impl LqSolver {
         self.rollout_gains = on;
     }
 
+    /// Whether [`stages`](Self::stages) still reads the problem: a parallel backward pass
+    /// whose per-knot gains the serial solver has not computed yet.
+    pub(crate) fn reads_problem_later(&self) -> bool {
+        self.pending.is_some()
+    }
+
     /// The serial solver's knot `t` after a serial backward pass (rollout gains on).
     pub fn stage(&self, t: usize) -> &RiccatiStage {
         self.serial.stage(t)

@@ -233,9 +233,9 @@ pub(crate) fn pad_constraint_rows(knot: &mut LqKnot, from: usize) {
     }
 }
 
-/// Copies the cost Hessian blocks of a stage (`Q`, `S`, `R`) and, unless `keep_dynamics`,
-/// its dynamics Jacobians (`A`, `B`, `E`) into its knot. `E` is copied only when it is
-/// not `-I`, the value knots are made with and that nothing else writes.
+/// Copies the cost Hessian blocks of a stage (`Q`, `S`, `R`) if `hessian` and its
+/// dynamics Jacobians (`A`, `B`, `E`) if `dynamics` into its knot. `E` is copied only
+/// when it is not `-I`, the value knots are made with and that nothing else writes.
 pub(crate) fn copy_stage_model(knot: &mut LqKnot, sd: &StageData, hessian: bool, dynamics: bool) {
     if hessian {
         crate::linalg::copy(knot.Q.as_mut(), sd.cost.lxx.as_ref());
@@ -248,6 +248,43 @@ pub(crate) fn copy_stage_model(knot: &mut LqKnot, sd: &StageData, hessian: bool,
         if !sd.dyn_jy_is_minus_identity {
             crate::linalg::copy(knot.E.as_mut(), sd.dyn_jy.as_ref());
         }
+    }
+}
+
+/// Which derivative blocks of a stage its knot holds in place of its own storage (see
+/// [`exchange_stage_model`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Loan {
+    /// The cost Hessian blocks `Q, S, R`.
+    pub hessian: bool,
+    /// The dynamics Jacobians `A, B`.
+    pub dynamics: bool,
+    /// The dynamics Jacobian `E` (never `-I`: those knots keep their own).
+    pub e: bool,
+}
+
+impl Loan {
+    /// Whether any block is on loan.
+    pub fn any(self) -> bool {
+        self.hessian || self.dynamics || self.e
+    }
+}
+
+/// Exchanges the storage of the blocks of `loan` between a stage's data and its knot:
+/// the knot then holds the stage's derivatives without a copy, and the stage data the
+/// knot's former buffers. A second call with the same `loan` gives every buffer back.
+pub(crate) fn exchange_stage_model(knot: &mut LqKnot, sd: &mut StageData, loan: Loan) {
+    if loan.hessian {
+        std::mem::swap(&mut knot.Q, &mut sd.cost.lxx);
+        std::mem::swap(&mut knot.S, &mut sd.cost.lxu);
+        std::mem::swap(&mut knot.R, &mut sd.cost.luu);
+    }
+    if loan.dynamics {
+        std::mem::swap(&mut knot.A, &mut sd.dyn_jx);
+        std::mem::swap(&mut knot.B, &mut sd.dyn_ju);
+    }
+    if loan.e {
+        std::mem::swap(&mut knot.E, &mut sd.dyn_jy);
     }
 }
 

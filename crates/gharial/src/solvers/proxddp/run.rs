@@ -238,6 +238,14 @@ impl State {
     /// active-set prediction when enabled, regularised until it is a descent direction
     /// of the merit; returns the merit slope `dφ(0)` along it.
     fn newton_direction(&mut self, cx: &mut Context<'_>) -> Result<f64, Status> {
+        let d = self.newton_step(cx);
+        cx.ws.return_loans();
+        d
+    }
+
+    /// [`newton_direction`](Self::newton_direction) with the stage data's derivative
+    /// blocks still lent to the knots.
+    fn newton_step(&mut self, cx: &mut Context<'_>) -> Result<f64, Status> {
         let (ws, problem, opts) = (&mut *cx.ws, cx.problem, cx.opts);
         let (mu, mu_d) = (self.mu, self.mu_d);
         ws.build_lq(problem, opts, mu, mu_d);
@@ -464,6 +472,7 @@ impl State {
         ws.build_lq(problem, opts, self.mu, self.mu_d);
         // A failed factorization leaves the gains at zero, as before any pass.
         let _ = ws.riccati.backward(&ws.lq, self.preg);
+        ws.return_loans();
     }
 
     /// Writes the solution: the best point instead of the current one when the time

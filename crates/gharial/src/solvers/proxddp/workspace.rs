@@ -2,19 +2,20 @@
 //! per-iteration computations (residuals, Newton system, merit, rollouts). Everything is
 //! allocated in [`Workspace::new`]; no method allocates.
 
-use faer::Accum;
 use faer::prelude::ReborrowMut;
+use faer::{Accum, MatRef};
 
 use super::options::{DynamicsStep, HessianApprox, Merit, ProxDdpOptions, Rollout};
+use crate::costs::CostData;
 use crate::dynamics::Dynamics;
 use crate::error::{Error, Result};
 use crate::linalg::{matvec, matvec_t, norm_inf, slice, slice_mut};
-use crate::lq::{LqProblem, LqSolution, LqSolver, RiccatiOptions};
+use crate::lq::{LqKnot, LqProblem, LqSolution, LqSolver, RiccatiOptions};
 use crate::problem::{DynamicsData, ImplicitSolve, Problem, ProblemData, StageData, StageModel};
 use crate::solvers::InitialGuess;
 use crate::solvers::skeleton::{
-    ConstraintEntry, Receding, constraint_index, copy_stage_model, fill_constraint_index, pad_constraint_rows,
-    shift_rows,
+    ConstraintEntry, Loan, Receding, constraint_index, copy_stage_model, exchange_stage_model, fill_constraint_index,
+    pad_constraint_rows, shift_rows,
 };
 
 /// The active-set prediction stops when the step solves the piecewise-linear constraint
@@ -127,6 +128,10 @@ pub(super) struct Workspace {
     /// dynamics Jacobians that the models declare constant), so that `build_lq` need
     /// not copy them again.
     knot_constants: bool,
+    /// The derivative blocks each knot holds on loan from its stage data while a Newton
+    /// step is computed ([`build_lq`](Self::build_lq) to
+    /// [`return_loans`](Self::return_loans)): exchanged buffers instead of copies.
+    loans: Vec<Loan>,
     /// Every path and terminal constraint, in knot order: one walk over all of them.
     cons: Vec<ConstraintEntry>,
     /// Whether the Newton step treats the dynamics exactly ([`DynamicsStep`]); with
@@ -204,6 +209,7 @@ impl Workspace {
             tbuf: vecs(&ndxs),
             min_scale,
             knot_constants: false,
+            loans: vec![Loan::default(); n],
             cons: constraint_index(problem),
             exact_dynamics: auto_exact || opts.dynamics_step == DynamicsStep::Exact,
             auto_exact,
@@ -323,6 +329,7 @@ impl Workspace {
     /// Evaluates values and first derivatives at the current point; returns the cost,
     /// or `None` if a value is not finite.
     pub fn evaluate_current(&mut self, problem: &Problem) -> Option<f64> {
+        self.return_loans();
         let c = self.data.evaluate(problem, &self.cur.xs, &self.cur.us);
         if !self.values_finite() || !c.is_finite() {
             return None;
@@ -335,6 +342,7 @@ impl Workspace {
     /// trial, the last point evaluated, so only the first derivatives are computed;
     /// returns the cost, or `None` if a value is not finite.
     pub fn derivatives_at_accepted(&mut self, problem: &Problem) -> Option<f64> {
+        self.return_loans();
         let c = self.accepted_cost()?;
         self.data.compute_derivatives(problem, &self.cur.xs, &self.cur.us);
         Some(c)
@@ -435,6 +443,7 @@ impl Workspace {
 
     /// Fills the LQ knots with the Newton system (42)-(46), (65) at the current point.
     pub fn build_lq(&mut self, problem: &Problem, opts: &ProxDdpOptions, mu: f64, mu_d: f64) {
+        self.return_loans();
         let n = problem.horizon();
         self.effective_multipliers(problem, mu, false);
         self.data
@@ -465,21 +474,31 @@ impl Workspace {
         self.riccati.set_rollout_gains(opts.rollout == Rollout::Nonlinear);
         // Blocks that are constant during the solve and that nothing else writes stay in
         // the knots from the first build: A, B of constant dynamics Jacobians, and
-        // Q, S, R of constant cost Hessians unless the exact Hessian adds to them.
+        // Q, S, R of constant cost Hessians unless the exact Hessian adds to them. The
+        // other blocks are lent (the exact Hessian's Q, S, R copied: it adds to them).
         let keep = self.knot_constants;
-        let keep_hessian = keep && opts.hessian != HessianApprox::Exact;
+        let exact_hessian = opts.hessian == HessianApprox::Exact;
+        let keep_hessian = keep && !exact_hessian;
         for t in 0..=n {
             let knot = &mut self.lq.knots[t];
             slice_mut(&mut knot.q).copy_from_slice(&self.gx[t]);
             if t < n {
-                let sd = &self.data.stages[t];
+                let sd = &mut self.data.stages[t];
                 let stage = &problem.stages()[t];
-                copy_stage_model(
-                    knot,
-                    sd,
-                    !(keep_hessian && stage.cost.hessian_is_constant()),
-                    !(keep && stage.dynamics.jacobians_are_constant()),
+                let (h_const, d_const) = (
+                    stage.cost.hessian_is_constant(),
+                    stage.dynamics.jacobians_are_constant(),
                 );
+                let loan = Loan {
+                    hessian: !h_const && !exact_hessian,
+                    dynamics: !d_const,
+                    e: !d_const && !sd.dyn_jy_is_minus_identity,
+                };
+                let kept_hessian = keep_hessian && h_const;
+                copy_stage_model(knot, sd, !(loan.hessian || kept_hessian), d_const && !keep);
+                exchange_stage_model(knot, sd, loan);
+                self.loans[t] = loan;
+                let sd = &self.data.stages[t];
                 slice_mut(&mut knot.r).copy_from_slice(&self.gu[t]);
                 for i in 0..knot.nx_next {
                     knot.f[i] = if exact {
@@ -498,6 +517,24 @@ impl Workspace {
             self.add_second_order(problem);
         }
         self.knot_constants = true;
+    }
+
+    /// Gives the stage data back the derivative blocks lent to the knots by
+    /// [`build_lq`](Self::build_lq) (the knots' own buffers return to them). While the
+    /// LQ solver still reads the knots (the gains of a parallel pass, computed when the
+    /// solution is written), the blocks are copied into the knots' buffers as well.
+    pub fn return_loans(&mut self) {
+        let copy = self.riccati.reads_problem_later();
+        for (t, loan) in self.loans.iter_mut().enumerate() {
+            if loan.any() {
+                let (knot, sd) = (&mut self.lq.knots[t], &mut self.data.stages[t]);
+                exchange_stage_model(knot, sd, *loan);
+                if copy {
+                    copy_stage_model(knot, sd, loan.hessian, loan.dynamics);
+                }
+                *loan = Loan::default();
+            }
+        }
     }
 
     /// Back to the dynamics step of the options, at the start of a solve.
@@ -747,21 +784,23 @@ impl Workspace {
         let mut slope = 0.0;
         let mut curv = 0.0;
         for t in 0..=n {
-            let (c, with_u) = if t < n {
-                (&self.data.stages[t].cost, true)
+            let (c, [lxx, lxu, luu]) = if t < n {
+                let c = &self.data.stages[t].cost;
+                (c, hessian_blocks(self.loans[t], &self.lq.knots[t], c))
             } else {
-                (&self.data.terminal_cost, false)
+                let c = &self.data.terminal_cost;
+                (c, [c.lxx.as_ref(), c.lxu.as_ref(), c.luu.as_ref()])
             };
             let dx = slice(&st.xs[t]);
             slope += dot(c.lx(), dx);
             let hx = &mut self.tbuf[t];
-            matvec(hx, Accum::Replace, c.lxx.as_ref(), dx, 1.0);
-            if with_u {
+            matvec(hx, Accum::Replace, lxx, dx, 1.0);
+            if t < n {
                 let du = slice(&st.us[t]);
                 slope += dot(c.lu(), du);
-                matvec(hx, Accum::Add, c.lxu.as_ref(), du, 2.0);
+                matvec(hx, Accum::Add, lxu, du, 2.0);
                 let hu = &mut self.gu[t];
-                matvec(hu, Accum::Replace, c.luu.as_ref(), du, 1.0);
+                matvec(hu, Accum::Replace, luu, du, 1.0);
                 curv += dot(hu, du);
             }
             curv += dot(hx, dx);
@@ -776,16 +815,16 @@ impl Workspace {
             1.0,
         );
         for t in 0..n {
-            let sd = &self.data.stages[t];
+            let [jx, ju, jy] = dynamics_blocks(self.loans[t], &self.lq.knots[t], &self.data.stages[t]);
             let a = &mut self.lin_dyn[t];
-            matvec(a, Accum::Replace, sd.dyn_jx.as_ref(), slice(&st.xs[t]), 1.0);
-            matvec(a, Accum::Add, sd.dyn_ju.as_ref(), slice(&st.us[t]), 1.0);
-            if sd.dyn_jy_is_minus_identity {
+            matvec(a, Accum::Replace, jx, slice(&st.xs[t]), 1.0);
+            matvec(a, Accum::Add, ju, slice(&st.us[t]), 1.0);
+            if self.data.stages[t].dyn_jy_is_minus_identity {
                 for (ai, yi) in a.iter_mut().zip(slice(&st.xs[t + 1])) {
                     *ai -= yi;
                 }
             } else {
-                matvec(a, Accum::Add, sd.dyn_jy.as_ref(), slice(&st.xs[t + 1]), 1.0);
+                matvec(a, Accum::Add, jy, slice(&st.xs[t + 1]), 1.0);
             }
         }
         self.constraint_step(problem);
@@ -1217,6 +1256,26 @@ impl Workspace {
     }
 }
 
+/// The cost Hessian blocks `[lxx, lxu, luu]` of a stage: in its cost data `c`, or in
+/// its knot while they are lent.
+fn hessian_blocks<'a>(loan: Loan, knot: &'a LqKnot, c: &'a CostData) -> [MatRef<'a, f64>; 3] {
+    if loan.hessian {
+        [knot.Q.as_ref(), knot.S.as_ref(), knot.R.as_ref()]
+    } else {
+        [c.lxx.as_ref(), c.lxu.as_ref(), c.luu.as_ref()]
+    }
+}
+
+/// The dynamics Jacobians `[f_x, f_u, f_y]` of a stage, wherever they are.
+fn dynamics_blocks<'a>(loan: Loan, knot: &'a LqKnot, sd: &'a StageData) -> [MatRef<'a, f64>; 3] {
+    let (jx, ju) = if loan.dynamics {
+        (knot.A.as_ref(), knot.B.as_ref())
+    } else {
+        (sd.dyn_jx.as_ref(), sd.dyn_ju.as_ref())
+    };
+    [jx, ju, if loan.e { knot.E.as_ref() } else { sd.dyn_jy.as_ref() }]
+}
+
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
@@ -1383,6 +1442,112 @@ mod tests {
     /// central differences, at random points and steps scaled so
     /// that the root lies inside (0, 1), with the constraint activity changing along the
     /// step for the box and the cone.
+    /// A damped rigid body in the plane, `v̇ = u - v / 10` on the tangent bundle of SE(2):
+    /// a non-abelian group, so that `E ≠ -I` off the dynamics and the state cost's
+    /// Hessian is not constant.
+    #[derive(Debug)]
+    struct Se2Body(Arc<dyn crate::spaces::Manifold>);
+
+    impl crate::dynamics::Ode for Se2Body {
+        fn space(&self) -> &Arc<dyn crate::spaces::Manifold> {
+            &self.0
+        }
+        fn nu(&self) -> usize {
+            3
+        }
+        fn evaluate(&self, x: &[f64], u: &[f64], data: &mut crate::dynamics::OdeData) {
+            let xdot = data.xdot_mut();
+            for i in 0..3 {
+                xdot[i] = x[4 + i];
+                xdot[3 + i] = u[i] - 0.1 * x[4 + i];
+            }
+        }
+        fn jacobians(&self, _x: &[f64], _u: &[f64], data: &mut crate::dynamics::OdeData) {
+            data.jx.fill(0.0);
+            data.ju.fill(0.0);
+            for i in 0..3 {
+                data.jx[(i, 3 + i)] = 1.0;
+                data.jx[(3 + i, 3 + i)] = -0.1;
+                data.ju[(3 + i, i)] = 1.0;
+            }
+        }
+    }
+
+    fn se2_problem(n: usize) -> Problem {
+        use crate::costs::QuadraticStateCost;
+        use crate::dynamics::SemiImplicitEuler;
+        use crate::spaces::{Manifold, SE2, TangentBundle};
+        let se2: Arc<dyn Manifold> = Arc::new(SE2);
+        let space: Arc<dyn Manifold> = Arc::new(TangentBundle::new(se2.clone()));
+        let ode = Arc::new(Se2Body(space.clone()));
+        let dynamics = Dynamics::Explicit(Arc::new(SemiImplicitEuler::new(ode, se2, 0.05).unwrap()));
+        let x_ref = [0.5, -0.2, 0.0, 1.0, 0.0, 0.0, 0.0];
+        let w = [1.0, 1.0, 2.0, 0.1, 0.1, 0.1];
+        let cost = Arc::new(QuadraticStateCost::diagonal(space.clone(), &x_ref, &w, 3).unwrap());
+        let stage = StageModel::new(cost, dynamics).unwrap();
+        let term = Arc::new(QuadraticStateCost::diagonal(space.clone(), &x_ref, &[10.0; 6], 0).unwrap());
+        let mut x0 = vec![0.0; 7];
+        space.neutral(&mut x0);
+        Problem::new(&x0, vec![stage; n], term).unwrap()
+    }
+
+    /// `build_lq` lends the stage data's derivative blocks to the knots instead of
+    /// copying them: the knots hold the blocks of an independent evaluation, also after a
+    /// second build at the same point (the proximal fallback's), and the stage data has
+    /// them back afterwards. The exact Hessian, which the knots add to, is copied.
+    #[test]
+    fn knots_borrow_the_derivative_blocks_and_give_them_back() {
+        let (n, mut rng) = (4, SplitMix64::new(91));
+        let p = se2_problem(n);
+        for hessian in [HessianApprox::GaussNewton, HessianApprox::Exact] {
+            let opts = ProxDdpOptions {
+                hessian,
+                ..ProxDdpOptions::default()
+            };
+            let mut ws = Workspace::new(&p, &opts, None).unwrap();
+            for t in 0..=n {
+                let v: Vec<f64> = (0..6).map(|_| rng.uniform(-1.0, 1.0)).collect();
+                let mut x0 = vec![0.0; 7];
+                p.space(t).neutral(&mut x0);
+                p.space(t).integrate(&x0, &v, &mut ws.cur.xs[t]);
+            }
+            for u in &mut ws.cur.us {
+                fill(u, &mut rng);
+            }
+            let mut fresh = ProblemData::new(&p, 1).unwrap();
+            fresh.evaluate(&p, &ws.cur.xs, &ws.cur.us);
+            fresh.compute_derivatives(&p, &ws.cur.xs, &ws.cur.us);
+            ws.evaluate_current(&p).unwrap();
+            for build in 0..2 {
+                ws.build_lq(&p, &opts, 1e-2, 1e-3);
+                for t in 0..n {
+                    let (f, knot) = (&fresh.stages[t], &ws.lq.knots[t]);
+                    let lent_hessian = hessian == HessianApprox::GaussNewton;
+                    let want = Loan {
+                        hessian: lent_hessian,
+                        dynamics: true,
+                        e: true,
+                    };
+                    assert_eq!(ws.loans[t], want, "{hessian:?} build {build} knot {t}");
+                    if lent_hessian {
+                        assert_eq!((&knot.Q, &knot.S, &knot.R), (&f.cost.lxx, &f.cost.lxu, &f.cost.luu));
+                    }
+                    assert_eq!((&knot.A, &knot.B, &knot.E), (&f.dyn_jx, &f.dyn_ju, &f.dyn_jy));
+                    assert!(f.dyn_jy != -Mat::<f64>::identity(6, 6), "E = -I: no loan tested");
+                }
+            }
+            ws.return_loans();
+            for (t, (d, f)) in ws.data.stages.iter().zip(&fresh.stages).enumerate() {
+                assert_eq!(ws.loans[t], Loan::default());
+                assert_eq!(
+                    (&d.cost.lxx, &d.cost.lxu, &d.cost.luu),
+                    (&f.cost.lxx, &f.cost.lxu, &f.cost.luu)
+                );
+                assert_eq!((&d.dyn_jx, &d.dyn_ju, &d.dyn_jy), (&f.dyn_jx, &f.dyn_ju, &f.dyn_jy));
+            }
+        }
+    }
+
     #[test]
     fn model_step_matches_bisection_of_the_model_slope() {
         let mut rng = SplitMix64::new(17);
