@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use faer::{Accum, Col, Mat};
+use faer::{Accum, Col, Mat, MatRef};
 
 use super::{InitialCondition, Problem, StageConstraint, StageModel};
 use crate::costs::CostData;
@@ -47,6 +47,10 @@ pub struct StageData {
     /// Whether `dyn_jy` is `-I` at every point (explicit dynamics on a vector space), so
     /// that products with it reduce to negations.
     pub dyn_jy_is_minus_identity: bool,
+    /// `dyn_jy` is `-I` outside its leading `dyn_jy_block × dyn_jy_block` block: the next
+    /// space's [`nonlinear_dim`](crate::spaces::Manifold::nonlinear_dim) for explicit
+    /// dynamics (0 when `dyn_jy = -I`), `ndx_next` (no structure) for implicit ones.
+    pub dyn_jy_block: usize,
     /// One data object per path constraint, in the stage's order.
     pub constraints: Vec<StageFunctionData>,
     /// Per path constraint: whether its `jx` is constant and zero (a constraint on the
@@ -195,6 +199,11 @@ impl StageData {
             dyn_jy[(i, i)] = -1.0;
         }
         let dyn_jy_is_minus_identity = matches!(stage.dynamics, Dynamics::Explicit(_)) && sn.is_vector_space();
+        let dyn_jy_block = match stage.dynamics {
+            Dynamics::Explicit(_) if dyn_jy_is_minus_identity => 0,
+            Dynamics::Explicit(_) => sn.nonlinear_dim(),
+            Dynamics::Implicit(_) => ndx2,
+        };
         Self {
             cost: stage.cost.create_data(),
             dynamics,
@@ -203,6 +212,7 @@ impl StageData {
             dyn_ju: Mat::zeros(ndx2, nu),
             dyn_jy,
             dyn_jy_is_minus_identity,
+            dyn_jy_block,
             constraints: stage.constraints().iter().map(|c| c.func.create_data()).collect(),
             constraint_jx_zero: vec![false; stage.constraints().len()],
             jdiff_phi: Mat::identity(ndx2, ndx2),
@@ -683,8 +693,46 @@ impl ProblemData {
     /// Gradient of the Lagrangian
     /// `J + λ_0ᵀ r_0 + Σ λ_{t+1}ᵀ f_t + Σ ν_tᵀ h_t + ν_Nᵀ h_N` with respect to every
     /// state (`gx[t]`, `t = 0..=N`) and control (`gu[t]`, `t < N`), from the derivatives
-    /// of the last [`ProblemData::compute_derivatives`] (ProxDDP (24)).
+    /// of the last [`ProblemData::compute_derivatives`] (ProxDDP (24)):
+    /// [`lagrangian_gradient_forward`](Self::lagrangian_gradient_forward) then
+    /// [`add_lagrangian_rest`](Self::add_lagrangian_rest).
     pub fn lagrangian_gradient(
+        &self,
+        problem: &Problem,
+        lambdas: &[Vec<f64>],
+        nus: &[Vec<f64>],
+        gx: &mut [Vec<f64>],
+        gu: &mut [Vec<f64>],
+    ) {
+        self.lagrangian_gradient_forward(problem, lambdas, gx, gu);
+        self.add_lagrangian_rest(problem, lambdas, nus, gx, gu);
+    }
+
+    /// The cost gradient and the next co-state's terms of the Lagrangian gradient,
+    /// `∇_x ℓ_t + f_xᵀ λ_{t+1}` and `∇_u ℓ_t + f_uᵀ λ_{t+1}` (`∇ℓ_N` at `N`): the part the
+    /// constraint multipliers do not change.
+    pub fn lagrangian_gradient_forward(
+        &self,
+        problem: &Problem,
+        lambdas: &[Vec<f64>],
+        gx: &mut [Vec<f64>],
+        gu: &mut [Vec<f64>],
+    ) {
+        let n = problem.horizon();
+        for (t, sd) in self.stages.iter().enumerate() {
+            gx[t].copy_from_slice(sd.cost.lx());
+            gu[t].copy_from_slice(sd.cost.lu());
+            matvec_t(&mut gx[t], Accum::Add, sd.dyn_jx.as_ref(), &lambdas[t + 1], 1.0);
+            matvec_t(&mut gu[t], Accum::Add, sd.dyn_ju.as_ref(), &lambdas[t + 1], 1.0);
+        }
+        gx[n].copy_from_slice(self.terminal_cost.lx());
+    }
+
+    /// Adds the constraints' terms `h_xᵀ ν`, `h_uᵀ ν` and the entering co-state's
+    /// `f_yᵀ λ_t` (`r_0ᵀ λ_0` at 0) to the output of
+    /// [`lagrangian_gradient_forward`](Self::lagrangian_gradient_forward), in the order of
+    /// one pass (the same sums).
+    pub fn add_lagrangian_rest(
         &self,
         problem: &Problem,
         lambdas: &[Vec<f64>],
@@ -697,10 +745,6 @@ impl ProblemData {
             let g = &mut gx[t];
             if t < n {
                 let sd = &self.stages[t];
-                g.copy_from_slice(sd.cost.lx());
-                gu[t].copy_from_slice(sd.cost.lu());
-                matvec_t(g, Accum::Add, sd.dyn_jx.as_ref(), &lambdas[t + 1], 1.0);
-                matvec_t(&mut gu[t], Accum::Add, sd.dyn_ju.as_ref(), &lambdas[t + 1], 1.0);
                 let mut off = 0;
                 for (k, (c, cd)) in problem.stages()[t]
                     .constraints()
@@ -716,7 +760,6 @@ impl ProblemData {
                     off += c.nr();
                 }
             } else {
-                g.copy_from_slice(self.terminal_cost.lx());
                 let mut off = 0;
                 for (c, cd) in problem.terminal_constraints().iter().zip(&self.terminal_constraints) {
                     matvec_t(g, Accum::Add, cd.jx.as_ref(), &nus[n][off..off + c.nr()], 1.0);
@@ -726,12 +769,9 @@ impl ProblemData {
             // The co-state entering from the previous stage, or the initial condition.
             if t == 0 {
                 matvec_t(g, Accum::Add, self.init.jx.as_ref(), &lambdas[0], 1.0);
-            } else if self.stages[t - 1].dyn_jy_is_minus_identity {
-                for (gi, li) in g.iter_mut().zip(&lambdas[t]) {
-                    *gi -= li;
-                }
             } else {
-                matvec_t(g, Accum::Add, self.stages[t - 1].dyn_jy.as_ref(), &lambdas[t], 1.0);
+                let sd = &self.stages[t - 1];
+                add_jy_t_product(g, sd.dyn_jy.as_ref(), sd.dyn_jy_block, &lambdas[t]);
             }
         }
     }
@@ -778,5 +818,29 @@ impl ProblemData {
             }
         }
         Ok(())
+    }
+}
+
+/// `g += f_yᵀ λ` for an `f_y` that is `-I` outside its leading `k × k` block
+/// ([`StageData::dyn_jy_block`]): the products of its first `k` columns, negations for
+/// the others. The same sums as the whole product (up to the sign of zeros), without
+/// reading the identity part.
+pub(crate) fn add_jy_t_product(g: &mut [f64], jy: MatRef<'_, f64>, k: usize, lambda: &[f64]) {
+    if k > 0 {
+        matvec_t(&mut g[..k], Accum::Add, jy.subcols(0, k), lambda, 1.0);
+    }
+    for (gi, li) in g[k..].iter_mut().zip(&lambda[k..]) {
+        *gi -= li;
+    }
+}
+
+/// `a += f_y δy` for the same `f_y` as [`add_jy_t_product`]: the block's product on the
+/// first `k` entries, negations for the others (the same sums as the whole product).
+pub(crate) fn add_jy_product(a: &mut [f64], jy: MatRef<'_, f64>, k: usize, dy: &[f64]) {
+    if k > 0 {
+        crate::linalg::matvec(&mut a[..k], Accum::Add, jy.submatrix(0, 0, k, k), &dy[..k], 1.0);
+    }
+    for (ai, yi) in a[k..].iter_mut().zip(&dy[k..]) {
+        *ai -= yi;
     }
 }

@@ -15,6 +15,7 @@ mod data;
 mod kkt;
 pub mod minimum_time;
 
+pub(crate) use data::add_jy_product;
 pub use data::{DynamicsData, ImplicitSolve, ProblemData, StageData};
 pub use kkt::{KktResiduals, kkt_residuals};
 pub use minimum_time::{ContinuousStage, MinimumTime};

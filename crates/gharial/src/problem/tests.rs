@@ -669,6 +669,22 @@ fn closed_gap_jacobians_match_finite_differences() {
             d.compute_derivatives(&p, &xs, &us);
             let s = &d.stages[0];
             assert_eq!(s.gap_closed, closed, "{name}");
+            // `E = -I` outside its leading block, which the structured products rely on.
+            let k = s.dyn_jy_block;
+            assert_eq!(
+                k,
+                if s.dyn_jy_is_minus_identity {
+                    0
+                } else {
+                    space.nonlinear_dim()
+                }
+            );
+            for c in 0..ndx {
+                for r in (0..ndx).filter(|&r| r >= k || c >= k) {
+                    let want = if r == c { -1.0 } else { 0.0 };
+                    assert_eq!(s.dyn_jy[(r, c)], want, "{name} closed {closed} E ({r}, {c})");
+                }
+            }
             // f(x ⊕ δx, u + δu, y ⊕ δy) by central differences, column by column.
             let f = |dx: &[f64], du: &[f64], dy: &[f64]| {
                 let (mut xp, mut yp) = (vec![0.0; nx], vec![0.0; nx]);
@@ -699,6 +715,40 @@ fn closed_gap_jacobians_match_finite_differences() {
                     }
                 }
             }
+        }
+    }
+}
+
+/// The products with an `f_y` that is `-I` outside a leading block give the whole
+/// products' values, for every block size and on both sides of the fixed-size kernels'
+/// range (16 rows).
+#[test]
+fn structured_jy_products_equal_the_whole_products() {
+    use crate::functions::testing::{random_mat, random_vec, rng};
+    use crate::linalg::{matvec, matvec_t};
+    use faer::{Accum, Mat};
+    let mut g = rng(5);
+    for n in [9, 20, 36] {
+        for k in [0, 1, 3, 4, 6, n] {
+            let b = random_mat(&mut g, k, k, 1.0);
+            let jy = Mat::from_fn(n, n, |i, j| {
+                if i < k && j < k {
+                    b[(i, j)]
+                } else if i == j {
+                    -1.0
+                } else {
+                    0.0
+                }
+            });
+            let (x, y0) = (random_vec(&mut g, n, 1.0), random_vec(&mut g, n, 1.0));
+            let (mut whole, mut parts) = (y0.clone(), y0.clone());
+            matvec_t(&mut whole, Accum::Add, jy.as_ref(), &x, 1.0);
+            data::add_jy_t_product(&mut parts, jy.as_ref(), k, &x);
+            assert_eq!(whole, parts, "transposed, n = {n}, k = {k}");
+            let (mut whole, mut parts) = (y0.clone(), y0);
+            matvec(&mut whole, Accum::Add, jy.as_ref(), &x, 1.0);
+            data::add_jy_product(&mut parts, jy.as_ref(), k, &x);
+            assert_eq!(whole, parts, "n = {n}, k = {k}");
         }
     }
 }

@@ -11,11 +11,11 @@ use crate::dynamics::Dynamics;
 use crate::error::{Error, Result};
 use crate::linalg::{matvec, matvec_t, norm_inf, slice, slice_mut};
 use crate::lq::{LqKnot, LqProblem, LqSolution, LqSolver, RiccatiOptions};
-use crate::problem::{DynamicsData, ImplicitSolve, Problem, ProblemData, StageData, StageModel};
+use crate::problem::{DynamicsData, ImplicitSolve, Problem, ProblemData, StageData, StageModel, add_jy_product};
 use crate::solvers::InitialGuess;
 use crate::solvers::skeleton::{
-    ConstraintEntry, Loan, Receding, constraint_index, copy_stage_model, exchange_stage_model, fill_constraint_index,
-    pad_constraint_rows, shift_rows,
+    ConstraintEntry, Loan, Receding, constraint_index, copy_stage_model, copy_trajectory, exchange_stage_model,
+    fill_constraint_index, pad_constraint_rows, shift_rows,
 };
 
 /// The active-set prediction stops when the step solves the piecewise-linear constraint
@@ -109,6 +109,14 @@ pub(super) struct Workspace {
     /// Lagrangian gradient per knot.
     gx: Vec<Vec<f64>>,
     gu: Vec<Vec<f64>>,
+    /// Its part that the constraint multipliers leave alone, `∇ℓ + f_xᵀ λ` and
+    /// `∇_u ℓ + f_uᵀ λ` ([`ProblemData::lagrangian_gradient_forward`]), at the co-states
+    /// `gf_lams` and, while `gf_valid`, the current derivatives: shared by the residuals'
+    /// gradient and the Newton system's.
+    gfx: Vec<Vec<f64>>,
+    gfu: Vec<Vec<f64>>,
+    gf_lams: Vec<Vec<f64>>,
+    gf_valid: bool,
     /// Scratch of state tangent size per knot (`x_t^α ⊖ x_t`, Jacobian-vector products).
     dxbuf: Vec<Vec<f64>>,
     /// Scratch of state representation size per knot.
@@ -199,6 +207,10 @@ impl Workspace {
             pbuf: vecs(&nus_sizes),
             gx: vecs(&ndxs),
             gu: (0..n).map(|t| vec![0.0; problem.nu(t)]).collect(),
+            gfx: vecs(&ndxs),
+            gfu: (0..n).map(|t| vec![0.0; problem.nu(t)]).collect(),
+            gf_lams: cur.lams.clone(),
+            gf_valid: false,
             dxbuf: vecs(&ndxs),
             ybuf: (0..=n).map(|t| vec![0.0; problem.space(t).nx()]).collect(),
             lin_init: vec![0.0; nc0],
@@ -264,6 +276,7 @@ impl Workspace {
             )));
         }
         self.data.shift(slot.map(|s| &mut self.spare[s]));
+        self.gf_valid = false;
         let n = problem.horizon();
         let nc_tail = problem.stages()[n - 1].nc();
         for rows in self.stage_rows() {
@@ -284,6 +297,7 @@ impl Workspace {
     /// changed in place, so the constant derivative blocks are written anew.
     pub fn load_guess(&mut self, guess: &InitialGuess<'_>) {
         self.data.invalidate_constant_derivatives();
+        self.gf_valid = false;
         self.knot_constants = false;
         for (a, b) in self.cur.xs.iter_mut().zip(guess.xs) {
             a.copy_from_slice(b);
@@ -330,6 +344,7 @@ impl Workspace {
     /// or `None` if a value is not finite.
     pub fn evaluate_current(&mut self, problem: &Problem) -> Option<f64> {
         self.return_loans();
+        self.gf_valid = false;
         let c = self.data.evaluate(problem, &self.cur.xs, &self.cur.us);
         if !self.values_finite() || !c.is_finite() {
             return None;
@@ -343,6 +358,7 @@ impl Workspace {
     /// returns the cost, or `None` if a value is not finite.
     pub fn derivatives_at_accepted(&mut self, problem: &Problem) -> Option<f64> {
         self.return_loans();
+        self.gf_valid = false;
         let c = self.accepted_cost()?;
         self.data.compute_derivatives(problem, &self.cur.xs, &self.cur.us);
         Some(c)
@@ -406,8 +422,7 @@ impl Workspace {
                 inner = inner.max((mu_i * (np[i] - self.cur.nus[t][off + i])).abs());
             }
         }
-        self.data
-            .lagrangian_gradient(problem, &self.cur.lams, &self.cur.nus, &mut self.gx, &mut self.gu);
+        self.lagrangian_gradient(problem, false);
         let dual = self
             .gx
             .iter()
@@ -446,8 +461,7 @@ impl Workspace {
         self.return_loans();
         let n = problem.horizon();
         self.effective_multipliers(problem, mu, false);
-        self.data
-            .lagrangian_gradient(problem, &self.cur.lams, &self.nus_g, &mut self.gx, &mut self.gu);
+        self.lagrangian_gradient(problem, true);
         if opts.hessian == HessianApprox::Exact {
             self.data
                 .compute_second_order(problem, &self.cur.xs, &self.cur.us, &self.lams_p, &self.nus_p);
@@ -517,6 +531,24 @@ impl Workspace {
             self.add_second_order(problem);
         }
         self.knot_constants = true;
+    }
+
+    /// The Lagrangian gradient (24) at the current derivatives and co-states into `gx`,
+    /// `gu`, with the effective constraint multipliers `nus_g` or the current ones; its
+    /// multiplier-free part is computed once for both while the derivatives and the
+    /// co-states stay the same.
+    fn lagrangian_gradient(&mut self, problem: &Problem, effective: bool) {
+        if !(self.gf_valid && self.gf_lams == self.cur.lams) {
+            self.data
+                .lagrangian_gradient_forward(problem, &self.cur.lams, &mut self.gfx, &mut self.gfu);
+            copy_trajectory(&mut self.gf_lams, &self.cur.lams);
+            self.gf_valid = true;
+        }
+        copy_trajectory(&mut self.gx, &self.gfx);
+        copy_trajectory(&mut self.gu, &self.gfu);
+        let nus = if effective { &self.nus_g } else { &self.cur.nus };
+        self.data
+            .add_lagrangian_rest(problem, &self.cur.lams, nus, &mut self.gx, &mut self.gu);
     }
 
     /// Gives the stage data back the derivative blocks lent to the knots by
@@ -815,17 +847,12 @@ impl Workspace {
             1.0,
         );
         for t in 0..n {
-            let [jx, ju, jy] = dynamics_blocks(self.loans[t], &self.lq.knots[t], &self.data.stages[t]);
+            let sd = &self.data.stages[t];
+            let [jx, ju, jy] = dynamics_blocks(self.loans[t], &self.lq.knots[t], sd);
             let a = &mut self.lin_dyn[t];
             matvec(a, Accum::Replace, jx, slice(&st.xs[t]), 1.0);
             matvec(a, Accum::Add, ju, slice(&st.us[t]), 1.0);
-            if self.data.stages[t].dyn_jy_is_minus_identity {
-                for (ai, yi) in a.iter_mut().zip(slice(&st.xs[t + 1])) {
-                    *ai -= yi;
-                }
-            } else {
-                matvec(a, Accum::Add, jy, slice(&st.xs[t + 1]), 1.0);
-            }
+            add_jy_product(a, jy, sd.dyn_jy_block, slice(&st.xs[t + 1]));
         }
         self.constraint_step(problem);
     }
@@ -1489,6 +1516,53 @@ mod tests {
         let mut x0 = vec![0.0; 7];
         space.neutral(&mut x0);
         Problem::new(&x0, vec![stage; n], term).unwrap()
+    }
+
+    /// The Newton system's Lagrangian gradient reuses the residuals' multiplier-free part
+    /// only while the derivatives and the co-states are those it was computed at: it
+    /// equals a whole evaluation bit for bit after the residuals, after a change of the
+    /// co-states and after new derivatives.
+    #[test]
+    fn the_shared_gradient_part_follows_the_co_states_and_the_derivatives() {
+        let (n, mut rng) = (4, SplitMix64::new(7));
+        let p = se2_problem(n);
+        let opts = ProxDdpOptions::default();
+        let mut ws = Workspace::new(&p, &opts, None).unwrap();
+        let random_point = |ws: &mut Workspace, rng: &mut SplitMix64| {
+            for t in 0..=n {
+                let v: Vec<f64> = (0..6).map(|_| rng.uniform(-1.0, 1.0)).collect();
+                let mut x0 = vec![0.0; 7];
+                p.space(t).neutral(&mut x0);
+                p.space(t).integrate(&x0, &v, &mut ws.cur.xs[t]);
+            }
+            for v in ws.cur.us.iter_mut().chain(&mut ws.cur.lams) {
+                fill(v, rng);
+            }
+        };
+        let expect = |ws: &mut Workspace| {
+            ws.return_loans();
+            let (mut gx, mut gu) = (ws.gx.clone(), ws.gu.clone());
+            ws.data
+                .lagrangian_gradient(&p, &ws.cur.lams, &ws.nus_g, &mut gx, &mut gu);
+            assert_eq!((&ws.gx, &ws.gu), (&gx, &gu));
+        };
+        random_point(&mut ws, &mut rng);
+        ws.evaluate_current(&p).unwrap();
+        ws.estimates_and_residuals(&p, 1e-2, 1e-3);
+        ws.build_lq(&p, &opts, 1e-2, 1e-3);
+        expect(&mut ws);
+        for v in &mut ws.cur.lams {
+            fill(v, &mut rng);
+        }
+        ws.build_lq(&p, &opts, 1e-2, 1e-3);
+        expect(&mut ws);
+        ws.estimates_and_residuals(&p, 1e-2, 1e-3);
+        let lams = ws.cur.lams.clone();
+        random_point(&mut ws, &mut rng);
+        ws.evaluate_current(&p).unwrap();
+        ws.cur.lams = lams;
+        ws.build_lq(&p, &opts, 1e-2, 1e-3);
+        expect(&mut ws);
     }
 
     /// `build_lq` lends the stage data's derivative blocks to the knots instead of
