@@ -708,7 +708,7 @@ impl ProblemData {
         self.add_lagrangian_rest(problem, lambdas, nus, gx, gu);
     }
 
-    /// The cost gradient and the next co-state's terms of the Lagrangian gradient,
+    /// The cost gradient and the next co-state's terms of the Lagrangian gradient (24),
     /// `∇_x ℓ_t + f_xᵀ λ_{t+1}` and `∇_u ℓ_t + f_uᵀ λ_{t+1}` (`∇ℓ_N` at `N`): the part the
     /// constraint multipliers do not change.
     pub fn lagrangian_gradient_forward(

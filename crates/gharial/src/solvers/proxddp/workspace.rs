@@ -109,14 +109,8 @@ pub(super) struct Workspace {
     /// Lagrangian gradient per knot.
     gx: Vec<Vec<f64>>,
     gu: Vec<Vec<f64>>,
-    /// Its part that the constraint multipliers leave alone, `∇ℓ + f_xᵀ λ` and
-    /// `∇_u ℓ + f_uᵀ λ` ([`ProblemData::lagrangian_gradient_forward`]), at the co-states
-    /// `gf_lams` and, while `gf_valid`, the current derivatives: shared by the residuals'
-    /// gradient and the Newton system's.
-    gfx: Vec<Vec<f64>>,
-    gfu: Vec<Vec<f64>>,
-    gf_lams: Vec<Vec<f64>>,
-    gf_valid: bool,
+    /// Its part that the constraint multipliers leave alone.
+    gf: GradientPart,
     /// Scratch of state tangent size per knot (`x_t^α ⊖ x_t`, Jacobian-vector products).
     dxbuf: Vec<Vec<f64>>,
     /// Scratch of state representation size per knot.
@@ -207,10 +201,7 @@ impl Workspace {
             pbuf: vecs(&nus_sizes),
             gx: vecs(&ndxs),
             gu: (0..n).map(|t| vec![0.0; problem.nu(t)]).collect(),
-            gfx: vecs(&ndxs),
-            gfu: (0..n).map(|t| vec![0.0; problem.nu(t)]).collect(),
-            gf_lams: cur.lams.clone(),
-            gf_valid: false,
+            gf: GradientPart::new(problem, &cur.lams),
             dxbuf: vecs(&ndxs),
             ybuf: (0..=n).map(|t| vec![0.0; problem.space(t).nx()]).collect(),
             lin_init: vec![0.0; nc0],
@@ -276,7 +267,7 @@ impl Workspace {
             )));
         }
         self.data.shift(slot.map(|s| &mut self.spare[s]));
-        self.gf_valid = false;
+        self.gf.valid = false;
         let n = problem.horizon();
         let nc_tail = problem.stages()[n - 1].nc();
         for rows in self.stage_rows() {
@@ -297,7 +288,7 @@ impl Workspace {
     /// changed in place, so the constant derivative blocks are written anew.
     pub fn load_guess(&mut self, guess: &InitialGuess<'_>) {
         self.data.invalidate_constant_derivatives();
-        self.gf_valid = false;
+        self.gf.valid = false;
         self.knot_constants = false;
         for (a, b) in self.cur.xs.iter_mut().zip(guess.xs) {
             a.copy_from_slice(b);
@@ -344,7 +335,7 @@ impl Workspace {
     /// or `None` if a value is not finite.
     pub fn evaluate_current(&mut self, problem: &Problem) -> Option<f64> {
         self.return_loans();
-        self.gf_valid = false;
+        self.gf.valid = false;
         let c = self.data.evaluate(problem, &self.cur.xs, &self.cur.us);
         if !self.values_finite() || !c.is_finite() {
             return None;
@@ -358,7 +349,7 @@ impl Workspace {
     /// returns the cost, or `None` if a value is not finite.
     pub fn derivatives_at_accepted(&mut self, problem: &Problem) -> Option<f64> {
         self.return_loans();
-        self.gf_valid = false;
+        self.gf.valid = false;
         let c = self.accepted_cost()?;
         self.data.compute_derivatives(problem, &self.cur.xs, &self.cur.us);
         Some(c)
@@ -538,14 +529,15 @@ impl Workspace {
     /// multiplier-free part is computed once for both while the derivatives and the
     /// co-states stay the same.
     fn lagrangian_gradient(&mut self, problem: &Problem, effective: bool) {
-        if !(self.gf_valid && self.gf_lams == self.cur.lams) {
+        let gf = &mut self.gf;
+        if !(gf.valid && gf.lams == self.cur.lams) {
             self.data
-                .lagrangian_gradient_forward(problem, &self.cur.lams, &mut self.gfx, &mut self.gfu);
-            copy_trajectory(&mut self.gf_lams, &self.cur.lams);
-            self.gf_valid = true;
+                .lagrangian_gradient_forward(problem, &self.cur.lams, &mut gf.x, &mut gf.u);
+            copy_trajectory(&mut gf.lams, &self.cur.lams);
+            gf.valid = true;
         }
-        copy_trajectory(&mut self.gx, &self.gfx);
-        copy_trajectory(&mut self.gu, &self.gfu);
+        copy_trajectory(&mut self.gx, &gf.x);
+        copy_trajectory(&mut self.gu, &gf.u);
         let nus = if effective { &self.nus_g } else { &self.cur.nus };
         self.data
             .add_lagrangian_rest(problem, &self.cur.lams, nus, &mut self.gx, &mut self.gu);
@@ -1279,6 +1271,32 @@ impl Workspace {
         if err < self.best_err {
             self.best_err = err;
             self.best.copy_from(&self.cur);
+        }
+    }
+}
+
+/// The part of the Lagrangian gradient (24) that the constraint multipliers leave alone,
+/// `∇ℓ + f_xᵀ λ` and `∇_u ℓ + f_uᵀ λ` per knot
+/// ([`ProblemData::lagrangian_gradient_forward`]), at the co-states `lams` and, while
+/// `valid`, the current derivatives: shared by the residuals' gradient and the Newton
+/// system's.
+#[derive(Debug)]
+struct GradientPart {
+    x: Vec<Vec<f64>>,
+    u: Vec<Vec<f64>>,
+    lams: Vec<Vec<f64>>,
+    valid: bool,
+}
+
+impl GradientPart {
+    /// Storage for `problem`, co-states shaped like `lams`; not valid yet.
+    fn new(problem: &Problem, lams: &[Vec<f64>]) -> Self {
+        let n = problem.horizon();
+        Self {
+            x: (0..=n).map(|t| vec![0.0; problem.space(t).ndx()]).collect(),
+            u: (0..n).map(|t| vec![0.0; problem.nu(t)]).collect(),
+            lams: lams.to_vec(),
+            valid: false,
         }
     }
 }
