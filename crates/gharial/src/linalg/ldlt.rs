@@ -9,7 +9,7 @@ use faer::{Mat, MatMut, MatRef, Par};
 use super::copy::copy_lower;
 use super::matvec::axpy;
 use super::reduce::{dot, lower_sum_is_finite};
-use super::small::{ldlt_solve_fixed, small_factor};
+use super::small::{ldlt_solve_fixed, ldlt_solve_neg_transposed_fixed, small_factor};
 use super::{FactorError, Inertia, stack_buffer};
 
 /// Largest dimension of the vector LDLᵀ solve kernel.
@@ -197,6 +197,19 @@ impl Ldlt {
         let f = self.factors.as_ref().submatrix(0, 0, n, n);
         ldlt::solve::solve_in_place(f, f.diagonal(), rhs, Par::Seq, stack);
     }
+
+    /// Solves `A X = -Bᵀ` for `X` (`n × m`, into `x`) from `B` (`m × n`) without forming
+    /// `-Bᵀ`, with the arithmetic of [`solve_in_place`](Self::solve_in_place) (the same
+    /// result to the bit). Only for `n` up to [`SMALL_DIM`](super::SMALL_DIM) and unit row
+    /// strides; returns `false` (and does nothing) otherwise.
+    pub fn solve_neg_transposed(&self, b: MatRef<'_, f64>, x: MatMut<'_, f64>) -> bool {
+        let n = self.dim();
+        debug_assert_eq!((b.ncols(), x.nrows(), x.ncols()), (n, n, b.nrows()));
+        if b.row_stride() != 1 || x.row_stride() != 1 {
+            return false;
+        }
+        with_small_dim!(n, ldlt_solve_neg_transposed_fixed, (self.active(), b, x)).is_some()
+    }
 }
 
 /// Columns of the right-hand sides summed together by [`Ldlt::solve_rows_in_place`].
@@ -351,6 +364,39 @@ mod tests {
                     }
                 }
                 assert!(residual(k.as_ref(), x_row.as_ref(), b.as_ref()) < 1e-9, "n {n}, w {w}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_negated_transposed_solve_is_the_in_place_solve_bit_for_bit() {
+        // X = -A⁻¹Bᵀ from B (m × n) for m = 1 (one lane), 4 (one group), 37 (groups and a
+        // padded rest): every entry equals the in-place solve of the negated transpose,
+        // which solves the system; past n = 12, and for a strided B, it declines.
+        for n in [1usize, 5, 12, 13] {
+            let k = quasi_definite(n, n.div_ceil(2), n as u64 + 11, 1e-3);
+            let mut f = Ldlt::new(n);
+            f.factor(k.as_ref()).unwrap();
+            for m in [1usize, 4, 37] {
+                let b = filled(m, n, n + m);
+                let mut x = Mat::<f64>::zeros(n, m);
+                let done = f.solve_neg_transposed(b.as_ref(), x.as_mut());
+                assert_eq!(done, n <= crate::linalg::SMALL_DIM, "n {n}, m {m}");
+                if !done {
+                    assert!(x.col_iter().all(|c| c.iter().all(|&v| v == 0.0)));
+                    continue;
+                }
+                let neg_bt = Mat::from_fn(n, m, |i, j| -b[(j, i)]);
+                let mut x_ref = neg_bt.clone();
+                f.solve_in_place(x_ref.as_mut());
+                for (i, j) in (0..n).flat_map(|i| (0..m).map(move |j| (i, j))) {
+                    assert_eq!(x[(i, j)].to_bits(), x_ref[(i, j)].to_bits(), "n {n}, m {m}: ({i}, {j})");
+                }
+                assert!(residual(k.as_ref(), x.as_ref(), neg_bt.as_ref()) < 1e-9, "n {n}, m {m}");
+                if n > 1 {
+                    let by_rows = Mat::<f64>::zeros(n, m);
+                    assert!(!f.solve_neg_transposed(by_rows.as_ref().transpose(), x.as_mut()));
+                }
             }
         }
     }
