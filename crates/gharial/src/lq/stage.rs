@@ -587,6 +587,9 @@ impl RiccatiStage {
     /// Solves the factored stage KKT system for the feedback gains `[K; Z]` from the
     /// right-hand side `-[Q_ux; C]` (47a), and for the feedforward column too with `d`.
     fn solve_gains(&mut self, knot: &LqKnot, d: Option<&[f64]>) {
+        if self.solve_gains_decoupled(knot, d) {
+            return;
+        }
         let (nx, nu, nc) = (self.nx, self.nu, self.nc);
         let mut rhs = self.gains.as_mut().submatrix_mut(0, 1, nu + nc, nx);
         linalg::copy(
@@ -602,6 +605,43 @@ impl RiccatiStage {
             }
             None => self.kkt.solve_in_place(rhs),
         }
+    }
+
+    /// [`solve_gains`](Self::solve_gains) when no constraint row couples with the controls
+    /// (inactive constraints, constraints on the state alone) and `nu` is small: `K` is
+    /// solved straight from `Q_xu` (the mirror of `Q_ux`, whose rows it holds contiguously)
+    /// into the gains, and the constraint rows are `Z = C / mu_c` (`ζ = d / mu_c`), the
+    /// general path's `-C / -mu_c` to the bit, without the copies into the gains. Returns
+    /// `false` (and does nothing) when these conditions do not hold.
+    fn solve_gains_decoupled(&mut self, knot: &LqKnot, d: Option<&[f64]>) -> bool {
+        let (nx, nu, nc) = (self.nx, self.nu, self.nc);
+        if !self.kkt.controls_alone(nu) {
+            return false;
+        }
+        let q_xu = self.qmat.as_ref().submatrix(0, nx, nx, nu);
+        let k = self.gains.as_mut().submatrix_mut(0, 1, nu, nx);
+        if nu > 0 && !self.kkt.ldlt.solve_neg_transposed(q_xu, k) {
+            return false;
+        }
+        for j in 0..nx {
+            let (z, c) = (&mut col_of_mut(&mut self.gains, j + 1)[nu..], col_of(&knot.C, j));
+            for ((z, &c), &mu) in z.iter_mut().zip(c).zip(slice(&knot.mu_c)) {
+                *z = c / mu;
+            }
+        }
+        if let Some(d) = d {
+            self.fill_feedforward_rhs(d);
+            let g0 = col_of_mut(&mut self.gains, 0);
+            if nu > 0 {
+                self.kkt
+                    .ldlt
+                    .solve_in_place(MatMut::from_column_major_slice_mut(&mut g0[..nu], nu, 1));
+            }
+            for ((z, &di), &mu) in g0[nu..nu + nc].iter_mut().zip(d).zip(slice(&knot.mu_c)) {
+                *z = di / mu;
+            }
+        }
+        true
     }
 
     /// `P = Q_xx + [Q_xu Cᵀ][K; Z]` (47b), the Schur complement of the stage KKT matrix.
@@ -1232,6 +1272,12 @@ impl KktFactor {
             gather: vec![0.0; nk * max_rhs],
             max_rhs,
         }
+    }
+
+    /// Whether the LDLᵀ path factors the `nu` control rows alone (every constraint row
+    /// decoupled).
+    fn controls_alone(&self, nu: usize) -> bool {
+        !self.use_bk && self.coupled.len() == nu
     }
 
     /// Sorts the rows of the LDLᵀ path into coupled and decoupled ones (none decoupled
