@@ -36,6 +36,10 @@ const DENSE_MIN_ROWS: usize = 3;
 /// faster in faer).
 const DENSE_MIN_WORK: usize = 768;
 
+/// Most rows of a Jacobian whose spans are searched row by row (fewer than an AVX2
+/// vector per column for the column-wise search).
+const ROW_SCAN_MAX_ROWS: usize = 3;
+
 /// The rows of a loaded Jacobian: the span of each, and their entries (copied only when
 /// the rank-one kernels will read them).
 #[derive(Debug, Clone)]
@@ -108,10 +112,19 @@ impl Rows {
         }
     }
 
-    /// Per row of `a`, the first and one past the last nonzero column, from columns in
-    /// increasing order (branch-free, so that the loop over a column's rows is
-    /// vectorised); a row without one gets the empty span.
+    /// Per row of `a`, the first and one past the last nonzero column (a row without one
+    /// gets the empty span): from columns in increasing order (branch-free, so that the
+    /// loop over a column's rows is vectorised), or row by row for a few rows.
     fn find_spans(&mut self, a: MatRef<'_, f64>) {
+        if a.nrows() <= ROW_SCAN_MAX_ROWS {
+            self.find_spans_by_rows(a);
+        } else {
+            self.find_spans_by_columns(a);
+        }
+    }
+
+    /// [`find_spans`](Self::find_spans) column by column.
+    fn find_spans_by_columns(&mut self, a: MatRef<'_, f64>) {
         let (nr, n) = (a.nrows(), a.ncols());
         let (first, last) = (&mut self.first[..nr], &mut self.last[..nr]);
         first.fill(usize::MAX);
@@ -125,6 +138,20 @@ impl Rows {
         }
         for ((s, &f), &l) in self.span[..nr].iter_mut().zip(&*first).zip(&*last) {
             *s = if f == usize::MAX { 0..0 } else { f..l };
+        }
+    }
+
+    /// [`find_spans`](Self::find_spans) for a few rows, where a column holds less than a
+    /// vector: each row read from its ends inwards up to its first and last nonzero
+    /// entries (a foot's frame Jacobian: a few columns from each end instead of all).
+    fn find_spans_by_rows(&mut self, a: MatRef<'_, f64>) {
+        let n = a.ncols();
+        for (r, s) in self.span[..a.nrows()].iter_mut().enumerate() {
+            let nonzero = |c: &usize| a[(r, *c)] != 0.0;
+            *s = match (0..n).find(nonzero) {
+                Some(f) => f..(f..n).rfind(nonzero).map_or(f + 1, |l| l + 1),
+                None => 0..0,
+            };
         }
     }
 
@@ -271,6 +298,51 @@ fn rank_one_updates(mut dst: MatMut<'_, f64>, a: &Rows, b: Option<&Rows>, alpha:
             let col = dst.rb_mut().col_mut(c).try_as_col_major_mut().expect("unit row stride");
             for (d, v) in col.as_slice_mut()[from..hi].iter_mut().zip(&ar[from..hi]) {
                 *d += h * v;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use faer::Mat;
+
+    use super::Rows;
+
+    #[test]
+    fn the_row_and_column_span_searches_agree() {
+        // Rows with zeros at both ends, in the middle, everywhere, a lone nonzero at
+        // either end, and NaN (a nonzero entry for the search).
+        let patterns: [fn(usize, usize) -> f64; 5] = [
+            |r, c| {
+                if (r + 2..r + 5).contains(&c) {
+                    1.0 + c as f64
+                } else {
+                    0.0
+                }
+            },
+            |r, c| if c % (r + 2) == 1 { -2.0 } else { 0.0 },
+            |r, c| {
+                if r == 1 {
+                    0.0
+                } else if c == 0 || c == 3 * r {
+                    0.5
+                } else {
+                    0.0
+                }
+            },
+            |_, _| 0.0,
+            |r, c| if c == r + 3 { f64::NAN } else { 0.0 },
+        ];
+        for nr in 1..=super::ROW_SCAN_MAX_ROWS {
+            for n in [1usize, 2, 7, 40] {
+                for (p, entry) in patterns.iter().enumerate() {
+                    let a = Mat::from_fn(nr, n, |r, c| entry(r, c));
+                    let (mut by_rows, mut by_columns) = (Rows::new(nr, n), Rows::new(nr, n));
+                    by_rows.find_spans_by_rows(a.as_ref());
+                    by_columns.find_spans_by_columns(a.as_ref());
+                    assert_eq!(by_rows.span[..nr], by_columns.span[..nr], "{nr} x {n}, pattern {p}");
+                }
             }
         }
     }
