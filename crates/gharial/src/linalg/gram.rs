@@ -123,17 +123,30 @@ impl Rows {
         }
     }
 
-    /// [`find_spans`](Self::find_spans) column by column.
+    /// [`find_spans`](Self::find_spans) by columns from both ends (the updates of a
+    /// column branch-free, vectorised over the rows): from the left until every row has
+    /// its first nonzero, from the right until every row that has one has its last. A
+    /// dense-looking Jacobian stops after a few columns each way, a sparse one reads about
+    /// all of them once.
     fn find_spans_by_columns(&mut self, a: MatRef<'_, f64>) {
         let (nr, n) = (a.nrows(), a.ncols());
         let (first, last) = (&mut self.first[..nr], &mut self.last[..nr]);
         first.fill(usize::MAX);
         last.fill(0);
         for c in 0..n {
-            for ((f, l), &v) in first.iter_mut().zip(last.iter_mut()).zip(contiguous(a, c)) {
-                let nonzero = v != 0.0;
-                *f = if nonzero && *f == usize::MAX { c } else { *f };
-                *l = if nonzero { c + 1 } else { *l };
+            for (f, &v) in first.iter_mut().zip(contiguous(a, c)) {
+                *f = if v != 0.0 && *f == usize::MAX { c } else { *f };
+            }
+            if first.iter().all(|&f| f != usize::MAX) {
+                break;
+            }
+        }
+        for c in (0..n).rev() {
+            for (l, &v) in last.iter_mut().zip(contiguous(a, c)) {
+                *l = if v != 0.0 && *l == 0 { c + 1 } else { *l };
+            }
+            if last.iter().zip(&*first).all(|(&l, &f)| l != 0 || f == usize::MAX) {
+                break;
             }
         }
         for ((s, &f), &l) in self.span[..nr].iter_mut().zip(&*first).zip(&*last) {
@@ -310,10 +323,11 @@ mod tests {
     use super::Rows;
 
     #[test]
-    fn the_row_and_column_span_searches_agree() {
+    fn both_span_searches_find_the_first_and_last_nonzero_of_every_row() {
         // Rows with zeros at both ends, in the middle, everywhere, a lone nonzero at
-        // either end, and NaN (a nonzero entry for the search).
-        let patterns: [fn(usize, usize) -> f64; 5] = [
+        // either end, NaN (a nonzero entry for the search), a dense block: against the
+        // spans read off entry by entry.
+        let patterns: [fn(usize, usize) -> f64; 6] = [
             |r, c| {
                 if (r + 2..r + 5).contains(&c) {
                     1.0 + c as f64
@@ -333,15 +347,26 @@ mod tests {
             },
             |_, _| 0.0,
             |r, c| if c == r + 3 { f64::NAN } else { 0.0 },
+            |_, c| if c >= 3 { 1.5 } else { 0.0 },
         ];
-        for nr in 1..=super::ROW_SCAN_MAX_ROWS {
+        for nr in 1..=8 {
             for n in [1usize, 2, 7, 40] {
                 for (p, entry) in patterns.iter().enumerate() {
                     let a = Mat::from_fn(nr, n, |r, c| entry(r, c));
-                    let (mut by_rows, mut by_columns) = (Rows::new(nr, n), Rows::new(nr, n));
-                    by_rows.find_spans_by_rows(a.as_ref());
-                    by_columns.find_spans_by_columns(a.as_ref());
-                    assert_eq!(by_rows.span[..nr], by_columns.span[..nr], "{nr} x {n}, pattern {p}");
+                    let expected: Vec<_> = (0..nr)
+                        .map(|r| {
+                            let nz: Vec<usize> = (0..n).filter(|&c| a[(r, c)] != 0.0).collect();
+                            nz.first().map_or(0..0, |&f| f..nz[nz.len() - 1] + 1)
+                        })
+                        .collect();
+                    let mut rows = Rows::new(nr, n);
+                    rows.find_spans_by_columns(a.as_ref());
+                    assert_eq!(rows.span[..nr], expected[..], "columns: {nr} x {n}, pattern {p}");
+                    if nr <= super::ROW_SCAN_MAX_ROWS {
+                        let mut rows = Rows::new(nr, n);
+                        rows.find_spans_by_rows(a.as_ref());
+                        assert_eq!(rows.span[..nr], expected[..], "rows: {nr} x {n}, pattern {p}");
+                    }
                 }
             }
         }
