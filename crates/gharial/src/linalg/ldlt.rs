@@ -9,7 +9,7 @@ use faer::{Mat, MatMut, MatRef, Par};
 use super::copy::copy_lower;
 use super::matvec::axpy;
 use super::reduce::{dot, lower_sum_is_finite};
-use super::small::{ldlt_solve_fixed, ldlt_solve_neg_transposed_fixed, small_factor};
+use super::small::{ldlt_solve_fixed, small_factor};
 use super::{FactorError, Inertia, stack_buffer};
 
 /// Largest dimension of the vector LDLᵀ solve kernel.
@@ -199,16 +199,33 @@ impl Ldlt {
     }
 
     /// Solves `A X = -Bᵀ` for `X` (`n × m`, into `x`) from `B` (`m × n`) without forming
-    /// `-Bᵀ`, with the arithmetic of [`solve_in_place`](Self::solve_in_place) (the same
-    /// result to the bit). Only for `n` up to [`SMALL_DIM`](super::SMALL_DIM) and unit row
-    /// strides; returns `false` (and does nothing) otherwise.
-    pub fn solve_neg_transposed(&self, b: MatRef<'_, f64>, x: MatMut<'_, f64>) -> bool {
-        let n = self.dim();
-        debug_assert_eq!((b.ncols(), x.nrows(), x.ncols()), (n, n, b.nrows()));
-        if b.row_stride() != 1 || x.row_stride() != 1 {
+    /// `-Bᵀ` by columns: `B`'s columns, negated, are the rows of the right-hand side in
+    /// [`solve_rows_in_place`](Self::solve_rows_in_place)'s layout (in `scratch`, at
+    /// least `n·m` entries), whose substitutions run along whole rows, vectorised over
+    /// the `m` columns (independent chains where the column solve waits on each entry).
+    /// The same result to the bit as [`solve_in_place`](Self::solve_in_place) on `-Bᵀ`.
+    /// Only for `n` up to [`SMALL_DIM`](super::SMALL_DIM) and unit row strides; returns
+    /// `false` (and does nothing) otherwise.
+    pub fn solve_neg_transposed(&self, b: MatRef<'_, f64>, mut x: MatMut<'_, f64>, scratch: &mut [f64]) -> bool {
+        let (n, m) = (self.dim(), b.nrows());
+        debug_assert_eq!((b.ncols(), x.nrows(), x.ncols()), (n, n, m));
+        if n > super::SMALL_DIM || b.row_stride() != 1 || x.row_stride() != 1 {
             return false;
         }
-        with_small_dim!(n, ldlt_solve_neg_transposed_fixed, (self.active(), b, x)).is_some()
+        let rows = &mut scratch[..n * m];
+        for (i, row) in rows.chunks_exact_mut(m.max(1)).enumerate().take(n) {
+            for (r, &v) in row.iter_mut().zip(super::views::col_slice(b, i)) {
+                *r = -v;
+            }
+        }
+        self.solve_rows_in_place(rows, m);
+        for j in 0..m {
+            let col = super::views::col_slice_mut(x.rb_mut(), j);
+            for (i, c) in col.iter_mut().enumerate() {
+                *c = rows[i * m + j];
+            }
+        }
+        true
     }
 }
 
@@ -380,7 +397,8 @@ mod tests {
             for m in [1usize, 4, 37] {
                 let b = filled(m, n, n + m);
                 let mut x = Mat::<f64>::zeros(n, m);
-                let done = f.solve_neg_transposed(b.as_ref(), x.as_mut());
+                let mut scratch = vec![0.0; n * m];
+                let done = f.solve_neg_transposed(b.as_ref(), x.as_mut(), &mut scratch);
                 assert_eq!(done, n <= crate::linalg::SMALL_DIM, "n {n}, m {m}");
                 if !done {
                     assert!(x.col_iter().all(|c| c.iter().all(|&v| v == 0.0)));
@@ -395,7 +413,7 @@ mod tests {
                 assert!(residual(k.as_ref(), x.as_ref(), neg_bt.as_ref()) < 1e-9, "n {n}, m {m}");
                 if n > 1 {
                     let by_rows = Mat::<f64>::zeros(n, m);
-                    assert!(!f.solve_neg_transposed(by_rows.as_ref().transpose(), x.as_mut()));
+                    assert!(!f.solve_neg_transposed(by_rows.as_ref().transpose(), x.as_mut(), &mut scratch));
                 }
             }
         }

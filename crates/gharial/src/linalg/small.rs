@@ -6,7 +6,7 @@ use faer::prelude::ReborrowMut;
 use faer::{MatMut, MatRef};
 
 use super::FactorError;
-use super::views::{col_fixed, col_fixed_mut, columns_fixed};
+use super::views::{col_fixed, columns_fixed};
 
 /// The `N` columns of an owned `N x N` matrix as fixed-size arrays.
 #[inline(always)]
@@ -113,37 +113,6 @@ fn solve_columns<const N: usize>(mut rhs: MatMut<'_, f64>, solve: impl Fn(&mut [
 pub(super) fn ldlt_solve_fixed<const N: usize>(f: MatRef<'_, f64>, rhs: MatMut<'_, f64>) {
     let l = columns::<N>(f);
     solve_columns::<N>(rhs, |v| ldlt_solve_lanes(&l, v));
-}
-
-/// Solves `L D Lᵀ X = -Bᵀ` for `X` (`N x m`, into `x`) from `B` (`m x N`, unit row
-/// stride) without forming `-Bᵀ`: the lanes of a group of `X`'s columns are loaded from
-/// a contiguous piece of each column of `B`, then solved with the arithmetic of
-/// [`ldlt_solve_fixed`] (the same result as negating `Bᵀ` into `x` and solving in place).
-#[inline(always)]
-pub(super) fn ldlt_solve_neg_transposed_fixed<const N: usize>(
-    f: MatRef<'_, f64>,
-    b: MatRef<'_, f64>,
-    mut x: MatMut<'_, f64>,
-) {
-    let l = columns::<N>(f);
-    let m = b.nrows();
-    let b_cols: [&[f64]; N] = std::array::from_fn(|i| super::views::col_slice(b, i));
-    let mut c0 = 0;
-    while c0 < m {
-        let w = (m - c0).min(LANES);
-        let mut v = [[0.0; LANES]; N];
-        for (vi, bi) in v.iter_mut().zip(&b_cols) {
-            for (a, &s) in vi.iter_mut().zip(&bi[c0..c0 + w]) {
-                *a = -s;
-            }
-        }
-        ldlt_solve_lanes(&l, &mut v);
-        for k in 0..w {
-            let dst = col_fixed_mut::<N>(x.rb_mut(), c0 + k);
-            (0..N).for_each(|i| dst[i] = v[i][k]);
-        }
-        c0 += w;
-    }
 }
 
 /// The substitutions of the fixed-size LDLᵀ solve on [`LANES`] right-hand sides at once

@@ -620,7 +620,8 @@ impl RiccatiStage {
         }
         let q_xu = self.qmat.as_ref().submatrix(0, nx, nx, nu);
         let k = self.gains.as_mut().submatrix_mut(0, 1, nu, nx);
-        if nu > 0 && !self.kkt.ldlt.solve_neg_transposed(q_xu, k) {
+        let KktFactor { ldlt, gather, .. } = &mut self.kkt;
+        if nu > 0 && !ldlt.solve_neg_transposed(q_xu, k, gather) {
             return false;
         }
         for j in 0..nx {
