@@ -352,7 +352,7 @@ mod tests {
         for nr in 1..=8 {
             for n in [1usize, 2, 7, 40] {
                 for (p, entry) in patterns.iter().enumerate() {
-                    let a = Mat::from_fn(nr, n, |r, c| entry(r, c));
+                    let a = Mat::from_fn(nr, n, entry);
                     let expected: Vec<_> = (0..nr)
                         .map(|r| {
                             let nz: Vec<usize> = (0..n).filter(|&c| a[(r, c)] != 0.0).collect();
