@@ -172,7 +172,9 @@ pub trait Cost: Send + Sync {
     /// Whether the Hessian is the same at every point (default: false), so that callers
     /// may keep the one written by a first [`Cost::derivatives`] and call
     /// [`Cost::gradient`] afterwards. A cost whose Hessian depends on parameters that
-    /// change in place may only say true if they change between solves.
+    /// change in place may only say true if they change between solves, and not
+    /// between the cycles of a receding horizon (a solve after a shift keeps the
+    /// Hessians of the stages that moved, [`crate::problem::ProblemData::start_solve`]).
     fn hessian_is_constant(&self) -> bool {
         false
     }

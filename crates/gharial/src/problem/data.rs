@@ -65,6 +65,11 @@ pub struct StageData {
     lambda_phi: Vec<f64>,
     /// Scratch of the next-state solve ([`StageData::solve_next_state`]).
     next: NextStateScratch,
+    /// Whether the derivative blocks that this stage's models declare constant hold
+    /// their values (written by a derivative pass since the data was made or last
+    /// invalidated). The flag travels with the data when the horizon shifts, as the data
+    /// travel with their models.
+    constants_written: bool,
 }
 
 /// Settings of the Newton-Raphson solve of implicit dynamics for the next state.
@@ -224,6 +229,7 @@ impl StageData {
                 step: vec![0.0; ndx2],
                 ynew: vec![0.0; sn.nx()],
             },
+            constants_written: false,
         }
     }
 
@@ -463,10 +469,12 @@ pub struct ProblemData {
     pub init: StageFunctionData,
     /// Total cost of the last evaluation.
     pub cost: f64,
-    /// Whether the derivative blocks that models declare constant (cost Hessians,
-    /// Jacobians of dynamics and constraints) have been written since the data was made
-    /// or last invalidated.
+    /// Whether the terminal models' constant derivative blocks have been written since
+    /// the data was made or last invalidated (the stages' flags are in their data).
     constants_written: bool,
+    /// Whether the horizon shifted since the last [`ProblemData::start_solve`]: the next
+    /// solve continues the receding horizon on the same, shifted problem.
+    continuing: bool,
     team: Option<Arc<Team>>,
     /// The kinds of stage passes ([`StagePass`]).
     kinds: [PassKind; 4],
@@ -524,6 +532,7 @@ impl ProblemData {
             init,
             cost: 0.0,
             constants_written: false,
+            continuing: false,
             team,
             kinds: Default::default(),
         })
@@ -604,15 +613,17 @@ impl ProblemData {
     ///
     /// Blocks that the models declare constant ([`crate::costs::Cost::hessian_is_constant`],
     /// `jacobians_are_constant` of dynamics and functions) are written by the first call
-    /// only and kept by later ones: call
+    /// on a stage's data only and kept by later ones (also across
+    /// [`ProblemData::shift`], where each stage's data moves with its models): call
     /// [`ProblemData::invalidate_constant_derivatives`] before passing a problem with
     /// other models or after changing their parameters.
     pub fn compute_derivatives(&mut self, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) {
         let stages = problem.stages();
-        let reuse = self.constants_written;
         self.for_each_stage(StagePass::Derivatives, |t, sd| {
-            sd.derivatives(&stages[t], &xs[t], &us[t], &xs[t + 1], reuse)
+            sd.derivatives(&stages[t], &xs[t], &us[t], &xs[t + 1], sd.constants_written);
+            sd.constants_written = true;
         });
+        let reuse = self.constants_written;
         let n = stages.len();
         let terminal_cost = problem.terminal_cost();
         terminal_cost.derivatives_reusing(&xs[n], &[], &mut self.terminal_cost, reuse);
@@ -635,22 +646,42 @@ impl ProblemData {
     }
 
     /// Receding horizon, after [`Problem::shift`]: moves the stage data one knot earlier
-    /// and makes `incoming` (the data of the stage that entered, [`StageData::new`]) the
-    /// last; `incoming` receives the data of the stage that left. Without `incoming`
-    /// (after [`Problem::rotate`]) the data of stage 0 becomes the last. The constant
-    /// derivative blocks are written again by the next derivative pass.
+    /// and makes `incoming` (the data of the stage that entered, made by
+    /// [`StageData::new`] for it) the last; `incoming` receives the data of the stage
+    /// that left. Without `incoming` (after [`Problem::rotate`]) the data of stage 0
+    /// becomes the last. Each stage's data moves with its models and keeps their
+    /// constant derivative blocks; the next [`ProblemData::start_solve`] keeps them too.
     pub fn shift(&mut self, incoming: Option<&mut StageData>) {
         match incoming {
             Some(d) => super::shift_in(&mut self.stages, d),
             None => self.stages.rotate_left(1),
         }
-        self.constants_written = false;
+        self.continuing = true;
     }
 
     /// Makes the next [`ProblemData::compute_derivatives`] write every block again,
     /// including those the models declare constant.
     pub fn invalidate_constant_derivatives(&mut self) {
         self.constants_written = false;
+        self.continuing = false;
+        for sd in &mut self.stages {
+            sd.constants_written = false;
+        }
+    }
+
+    /// Called by the solvers as a solve loads its guess. A problem given to a solve may
+    /// have other models than the last one (of the same dimensions) or parameters changed
+    /// in place, so the constant derivative blocks are written anew
+    /// ([`invalidate_constant_derivatives`](Self::invalidate_constant_derivatives)),
+    /// except in a solve that continues a receding horizon ([`ProblemData::shift`] since
+    /// the last call): there every stage's data kept its models' blocks, and only the
+    /// data of a stage that entered for the first time writes them (the MPC cycle's
+    /// control costs, effort limits and constant Hessian sums are not formed again).
+    pub fn start_solve(&mut self) {
+        if !self.continuing {
+            self.invalidate_constant_derivatives();
+        }
+        self.continuing = false;
     }
 
     /// Computes the multiplier-weighted second derivatives of dynamics and constraints

@@ -540,6 +540,72 @@ fn constant_blocks_kept_across_points_equal_a_fresh_evaluation() {
     assert_same_derivatives(&kept, &fresh, "other models");
 }
 
+#[test]
+fn constant_blocks_travel_with_the_stage_data_through_shifts() {
+    // Stages of distinct constant models (explicit and implicit dynamics alternate), a
+    // rotation, then a shift that brings in a stage of other models with fresh data: a
+    // solve that continues the horizon keeps the blocks of the data that moved with their
+    // models and writes those of the entering data, and every block equals a fresh
+    // evaluation of the shifted problem; a solve that does not continue writes them all.
+    let n = 5;
+    let mut p = constant_blocks_problem(80, n);
+    let mut incoming = constant_blocks_problem(81, 1).stages()[0].clone();
+    let mut incoming_data = StageData::new(&incoming);
+    let mut g = crate::functions::testing::rng(82);
+    let mut point = |k: usize, m: usize| -> Vec<Vec<f64>> {
+        (0..m)
+            .map(|_| crate::functions::testing::random_vec(&mut g, k, 1.0))
+            .collect()
+    };
+    let fresh = |p: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]| {
+        let mut d = ProblemData::new(p, 1).unwrap();
+        d.evaluate(p, xs, us);
+        d.compute_derivatives(p, xs, us);
+        d
+    };
+    let mut kept = ProblemData::new(&p, 1).unwrap();
+    let (xs, us) = (point(3, n + 1), point(2, n));
+    kept.start_solve();
+    kept.evaluate(&p, &xs, &us);
+    kept.compute_derivatives(&p, &xs, &us);
+    // A mark in a constant block (the control constraint's `ju` of stage 2): kept as it
+    // is by the derivative passes of continuing solves, wherever the data goes.
+    kept.stages[2].constraints[1].ju[(0, 0)] = 42.0;
+    let cycles: [Option<&mut StageModel>; 2] = [None, Some(&mut incoming)];
+    for (k, model) in cycles.into_iter().enumerate() {
+        let entering = match model {
+            None => {
+                p.rotate().unwrap();
+                None
+            }
+            Some(m) => {
+                p.shift(m).unwrap();
+                Some(&mut incoming_data)
+            }
+        };
+        kept.shift(entering);
+        kept.start_solve();
+        let (xs, us) = (point(3, n + 1), point(2, n));
+        kept.evaluate(&p, &xs, &us);
+        kept.compute_derivatives(&p, &xs, &us);
+        assert_eq!(
+            kept.stages[1 - k].constraints[1].ju[(0, 0)],
+            42.0,
+            "cycle {k}: the mark moved along"
+        );
+        // Its true value (the control error's `ju` is the identity) for the comparison.
+        kept.stages[1 - k].constraints[1].ju[(0, 0)] = 1.0;
+        assert_same_derivatives(&kept, &fresh(&p, &xs, &us), &format!("cycle {k}"));
+        kept.stages[1 - k].constraints[1].ju[(0, 0)] = 42.0;
+    }
+    // Not a continuation: every block is written again, the mark too.
+    kept.start_solve();
+    let (xs, us) = (point(3, n + 1), point(2, n));
+    kept.evaluate(&p, &xs, &us);
+    kept.compute_derivatives(&p, &xs, &us);
+    assert_same_derivatives(&kept, &fresh(&p, &xs, &us), "new solve");
+}
+
 /// y = x ⊕ u on SO(2).
 struct Turn {
     space: Arc<dyn Manifold>,

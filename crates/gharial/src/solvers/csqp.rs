@@ -314,7 +314,7 @@ impl Workspace {
             None => zero(&mut self.nus),
         }
         self.filter.clear();
-        self.data.invalidate_constant_derivatives();
+        self.data.start_solve();
         self.cost = self.data.evaluate(problem, &self.xs, &self.us);
         self.cost.is_finite() && self.derivatives(problem)
     }

@@ -301,7 +301,7 @@ impl Workspace {
         self.iterated = false;
         self.lq_constant = self.al.is_none() && problem.has_constant_derivatives();
         self.factored_reg = None;
-        self.data.invalidate_constant_derivatives();
+        self.data.start_solve();
         self.cost = self.data.evaluate(problem, &self.xs, &self.us);
         if let Some(al) = &mut self.al {
             self.cost += al.value(&self.data, None);

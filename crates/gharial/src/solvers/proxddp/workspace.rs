@@ -283,11 +283,10 @@ impl Workspace {
 
     /// Loads a guess; missing multipliers are zero. `λ_e`, `ν_e` start at the guess.
     ///
-    /// Every solve starts a new problem for the workspace: the problem given to it may
-    /// have other models than the last one (of the same dimensions), or parameters
-    /// changed in place, so the constant derivative blocks are written anew.
+    /// The constant derivative blocks are written anew unless the solve continues a
+    /// receding horizon ([`ProblemData::start_solve`]).
     pub fn load_guess(&mut self, guess: &InitialGuess<'_>) {
-        self.data.invalidate_constant_derivatives();
+        self.data.start_solve();
         self.gf.valid = false;
         self.knot_constants = false;
         for (a, b) in self.cur.xs.iter_mut().zip(guess.xs) {
