@@ -344,6 +344,7 @@ fn ode_and_integrator_jacobians_match_finite_differences() {
             let u = random_vec(&mut rng, ode.nu(), 3.0);
             let rep = check_ode(ode.as_ref(), &x, &u, FD);
             assert!(rep.passed(), "{name} trial {trial}: ODE {:?}", rep.errors);
+            assert_acceleration_jacobians_are_the_bottom_rows(ode.as_ref(), &x, &u);
             for (iname, d) in &integrators {
                 let rep = check_explicit_dynamics(d.as_ref(), &x, &u, FD);
                 assert!(rep.passed(), "{name} trial {trial}: {iname} {:?}", rep.errors);

@@ -128,6 +128,7 @@ fn weld_jacobians_match_finite_differences() {
         let u = random_vec(&mut rng, 6, 5.0);
         let report = check_ode(&weld, &x, &u, CheckOptions { eps: 1e-6, tol: 2e-6 });
         report.assert_ok();
+        assert_acceleration_jacobians_are_the_bottom_rows(&weld, &x, &u);
     }
 }
 

@@ -340,13 +340,24 @@ impl Ode for MultibodyConstraintFwdDynamics {
     }
 
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
+        self.write_jacobians(x, u, data, true);
+    }
+
+    fn acceleration_jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
+        self.write_jacobians(x, u, data, false);
+    }
+}
+
+impl MultibodyConstraintFwdDynamics {
+    /// [`Ode::jacobians`] (`full`) or [`Ode::acceleration_jacobians`].
+    fn write_jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData, full: bool) {
         let w: &mut ContactOdeWs = workspace(&mut data.ws);
         let mut d = lock(&w.contact);
         match self.differentiate(x, u, &mut d) {
             Ok(()) => {
                 let c = &d.cdata;
-                let (jx, ju) = (data.jx.as_mut(), data.ju.as_mut());
-                self.core.write_jacobians(c.ddq_dq(), c.ddq_dv(), c.ddq_dtau(), jx, ju);
+                let j = (data.jx.as_mut(), data.ju.as_mut());
+                self.core.write_jacobians(c.ddq_dq(), c.ddq_dv(), c.ddq_dtau(), j, full);
                 w.error = None;
             }
             Err(e) => {

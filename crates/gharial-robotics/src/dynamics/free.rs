@@ -147,12 +147,23 @@ impl Ode for MultibodyFreeFwdDynamics {
     }
 
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
+        self.write_jacobians(x, u, data, true);
+    }
+
+    fn acceleration_jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
+        self.write_jacobians(x, u, data, false);
+    }
+}
+
+impl MultibodyFreeFwdDynamics {
+    /// [`Ode::jacobians`] (`full`) or [`Ode::acceleration_jacobians`].
+    fn write_jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData, full: bool) {
         let ws: &mut FreeWs = workspace(&mut data.ws);
         match self.derivatives(x, u, ws) {
             Ok(()) => {
                 let d = &ws.data;
-                let (jx, ju) = (data.jx.as_mut(), data.ju.as_mut());
-                self.core.write_jacobians(d.ddq_dq(), d.ddq_dv(), d.minv(), jx, ju);
+                let j = (data.jx.as_mut(), data.ju.as_mut());
+                self.core.write_jacobians(d.ddq_dq(), d.ddq_dv(), d.minv(), j, full);
                 ws.error = None;
             }
             Err(e) => {

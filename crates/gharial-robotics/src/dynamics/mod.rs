@@ -129,26 +129,29 @@ impl PhaseOde {
         xdot[nv..].copy_from_slice(a);
     }
 
-    /// `∂ẋ/∂x = [[0, I], [∂a/∂q, ∂a/∂v]]`, `∂ẋ/∂u = [[0], [∂a/∂τ B]]`.
+    /// `∂ẋ/∂x = [[0, I], [∂a/∂q, ∂a/∂v]]`, `∂ẋ/∂u = [[0], [∂a/∂τ B]]`; the bottom rows
+    /// only unless `full` ([`gharial::dynamics::Ode::acceleration_jacobians`]).
     fn write_jacobians(
         &self,
         da_dq: MatRef<'_, f64>,
         da_dv: MatRef<'_, f64>,
         da_dtau: MatRef<'_, f64>,
-        jx: MatMut<'_, f64>,
-        ju: MatMut<'_, f64>,
+        (jx, ju): (MatMut<'_, f64>, MatMut<'_, f64>),
+        full: bool,
     ) {
         let nv = self.nv();
         let (mut top, mut bottom) = jx.split_at_row_mut(nv);
-        gharial::linalg::fill(top.as_mut(), 0.0);
-        for i in 0..nv {
-            top[(i, nv + i)] = 1.0;
+        let (mut utop, ubottom) = ju.split_at_row_mut(nv);
+        if full {
+            gharial::linalg::fill(top.as_mut(), 0.0);
+            for i in 0..nv {
+                top[(i, nv + i)] = 1.0;
+            }
+            gharial::linalg::fill(utop.as_mut(), 0.0);
         }
         let (dq, dv) = bottom.rb_mut().split_at_col_mut(nv);
         copy(dq, da_dq);
         copy(dv, da_dv);
-        let (mut utop, ubottom) = ju.split_at_row_mut(nv);
-        gharial::linalg::fill(utop.as_mut(), 0.0);
         self.actuation.right_multiply(da_dtau, ubottom);
     }
 }

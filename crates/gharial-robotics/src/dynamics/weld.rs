@@ -394,12 +394,23 @@ impl Ode for MultibodyWeldFwdDynamics {
     }
 
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
+        self.write_jacobians(x, u, data, true);
+    }
+
+    fn acceleration_jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
+        self.write_jacobians(x, u, data, false);
+    }
+}
+
+impl MultibodyWeldFwdDynamics {
+    /// [`Ode::jacobians`] (`full`) or [`Ode::acceleration_jacobians`].
+    fn write_jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData, full: bool) {
         let d: &mut WeldData = workspace(&mut data.ws);
         match self.differentiate(x, u, d) {
             Ok(()) => {
-                let (jx, ju) = (data.jx.as_mut(), data.ju.as_mut());
+                let j = (data.jx.as_mut(), data.ju.as_mut());
                 self.core
-                    .write_jacobians(d.da_dq.as_ref(), d.da_dv.as_ref(), d.da_dtau.as_ref(), jx, ju);
+                    .write_jacobians(d.da_dq.as_ref(), d.da_dv.as_ref(), d.da_dtau.as_ref(), j, full);
                 d.error = None;
             }
             Err(e) => {

@@ -110,3 +110,25 @@ pub fn random_state(space: &MultibodyPhaseSpace, rng: &mut SmallRng) -> Vec<f64>
 pub fn random_vec(rng: &mut SmallRng, n: usize, scale: f64) -> Vec<f64> {
     (0..n).map(|_| scale * rng.random_range(-1.0..1.0)).collect()
 }
+
+/// `Ode::acceleration_jacobians` at `(x, u)`: the rows past `ndx / 2` of `jacobians`, bit
+/// for bit, and the first rows left as they were (a mark).
+pub fn assert_acceleration_jacobians_are_the_bottom_rows(ode: &dyn gharial::dynamics::Ode, x: &[f64], u: &[f64]) {
+    let mut full = ode.create_data();
+    ode.evaluate(x, u, &mut full);
+    ode.jacobians(x, u, &mut full);
+    let mut part = ode.create_data();
+    ode.evaluate(x, u, &mut part);
+    part.jx.fill(7.0);
+    part.ju.fill(7.0);
+    ode.acceleration_jacobians(x, u, &mut part);
+    let half = ode.space().ndx() / 2;
+    for (name, a, b) in [("jx", &full.jx, &part.jx), ("ju", &full.ju, &part.ju)] {
+        for j in 0..a.ncols() {
+            for i in 0..a.nrows() {
+                let expected = if i < half { 7.0 } else { a[(i, j)] };
+                assert_eq!(b[(i, j)].to_bits(), expected.to_bits(), "{name}({i}, {j})");
+            }
+        }
+    }
+}

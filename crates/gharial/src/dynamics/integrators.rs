@@ -368,7 +368,7 @@ impl ExplicitDynamics for SemiImplicitEuler {
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut ExplicitDynamicsData) {
         let (nq, nv, dt) = (self.config.nx(), self.config.ndx(), self.dt);
         let ws: &mut SieWs = downcast(&mut data.ws);
-        self.ode.jacobians(x, u, &mut ws.ode);
+        self.ode.acceleration_jacobians(x, u, &mut ws.ode);
         let (ax, au) = (ws.ode.jx.as_ref().subrows(nv, nv), ws.ode.ju.as_ref().subrows(nv, nv));
         let (mut jq_rows, mut jv_rows) = data.jx.as_mut().split_at_row_mut(nv);
         // dv'/dx = [0 I] + dt a_x.

@@ -373,4 +373,13 @@ pub trait Ode: Send + Sync {
 
     /// Writes `df/dx`, `df/du`; `evaluate` has been called at the same point before.
     fn jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData);
+
+    /// Writes at least the rows of `df/dx`, `df/du` past the first `ndx / 2`: the
+    /// accelerations of a second-order system `ẋ = (v, a(x, u))`, the only rows that its
+    /// integrators read ([`SemiImplicitEuler`]); `evaluate` has been called at the same
+    /// point before. Default: [`Ode::jacobians`]; the multibody models leave their
+    /// constant first rows (`[0 I]` and `0`) as they are.
+    fn acceleration_jacobians(&self, x: &[f64], u: &[f64], data: &mut OdeData) {
+        self.jacobians(x, u, data);
+    }
 }
