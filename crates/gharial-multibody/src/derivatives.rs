@@ -157,16 +157,23 @@ pub fn frame_velocity_derivatives(
     let i = model.frames[frame].parent_joint;
     let ov = data.ov[i];
     let mut c = model.last_dof(i);
+    // The columns off the support stay zero: only the written ones can be non-finite
+    // (then the whole check, for its error).
+    let mut finite = true;
     while c != NONE {
         let jc = data.j[c];
         let dvdq = data.dvdq[c];
-        put_col(
-            &mut dv_dq,
-            c,
-            &express_derivative(&o_mf, rf, &dvdq, &(jc.cross(&ov) + dvdq)),
+        let (q_col, v_col) = (
+            express_derivative(&o_mf, rf, &dvdq, &(jc.cross(&ov) + dvdq)),
+            express_motion(&o_mf, &jc, rf),
         );
-        put_col(&mut dv_dv, c, &express_motion(&o_mf, &jc, rf));
+        finite &= q_col.is_finite() && v_col.is_finite();
+        put_col(&mut dv_dq, c, &q_col);
+        put_col(&mut dv_dv, c, &v_col);
         c = model.dof_parent[c];
+    }
+    if finite {
+        return Ok(());
     }
     check_result_mat("dv_dq", dv_dq.as_ref())?;
     check_result_mat("dv_dv", dv_dv.as_ref())

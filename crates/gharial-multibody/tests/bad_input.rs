@@ -68,6 +68,34 @@ fn is_overflow<T: std::fmt::Debug>(what: &str, r: Result<T>) {
     }
 }
 
+/// Velocities near the largest double overflow in the first sums: the frame velocity
+/// derivatives of what the failed pass left in `data` are an error, not infinities.
+#[test]
+fn overflowed_velocity_data_gives_a_frame_velocity_derivative_error() {
+    let model = load("solo12.urdf", RootJoint::FreeFlyer);
+    let (nq, nv) = (model.nq(), model.nv());
+    let mut data = model.create_data();
+    let q = random_configuration(&model, &mut SmallRng::seed_from_u64(2), &vec![-1.0; nq], &vec![1.0; nq]).unwrap();
+    let v = vec![1.5e308; nv];
+    let z = vec![0.0; nv];
+    is_overflow(
+        "compute_forward_kinematics_derivatives",
+        compute_forward_kinematics_derivatives(&model, &mut data, &q, &v, &z),
+    );
+    let foot = model.frame_id("FL_FOOT").unwrap();
+    let (mut m0, mut m1) = (faer::Mat::zeros(6, nv), faer::Mat::zeros(6, nv));
+    for rf in [
+        ReferenceFrame::LocalWorldAligned,
+        ReferenceFrame::Local,
+        ReferenceFrame::World,
+    ] {
+        is_overflow(
+            "frame_velocity_derivatives",
+            frame_velocity_derivatives(&model, &data, foot, rf, m0.as_mut(), m1.as_mut()),
+        );
+    }
+}
+
 /// Velocities of 1e200 are finite, but their squares overflow: every algorithm that
 /// takes v must say so instead of returning NaN.
 #[test]
