@@ -87,11 +87,26 @@ fn fill_fixed<const M: usize>(mut m: MatMut<'_, f64>, v: f64) {
     }
 }
 
-/// `dst = srcᵀ` (`dst` is `src.ncols() x src.nrows()`), reading `src` by columns.
+/// `dst = srcᵀ` (`dst` is `src.ncols() x src.nrows()`), reading `src` by columns: for
+/// column-major `src` and `dst`, four columns of `src` at a time, each column of `dst`
+/// taking their four entries in one store (as `symmetrize_from_lower`'s blocks).
 #[inline]
 pub(crate) fn copy_transposed(mut dst: MatMut<'_, f64>, src: MatRef<'_, f64>) {
     debug_assert_eq!((dst.nrows(), dst.ncols()), (src.ncols(), src.nrows()));
-    for j in 0..src.ncols() {
+    let mut j0 = 0;
+    if src.row_stride() == 1 && dst.row_stride() == 1 {
+        while j0 + 4 <= src.ncols() {
+            let s: [&[f64]; 4] = std::array::from_fn(|k| super::views::col_slice(src, j0 + k));
+            for i in 0..src.nrows() {
+                let d: &mut [f64; 4] = (&mut super::views::col_slice_mut(dst.rb_mut(), i)[j0..j0 + 4])
+                    .try_into()
+                    .expect("four rows");
+                *d = [s[0][i], s[1][i], s[2][i], s[3][i]];
+            }
+            j0 += 4;
+        }
+    }
+    for j in j0..src.ncols() {
         match src.col(j).try_as_col_major() {
             Some(s) => {
                 for (i, v) in s.as_slice().iter().enumerate() {
@@ -166,6 +181,30 @@ mod tests {
         let x: Vec<f64> = (0..11).map(|i| i as f64 - 3.0).collect();
         let y: Vec<f64> = (0..11).map(|i| 0.5 * i as f64).collect();
         assert_eq!(dot(&x, &y), x.iter().zip(&y).map(|(a, b)| a * b).sum::<f64>());
+    }
+
+    #[test]
+    fn transposed_copies_by_blocks_of_four_columns_and_the_rest() {
+        // Sources of 1 to 13 columns (none, some and all in blocks of four) into a view
+        // inside a larger matrix (the Q-function's `Sᵀ` block), whose border stays; and a
+        // strided source (the column-by-column path).
+        for (m, n) in [(36, 12), (5, 1), (7, 3), (2, 4), (9, 5), (3, 8), (4, 13)] {
+            let a = filled(m, n, m + n);
+            let mut big = Mat::<f64>::from_fn(n + 3, m + 2, |_, _| 7.0);
+            copy_transposed(big.as_mut().submatrix_mut(2, 1, n, m), a.as_ref());
+            for j in 0..m + 2 {
+                for i in 0..n + 3 {
+                    let inside = (2..2 + n).contains(&i) && (1..=m).contains(&j);
+                    let expected = if inside { a[(j - 1, i - 2)] } else { 7.0 };
+                    assert_eq!(big[(i, j)], expected, "{m} x {n}: ({i}, {j})");
+                }
+            }
+            // `a` as a strided view (the transpose of its owned transpose).
+            let at = a.transpose().to_owned();
+            let mut t = Mat::<f64>::zeros(n, m);
+            copy_transposed(t.as_mut(), at.as_ref().transpose());
+            assert_eq!(t, at, "{m} x {n}: strided source");
+        }
     }
 
     #[test]
