@@ -252,10 +252,24 @@ fn copy_add_product_fixed<const M: usize>(
 pub(crate) fn identity_block(m: MatRef<'_, f64>, s: f64) -> usize {
     let mut k = 0;
     for j in 0..m.ncols() {
-        for i in 0..m.nrows() {
-            if m[(i, j)] != if i == j { s } else { 0.0 } {
-                k = k.max(i.max(j) + 1);
+        let differs = |i: usize| m[(i, j)] != if i == j { s } else { 0.0 };
+        // A column of `s I` (the common case) in one vectorised test; the last entry
+        // that differs searched for only in the others.
+        let column_of_s_i = match m.col(j).try_as_col_major() {
+            Some(c) => {
+                let c = c.as_slice();
+                let nonzero = |v: &[f64]| v.iter().fold(0u64, |acc, x| acc | (x.to_bits() << 1)) != 0;
+                c.get(j).is_none_or(|&d| d == s)
+                    && !nonzero(&c[..j.min(c.len())])
+                    && !nonzero(c.get(j + 1..).unwrap_or(&[]))
             }
+            None => false,
+        };
+        if column_of_s_i {
+            continue;
+        }
+        if let Some(i) = (0..m.nrows()).rev().find(|&i| differs(i)) {
+            k = k.max(i.max(j) + 1);
         }
     }
     k

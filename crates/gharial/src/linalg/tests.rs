@@ -342,6 +342,51 @@ fn identity_blocks_are_found_and_multiplied() {
     }
 }
 
+/// `identity_block` against its entrywise definition: signed zeros are zeros, NaN and a
+/// changed diagonal entry are not, the last differing row of an early column counts,
+/// and a strided view gives the same.
+#[test]
+fn identity_block_is_its_entrywise_definition() {
+    use super::identity_block;
+    let entrywise = |m: &Mat<f64>, s: f64| {
+        let mut k = 0;
+        for j in 0..m.ncols() {
+            for i in 0..m.nrows() {
+                if m[(i, j)] != if i == j { s } else { 0.0 } {
+                    k = k.max(i.max(j) + 1);
+                }
+            }
+        }
+        k
+    };
+    let n = 11;
+    let changes: [&dyn Fn(&mut Mat<f64>); 6] = [
+        &|_| {},
+        &|m| m[(4, 9)] = -0.0,
+        &|m| m[(n - 1, 2)] = f64::NAN,
+        &|m| m[(5, 5)] = 2.0,
+        &|m| m[(7, 1)] = 0.1,
+        &|m| {
+            m[(0, 1)] = 3.0;
+            m[(8, 8)] = -0.0;
+        },
+    ];
+    for s in [1.0, -1.0] {
+        for (c, change) in changes.iter().enumerate() {
+            let mut m = Mat::from_fn(n, n, |i, j| if i == j { s } else { 0.0 });
+            change(&mut m);
+            let expected = entrywise(&m, s);
+            assert_eq!(identity_block(m.as_ref(), s), expected, "change {c}, s = {s}");
+            let t = m.transpose().to_owned();
+            assert_eq!(
+                identity_block(t.as_ref().transpose(), s),
+                expected,
+                "change {c}, s = {s}, strided"
+            );
+        }
+    }
+}
+
 /// A random primal-dual matrix shaped like an OCP's, multiplier rows first: `m = (T - 1)
 /// b` rows with the diagonal `-mu` coupling stage blocks `t` and `t + 1` of `b` primal
 /// variables each, and a block-diagonal Hessian (indefinite when `shift` is negative).
