@@ -359,21 +359,21 @@ fn identity_block_is_its_entrywise_definition() {
         }
         k
     };
-    let n = 11;
-    let changes: [&dyn Fn(&mut Mat<f64>); 6] = [
-        &|_| {},
-        &|m| m[(4, 9)] = -0.0,
-        &|m| m[(n - 1, 2)] = f64::NAN,
-        &|m| m[(5, 5)] = 2.0,
-        &|m| m[(7, 1)] = 0.1,
-        &|m| {
+    const N: usize = 11;
+    let changes: [fn(&mut Mat<f64>); 6] = [
+        |_| {},
+        |m| m[(4, 9)] = -0.0,
+        |m| m[(N - 1, 2)] = f64::NAN,
+        |m| m[(5, 5)] = 2.0,
+        |m| m[(7, 1)] = 0.1,
+        |m| {
             m[(0, 1)] = 3.0;
             m[(8, 8)] = -0.0;
         },
     ];
     for s in [1.0, -1.0] {
         for (c, change) in changes.iter().enumerate() {
-            let mut m = Mat::from_fn(n, n, |i, j| if i == j { s } else { 0.0 });
+            let mut m = Mat::from_fn(N, N, |i, j| if i == j { s } else { 0.0 });
             change(&mut m);
             let expected = entrywise(&m, s);
             assert_eq!(identity_block(m.as_ref(), s), expected, "change {c}, s = {s}");
