@@ -65,11 +65,11 @@ pub struct StageData {
     lambda_phi: Vec<f64>,
     /// Scratch of the next-state solve ([`StageData::solve_next_state`]).
     next: NextStateScratch,
-    /// Whether the derivative blocks that this stage's models declare constant hold
-    /// their values (written by a derivative pass since the data was made or last
-    /// invalidated). The flag travels with the data when the horizon shifts, as the data
-    /// travel with their models.
-    constants_written: bool,
+    /// The [`ProblemData`] generation in which the derivative blocks that this stage's
+    /// models declare constant were written (`None`: never): they hold their values if
+    /// it is the current one. It travels with the data when the horizon shifts, as the
+    /// data travel with their models.
+    constants_generation: Option<u64>,
 }
 
 /// Settings of the Newton-Raphson solve of implicit dynamics for the next state.
@@ -229,7 +229,7 @@ impl StageData {
                 step: vec![0.0; ndx2],
                 ynew: vec![0.0; sn.nx()],
             },
-            constants_written: false,
+            constants_generation: None,
         }
     }
 
@@ -470,8 +470,12 @@ pub struct ProblemData {
     /// Total cost of the last evaluation.
     pub cost: f64,
     /// Whether the terminal models' constant derivative blocks have been written since
-    /// the data was made or last invalidated (the stages' flags are in their data).
+    /// the data was made or last invalidated.
     constants_written: bool,
+    /// Incremented by every invalidation of the constant blocks: a stage's data holds
+    /// its models' blocks if they were written in the current generation (which also
+    /// covers the data of queued stages, outside `stages` when invalidated).
+    generation: u64,
     /// Whether the horizon shifted since the last [`ProblemData::start_solve`]: the next
     /// solve continues the receding horizon on the same, shifted problem.
     continuing: bool,
@@ -532,6 +536,7 @@ impl ProblemData {
             init,
             cost: 0.0,
             constants_written: false,
+            generation: 0,
             continuing: false,
             team,
             kinds: Default::default(),
@@ -618,10 +623,11 @@ impl ProblemData {
     /// [`ProblemData::invalidate_constant_derivatives`] before passing a problem with
     /// other models or after changing their parameters.
     pub fn compute_derivatives(&mut self, problem: &Problem, xs: &[Vec<f64>], us: &[Vec<f64>]) {
-        let stages = problem.stages();
+        let (stages, generation) = (problem.stages(), self.generation);
         self.for_each_stage(StagePass::Derivatives, |t, sd| {
-            sd.derivatives(&stages[t], &xs[t], &us[t], &xs[t + 1], sd.constants_written);
-            sd.constants_written = true;
+            let reuse = sd.constants_generation == Some(generation);
+            sd.derivatives(&stages[t], &xs[t], &us[t], &xs[t + 1], reuse);
+            sd.constants_generation = Some(generation);
         });
         let reuse = self.constants_written;
         let n = stages.len();
@@ -664,9 +670,7 @@ impl ProblemData {
     pub fn invalidate_constant_derivatives(&mut self) {
         self.constants_written = false;
         self.continuing = false;
-        for sd in &mut self.stages {
-            sd.constants_written = false;
-        }
+        self.generation += 1;
     }
 
     /// Called by the solvers as a solve loads its guess. A problem given to a solve may

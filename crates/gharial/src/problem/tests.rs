@@ -604,6 +604,16 @@ fn constant_blocks_travel_with_the_stage_data_through_shifts() {
     kept.evaluate(&p, &xs, &us);
     kept.compute_derivatives(&p, &xs, &us);
     assert_same_derivatives(&kept, &fresh(&p, &xs, &us), "new solve");
+    // The data that left the horizon (held outside it through that invalidation, with a
+    // mark) enters again with its model: written again too.
+    incoming_data.constraints[1].ju[(0, 0)] = 42.0;
+    p.shift(&mut incoming).unwrap();
+    kept.shift(Some(&mut incoming_data));
+    kept.start_solve();
+    let (xs, us) = (point(3, n + 1), point(2, n));
+    kept.evaluate(&p, &xs, &us);
+    kept.compute_derivatives(&p, &xs, &us);
+    assert_same_derivatives(&kept, &fresh(&p, &xs, &us), "queued data after a new solve");
 }
 
 /// y = x ⊕ u on SO(2).
