@@ -258,10 +258,9 @@ pub(crate) fn identity_block(m: MatRef<'_, f64>, s: f64) -> usize {
         let column_of_s_i = match m.col(j).try_as_col_major() {
             Some(c) => {
                 let c = c.as_slice();
-                let nonzero = |v: &[f64]| v.iter().fold(0u64, |acc, x| acc | (x.to_bits() << 1)) != 0;
                 c.get(j).is_none_or(|&d| d == s)
-                    && !nonzero(&c[..j.min(c.len())])
-                    && !nonzero(c.get(j + 1..).unwrap_or(&[]))
+                    && !super::any_nonzero(&c[..j.min(c.len())])
+                    && !super::any_nonzero(c.get(j + 1..).unwrap_or(&[]))
             }
             None => false,
         };

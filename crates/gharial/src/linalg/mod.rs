@@ -104,7 +104,7 @@ pub(crate) use matmul::{
 pub(crate) use matvec::matvec_t;
 pub(crate) use psd_sqrt::psd_sqrt;
 pub(crate) use qr::{householder_r, semidefinite_cholesky_upper, upper_solve, upper_t_solve};
-pub(crate) use reduce::{all_finite, dot, is_zero, max_nan, norm_inf, norm_l1, norm_max, sum_is_finite};
+pub(crate) use reduce::{all_finite, any_nonzero, dot, is_zero, max_nan, norm_inf, norm_l1, norm_max, sum_is_finite};
 pub(crate) use sparse::{SparseLdlt, SymmetricCsc, amd_order};
 pub(crate) use symmetric::{
     add_scaled_lower, fill_lower, identity_plus_scaled_lower, symmetrize, symmetrize_from_lower,

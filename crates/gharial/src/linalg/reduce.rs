@@ -38,6 +38,13 @@ pub(super) fn dot_fixed<const M: usize>(a: &[f64; M], b: &[f64; M]) -> f64 {
     s
 }
 
+/// Whether an entry of `v` is not zero (signed zeros are zero, NaN is not): the
+/// entries' bits without the sign OR-ed together (one branch, vectorised).
+#[inline]
+pub(crate) fn any_nonzero(v: &[f64]) -> bool {
+    v.iter().fold(0u64, |acc, x| acc | (x.to_bits() << 1)) != 0
+}
+
 /// `Σ |v_i|` with four partial sums (vectorisable); NaN if `v` holds a NaN.
 #[inline]
 pub(crate) fn norm_l1(v: &[f64]) -> f64 {

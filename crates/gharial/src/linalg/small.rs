@@ -112,40 +112,35 @@ fn solve_columns<const N: usize>(mut rhs: MatMut<'_, f64>, solve: impl Fn(&mut [
 #[inline(always)]
 pub(super) fn ldlt_solve_fixed<const N: usize>(f: MatRef<'_, f64>, rhs: MatMut<'_, f64>) {
     let l = columns::<N>(f);
-    solve_columns::<N>(rhs, |v| ldlt_solve_lanes(&l, v));
-}
-
-/// The substitutions of the fixed-size LDLᵀ solve on [`LANES`] right-hand sides at once
-/// (`v[i][k]`: row `i` of the `k`-th).
-#[inline(always)]
-fn ldlt_solve_lanes<const N: usize>(l: &[&[f64; N]; N], v: &mut [[f64; LANES]; N]) {
-    // L Y = B row by row (left-looking: one row in registers, the solved rows read),
-    // subtracting l_ij y_j with j ascending: the right-looking loop's operations.
-    for i in 1..N {
-        let mut a = v[i];
-        for j in 0..i {
+    solve_columns::<N>(rhs, |v| {
+        // L Y = B row by row (left-looking: one row in registers, the solved rows read),
+        // subtracting l_ij y_j with j ascending: the right-looking loop's operations.
+        for i in 1..N {
+            let mut a = v[i];
+            for j in 0..i {
+                for k in 0..LANES {
+                    a[k] -= l[j][i] * v[j][k];
+                }
+            }
+            v[i] = a;
+        }
+        for j in 0..N {
             for k in 0..LANES {
-                a[k] -= l[j][i] * v[j][k];
+                v[j][k] /= l[j][j];
             }
         }
-        v[i] = a;
-    }
-    for j in 0..N {
-        for k in 0..LANES {
-            v[j][k] /= l[j][j];
-        }
-    }
-    for j in (0..N).rev() {
-        let mut s = [0.0; LANES];
-        for i in j + 1..N {
+        for j in (0..N).rev() {
+            let mut s = [0.0; LANES];
+            for i in j + 1..N {
+                for k in 0..LANES {
+                    s[k] += l[j][i] * v[i][k];
+                }
+            }
             for k in 0..LANES {
-                s[k] += l[j][i] * v[i][k];
+                v[j][k] -= s[k];
             }
         }
-        for k in 0..LANES {
-            v[j][k] -= s[k];
-        }
-    }
+    });
 }
 
 /// Solves `L Lᵀ X = B` in place for an `N x N` Cholesky factor in faer's storage.

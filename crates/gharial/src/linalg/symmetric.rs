@@ -6,7 +6,7 @@
 use faer::prelude::ReborrowMut;
 use faer::{MatMut, MatRef};
 
-use super::views::{col_fixed, col_fixed_mut, col_slice, col_slice_mut, columns_fixed};
+use super::views::{col_fixed, col_fixed_mut, columns_fixed};
 
 /// Copies the lower triangle of a square matrix into its upper triangle.
 pub(crate) fn symmetrize_from_lower(mut m: MatMut<'_, f64>) {
@@ -27,9 +27,10 @@ pub(crate) fn symmetrize_from_lower(mut m: MatMut<'_, f64>) {
 }
 
 /// [`symmetrize_from_lower`] of a column-major matrix by blocks of four columns: the
-/// slices of the four are read together and each column right of them gets its four
-/// entries of those rows in one store (a slice per column instead of two indexed
-/// accesses per entry); the 4 x 4 diagonal blocks entry by entry.
+/// rows of the four right of them are the transpose of the four below them
+/// ([`copy_transposed`](super::copy_transposed)'s four-column blocks: one store per
+/// column instead of two indexed accesses per entry); the 4 x 4 diagonal blocks entry by
+/// entry.
 fn symmetrize_from_lower_by_columns(mut m: MatMut<'_, f64>) {
     let n = m.nrows();
     for j in (0..n).step_by(4) {
@@ -42,20 +43,9 @@ fn symmetrize_from_lower_by_columns(mut m: MatMut<'_, f64>) {
         if w < 4 {
             break;
         }
-        let (left, mut right) = m.rb_mut().split_at_col_mut(j + 4);
-        let left = left.as_ref();
-        let s = [
-            col_slice(left, j),
-            col_slice(left, j + 1),
-            col_slice(left, j + 2),
-            col_slice(left, j + 3),
-        ];
-        for (k, i) in (j + 4..n).enumerate() {
-            let d: &mut [f64; 4] = (&mut col_slice_mut(right.rb_mut(), k)[j..j + 4])
-                .try_into()
-                .expect("four rows");
-            *d = [s[0][i], s[1][i], s[2][i], s[3][i]];
-        }
+        let (left, right) = m.rb_mut().split_at_col_mut(j + 4);
+        let rest = n - j - 4;
+        super::copy_transposed(right.subrows_mut(j, 4), left.as_ref().submatrix(j + 4, j, rest, 4));
     }
 }
 

@@ -853,13 +853,13 @@ pub(crate) fn blame(problem: &LqProblem, knot: usize, fallback: LqError) -> LqEr
 /// `true` if `m` is exactly `-I`. Sums of absolute values (no early exit), which
 /// vectorise: this runs on every knot at every backward pass.
 pub(crate) fn is_minus_identity(m: MatRef<'_, f64>) -> bool {
-    // Off-diagonal entries are tested by OR-ing their bits without the sign (so `-0.0`
-    // counts as zero and NaN does not): one branch per column, vectorised.
-    let nonzero = |v: &[f64]| v.iter().fold(0u64, |acc, x| acc | (x.to_bits() << 1)) != 0;
+    // Off-diagonal entries: one vectorised test per column (`-0.0` counts as zero, NaN
+    // does not).
+    use crate::linalg::any_nonzero;
     (0..m.ncols()).all(|j| match m.col(j).try_as_col_major() {
         Some(c) => {
             let c = c.as_slice();
-            c.get(j) == Some(&-1.0) && !nonzero(&c[..j]) && !nonzero(&c[j + 1..])
+            c.get(j) == Some(&-1.0) && !any_nonzero(&c[..j]) && !any_nonzero(&c[j + 1..])
         }
         None => (0..m.nrows()).all(|i| m[(i, j)] == if i == j { -1.0 } else { 0.0 }),
     })

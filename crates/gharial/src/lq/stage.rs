@@ -607,8 +607,8 @@ impl RiccatiStage {
         }
     }
 
-    /// [`solve_gains`](Self::solve_gains) when no constraint row couples with the controls
-    /// (inactive constraints, constraints on the state alone) and `nu` is small: `K` is
+    /// [`solve_gains`](Self::solve_gains) (47a) when no constraint row couples with the
+    /// controls (inactive constraints, constraints on the state alone) and `nu` is small: `K` is
     /// solved straight from `Q_xu` (the mirror of `Q_ux`, whose rows it holds contiguously)
     /// into the gains, and the constraint rows are `Z = C / mu_c` (`ζ = d / mu_c`), the
     /// general path's `-C / -mu_c` to the bit, without the copies into the gains. Returns
